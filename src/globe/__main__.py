@@ -1,0 +1,3 @@
+from globe.cli.main import main
+
+main()

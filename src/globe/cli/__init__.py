@@ -1,0 +1,1 @@
+"""The ``globe`` command line (typer + rich)."""

@@ -1,0 +1,60 @@
+"""Frozen records for a household's observation logs (the data every later layer reads)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+Split = Literal["train", "test"]
+
+
+@dataclass(frozen=True, slots=True)
+class Node:
+    """One node of the home: a room, furniture, an appliance or a movable object."""
+
+    node: str  # "class#id", the node's unique label
+    cls: str
+    category: str
+    movable: bool
+    start_location: str
+
+
+@dataclass(frozen=True, slots=True)
+class Day:
+    """One observed day: the activity and every movable object's location at each step."""
+
+    name: str  # e.g. "train/012"
+    minutes: tuple[int, ...]
+    activities: tuple[str, ...]
+    locations: tuple[tuple[str, ...], ...]  # [step][object column]
+    source: str = ""
+
+    def __len__(self) -> int:
+        return len(self.minutes)
+
+
+@dataclass(frozen=True, slots=True)
+class Household:
+    """A home: its nodes, its movable object columns and its train/test days."""
+
+    name: str
+    nodes: tuple[Node, ...]
+    objects: tuple[str, ...]  # day-file object columns, in file order
+    train: tuple[Day, ...]
+    test: tuple[Day, ...]
+    source: str = ""
+    _node_index: dict[str, Node] = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._node_index.update({n.node: n for n in self.nodes})
+
+    def node(self, label: str) -> Node | None:
+        return self._node_index.get(label)
+
+    @property
+    def locations(self) -> frozenset[str]:
+        """Every label an object may be at."""
+        return frozenset(self._node_index)
+
+    def days(self, split: Split) -> tuple[Day, ...]:
+        return self.train if split == "train" else self.test

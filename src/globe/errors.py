@@ -1,0 +1,88 @@
+"""One exception hierarchy for GLOBE: every front end catches :class:`GlobeError`."""
+
+from __future__ import annotations
+
+
+class GlobeError(Exception):
+    """Root of every error GLOBE raises on purpose."""
+
+
+class ConfigError(GlobeError, ValueError):
+    """A configuration value is missing, malformed or out of range."""
+
+
+class DataError(GlobeError, ValueError):
+    """Bad input data; names the file (``source``), ``line`` and ``field`` where known.
+
+    Formatted like a compiler message so editors link it:
+    ``HouseholdA/train/012.csv:57: column 'minute': 610 is not after 620``.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        source: str | None = None,
+        line: int | None = None,
+        field: str | None = None,
+    ) -> None:
+        self.message = message
+        self.source = source
+        self.line = line
+        self.field = field
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = ""
+        if self.source is not None:
+            where = str(self.source)
+            if self.line is not None:
+                where += f":{self.line}"
+            where += ": "
+        what = f"column {self.field!r}: " if self.field is not None else ""
+        return f"{where}{what}{self.message}"
+
+
+class UnknownLabelError(DataError):
+    """A label (activity, object, location) the model or home does not know."""
+
+
+class NotFittedError(GlobeError, ValueError, AttributeError):
+    """A model was asked to predict before ``fit`` was called."""
+
+
+class ModelFileError(GlobeError, ValueError):
+    """A saved model file is unreadable or of another format version."""
+
+
+class LLMError(GlobeError):
+    """An LLM backend gave no usable answer. Only the gate catches it (and falls back)."""
+
+
+class LLMUnavailableError(LLMError):
+    """The backend could not be reached or loaded."""
+
+
+class LLMTimeoutError(LLMUnavailableError):
+    """The backend did not answer in time."""
+
+
+class LLMAnswerError(LLMError):
+    """The backend answered, but not with one of the listed candidates."""
+
+    def __init__(self, message: str, *, raw: str | None = None) -> None:
+        self.raw = raw
+        super().__init__(message)
+
+
+class MissingExtraError(GlobeError, ImportError):
+    """An optional dependency is not installed; the message gives the pip command."""
+
+    def __init__(self, package: str, extra: str) -> None:
+        super().__init__(
+            f"{package} is not installed; install it with: pip install \"globe[{extra}]\""
+        )
+
+
+class StoreError(GlobeError):
+    """The service's database failed."""

@@ -1,0 +1,1 @@
+"""Evaluation: the HOMER+ protocol, metrics, tables, plots and the experiments."""

@@ -1,0 +1,1 @@
+"""Sequential models: counting n-grams over activities and over objects within activity runs."""

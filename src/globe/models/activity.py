@@ -1,0 +1,103 @@
+"""Next-activity model: an n-gram Markov model over the day's activity sequence."""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Hashable, Sequence
+
+from globe.models.backoff import ESTIMATORS, longest_distribution, witten_bell_distribution
+from globe.models.base import CountingModel, rank
+from globe.models.suffix_index import SuffixIndex
+
+DAY_START = "<day>"
+
+
+class ActivityModel(CountingModel):
+    """P(a_t | a_0 .. a_{t-1}) with a day-start token and backoff (maximum n = ``max_order``).
+
+    ``estimator="longest"`` (default) is the paper's rule: the longest context seen in training
+    decides. ``"witten_bell"`` interpolates all context lengths. ``time_weight`` > 0 multiplies
+    in a time-of-day expert P(a | step)^w, which knows that breakfast happens in the morning.
+    """
+
+    _parameter_constraints = {"estimator": ESTIMATORS, "max_order": int, "time_weight": float, "time_window": int}
+    kind = "activity"
+
+    def __init__(self, *, estimator: str = "longest", max_order: int = 109, time_weight: float = 0.0, time_window: int = 2) -> None:
+        self.estimator = estimator
+        self.max_order = max_order
+        self.time_weight = time_weight
+        self.time_window = time_window
+
+    # -- training ---------------------------------------------------------------------------
+    def fit(self, days: Sequence[Sequence[str]]) -> "ActivityModel":
+        """Train from scratch on per-day activity sequences."""
+        self._reset()
+        return self.partial_fit(days)
+
+    def partial_fit(self, days: Sequence[Sequence[str]]) -> "ActivityModel":
+        """Add observed days to the counts (no retraining of what was seen before)."""
+        if not hasattr(self, "training_data_"):
+            self._validate_params()
+            self.training_data_: list[tuple[str, ...]] = []
+            self.index_ = SuffixIndex(never_predicted=[DAY_START])
+            self.frequency_: Counter[str] = Counter()
+            self.by_step_: list[Counter[str]] = []
+        for day in days:
+            day = tuple(day)
+            self.training_data_.append(day)
+            self.index_.add((DAY_START, *day))
+            self.frequency_.update(day)
+            while len(self.by_step_) < len(day):
+                self.by_step_.append(Counter())
+            for t, a in enumerate(day):
+                self.by_step_[t][a] += 1
+        self.classes_ = tuple(sorted(self.frequency_))
+        return self
+
+    # -- prediction -------------------------------------------------------------------------
+    def _distribution(self, state: int, matched: int, step: int) -> dict[str, float]:
+        max_context = self.max_order - 1
+        if self.estimator == "longest":
+            dist = longest_distribution(self.index_, state, matched, max_context)
+        else:
+            dist = witten_bell_distribution(self.index_, state, matched, max_context, self.classes_)
+        if self.time_weight > 0 and dist:
+            dist = self._with_time(dist, step)
+        return dist  # type: ignore[return-value]
+
+    def _time_prior(self, step: int) -> dict[str, float]:
+        """P(a | step), pooled over +-time_window steps, add-one smoothed."""
+        counts: Counter[str] = Counter()
+        for t in range(max(0, step - self.time_window), min(len(self.by_step_), step + self.time_window + 1)):
+            counts.update(self.by_step_[t])
+        total = sum(counts.values()) + len(self.classes_)
+        return {a: (counts.get(a, 0) + 1) / total for a in self.classes_}
+
+    def _with_time(self, dist: dict[Hashable, float], step: int) -> dict[str, float]:
+        prior = self._time_prior(step)
+        mixed = {a: p * prior.get(a, 1e-9) ** self.time_weight for a, p in dist.items()}
+        total = sum(mixed.values())
+        return {a: p / total for a, p in mixed.items()} if total > 0 else dict(dist)  # type: ignore[misc]
+
+    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
+        """Distribution of the next activity after ``history`` (the day so far, from 06:00)."""
+        self._check_fitted()
+        state, matched = self.index_.match((DAY_START, *history))
+        return self._distribution(state, matched, len(history))
+
+    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
+        """``[predict_proba(day[:t]) for t in range(len(day))]`` in one linear pass."""
+        self._check_fitted()
+        out = []
+        for t, (state, matched) in enumerate(self.index_.scan((DAY_START, *day[:-1]) if day else ())):
+            out.append(self._distribution(state, matched, t))
+        return out
+
+    def ranked(self, distribution: dict[str, float]) -> list[str]:
+        return rank(distribution, self.frequency_)  # type: ignore[return-value]
+
+    def predict(self, history: Sequence[str]) -> str | None:
+        """Most probable next activity (ties: training frequency, then name)."""
+        ranked = self.ranked(self.predict_proba(history))
+        return ranked[0] if ranked else None

@@ -1,0 +1,76 @@
+"""Next-object model: one n-gram per activity over the objects moved in the activity run."""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Iterable, Sequence
+
+from globe.models.backoff import ESTIMATORS, longest_distribution, witten_bell_distribution
+from globe.models.base import CountingModel, rank
+from globe.models.suffix_index import SuffixIndex
+
+RUN_START = "<run>"
+
+
+class ObjectModel(CountingModel):
+    """P(o | a, objects moved so far in the run of a), candidates restricted to O(a).
+
+    Trained on (activity, object sequence) pairs, one per activity run. Backs off from the
+    longest matched object context down to P(o | a). With ``run_start_token`` the first object
+    of a run is conditioned on the run having just begun.
+    """
+
+    _parameter_constraints = {"estimator": ESTIMATORS, "max_order": int, "run_start_token": (True, False)}
+    kind = "object"
+
+    def __init__(self, *, estimator: str = "longest", max_order: int = 109, run_start_token: bool = False) -> None:
+        self.estimator = estimator
+        self.max_order = max_order
+        self.run_start_token = run_start_token
+
+    def fit(self, runs: Iterable[tuple[str, Sequence[str]]]) -> "ObjectModel":
+        """Train from scratch on (activity, objects moved in that run) pairs."""
+        self._reset()
+        return self.partial_fit(runs)
+
+    def partial_fit(self, runs: Iterable[tuple[str, Sequence[str]]]) -> "ObjectModel":
+        if not hasattr(self, "training_data_"):
+            self._validate_params()
+            self.training_data_: list[tuple[str, tuple[str, ...]]] = []
+            self.indexes_: dict[str, SuffixIndex] = {}
+            self.frequency_: dict[str, Counter[str]] = {}
+        for activity, objects in runs:
+            objects = tuple(objects)
+            self.training_data_.append((activity, objects))
+            if not objects:
+                continue
+            index = self.indexes_.setdefault(activity, SuffixIndex(never_predicted=[RUN_START]))
+            index.add(self._prefixed(objects))
+            self.frequency_.setdefault(activity, Counter()).update(objects)
+        return self
+
+    def _prefixed(self, objects: Sequence[str]) -> tuple[str, ...]:
+        return (RUN_START, *objects) if self.run_start_token else tuple(objects)
+
+    def candidates(self, activity: str) -> tuple[str, ...]:
+        """O(a): every object seen moving during ``activity`` in training, sorted."""
+        self._check_fitted()
+        return tuple(sorted(self.frequency_.get(activity, ())))
+
+    def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]:
+        """Distribution over O(activity) of the next object, given the run's objects so far."""
+        self._check_fitted()
+        index = self.indexes_.get(activity)
+        if index is None:
+            return {}
+        state, matched = index.match(self._prefixed(history))
+        if self.estimator == "longest":
+            return longest_distribution(index, state, matched, self.max_order - 1)  # type: ignore[return-value]
+        return witten_bell_distribution(index, state, matched, self.max_order - 1, self.candidates(activity))  # type: ignore[return-value]
+
+    def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]:
+        return rank(distribution, self.frequency_.get(activity, {}))  # type: ignore[return-value]
+
+    def predict(self, activity: str, history: Sequence[str] = ()) -> str | None:
+        ranked = self.ranked(activity, self.predict_proba(activity, history))
+        return ranked[0] if ranked else None

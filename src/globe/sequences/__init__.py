@@ -1,0 +1,1 @@
+"""Preprocessing: raw days -> activity sequences, movement events, activity runs."""

@@ -1,0 +1,55 @@
+"""Object movement events: an object moves at step t when its location differs from t-1."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from globe.data.records import Day
+
+Alignment = Literal["previous", "current", "hybrid"]
+ALIGNMENTS: tuple[Alignment, ...] = ("previous", "current", "hybrid")
+IDLE = "idle"
+
+
+@dataclass(frozen=True, slots=True)
+class MovementEvent:
+    """One object changing location, attached to the activity it is credited to."""
+
+    day: str
+    step: int  # row t at which the new location is first observed
+    minute: int
+    obj: str
+    source: str
+    target: str
+    activity_step: int  # the step whose activity this movement belongs to
+    activity: str
+
+
+def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignment) -> int:
+    """Which step's activity a movement observed at ``step`` belongs to.
+
+    ``previous`` (default, as SLaTe-PRO): the activity in progress when the ten-minute interval
+    began (t-1). ``current``: the activity at t. ``hybrid``: t-1 unless that is ``idle``.
+    """
+    if alignment == "previous":
+        return step - 1
+    if alignment == "current":
+        return step
+    if alignment == "hybrid":
+        return step if activities[step - 1] == IDLE else step - 1
+    raise ValueError(f"unknown alignment {alignment!r}; expected one of {', '.join(ALIGNMENTS)}")
+
+
+def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment = "previous") -> list[MovementEvent]:
+    """Every movement of the day, by step, then by column order (deterministic)."""
+    events: list[MovementEvent] = []
+    for t in range(1, len(day)):
+        before, after = day.locations[t - 1], day.locations[t]
+        if before == after:
+            continue
+        s = activity_step_for(day.activities, t, alignment)
+        for j, obj in enumerate(objects):
+            if before[j] != after[j]:
+                events.append(MovementEvent(day.name, t, day.minutes[t], obj, before[j], after[j], s, day.activities[s]))
+    return events

@@ -1,0 +1,111 @@
+import shutil
+from pathlib import Path
+
+import pytest
+
+from globe.data.csv_logs import format_day, load_household, read_day
+from globe.errors import DataError
+
+
+def test_shipped_households_load(households):
+    for name, h in households.items():
+        assert len(h.train) == 65 and len(h.test) == 10, name
+        assert len(h.objects) == 61
+        assert all(len(d) == 109 for d in h.train + h.test)
+        assert h.train[0].minutes[0] == 360 and h.train[0].minutes[-1] == 1440
+
+
+def test_movement_counts_match_the_dataset_readme(households):
+    # README: 4,914 changes in A, 3,979 in B and 4,014 in C across the 75 days
+    expected = {"A": 4914, "B": 3979, "C": 4014}
+    for name, h in households.items():
+        changes = sum(a != b for d in h.train + h.test for t in range(1, len(d))
+                      for a, b in zip(d.locations[t - 1], d.locations[t]))
+        assert changes == expected[name]
+
+
+def test_format_day_round_trips_the_shipped_file_byte_for_byte(households, homer_root):
+    h = households["B"]
+    path = homer_root / "HouseholdB" / "test" / "003.csv"
+    assert format_day(h.test[3], h.objects) == path.read_text(encoding="utf-8")
+
+
+@pytest.fixture()
+def home(tmp_path, homer_root):
+    """A writable copy of household A with two train days and one test day."""
+    src = homer_root / "HouseholdA"
+    dst = tmp_path / "HouseholdA"
+    (dst / "train").mkdir(parents=True)
+    (dst / "test").mkdir()
+    shutil.copy(src / "nodes.csv", dst / "nodes.csv")
+    for rel in ("train/000.csv", "train/001.csv", "test/000.csv"):
+        shutil.copy(src / rel, dst / rel)
+    return dst
+
+
+def _edit(path: Path, line: int, edit) -> None:
+    lines = path.read_text().splitlines(keepends=True)
+    lines[line - 1] = edit(lines[line - 1])
+    path.write_text("".join(lines))
+
+
+def _load(home: Path):
+    return load_household(home.parent, "A")
+
+
+def test_missing_column_names_file_line_and_field(home):
+    day = home / "train" / "001.csv"
+    _edit(day, 1, lambda s: s.replace("minute,", "minutes,"))
+    with pytest.raises(DataError, match=r"train/001\.csv:1: column 'minute': missing column") as err:
+        _load(home)
+    assert err.value.line == 1 and err.value.field == "minute"
+
+
+def test_unknown_location_is_an_error(home):
+    day = home / "train" / "000.csv"
+    _edit(day, 7, lambda s: s.replace("dining_room#41", "attic#5", 1))
+    with pytest.raises(DataError, match=r"train/000\.csv:7: column 'knifeblock': unknown location 'attic#5'"):
+        _load(home)
+
+
+def test_non_monotonic_minute_is_an_error(home):
+    day = home / "test" / "000.csv"
+    _edit(day, 4, lambda s: "370" + s[s.index(","):])  # line 4 is minute 380; line 3 is 370
+    with pytest.raises(DataError, match=r"test/000\.csv:4: column 'minute': 370 is not after 370"):
+        _load(home)
+
+
+def test_ragged_row_is_an_error(home):
+    day = home / "train" / "001.csv"
+    _edit(day, 10, lambda s: s.rstrip("\n").rsplit(",", 1)[0] + "\n")
+    with pytest.raises(DataError, match=r"train/001\.csv:10: ragged row: 62 fields, header has 63"):
+        _load(home)
+
+
+def test_empty_file_is_an_error(home):
+    (home / "train" / "001.csv").write_text("")
+    with pytest.raises(DataError, match=r"train/001\.csv:1: empty file"):
+        _load(home)
+
+
+def test_non_numeric_minute_is_an_error(home):
+    _edit(home / "train" / "000.csv", 2, lambda s: "six" + s[s.index(","):])
+    with pytest.raises(DataError, match=r"000\.csv:2: column 'minute': 'six' is not a whole number"):
+        _load(home)
+
+
+def test_unknown_object_column_is_an_error(home, households):
+    h = households["A"]
+    path = home / "train" / "000.csv"
+    _edit(path, 1, lambda s: s.replace(",book,", ",novel,"))
+    with pytest.raises(DataError, match=r"000\.csv:1: column 'book': missing column"):
+        read_day(path, h.objects, h.locations)
+
+
+def test_missing_data_folder_is_reported(tmp_path, monkeypatch):
+    from globe.data.locate import resolve_data_root
+
+    with pytest.raises(DataError, match=r"data folder not found \(from --data\)"):
+        resolve_data_root(tmp_path / "nowhere")
+    monkeypatch.setenv("GLOBE_DATA", str(tmp_path))
+    assert resolve_data_root(None) == tmp_path

@@ -1,0 +1,45 @@
+import pytest
+
+from globe.data.records import Day
+from globe.sequences.movements import extract_movements
+from globe.sequences.runs import activity_runs, object_sequences, run_bounds
+
+OBJECTS = ("cup", "plate", "book")
+# step:        0            1            2            3           4
+ACTS = ("idle", "breakfast", "breakfast", "idle", "reading")
+LOCS = (
+    ("cupboard#1", "cupboard#1", "shelf#2"),
+    ("cupboard#1", "cupboard#1", "shelf#2"),
+    ("table#3", "table#3", "shelf#2"),  # cup and plate move at step 2
+    ("sink#4", "table#3", "shelf#2"),  # cup moves at step 3
+    ("sink#4", "table#3", "sofa#5"),  # book moves at step 4
+)
+DAY = Day("toy", (360, 370, 380, 390, 400), ACTS, LOCS)
+
+
+def test_movements_in_column_order_with_previous_alignment():
+    events = extract_movements(DAY, OBJECTS, "previous")
+    assert [(e.step, e.obj, e.activity) for e in events] == [
+        (2, "cup", "breakfast"), (2, "plate", "breakfast"), (3, "cup", "breakfast"), (4, "book", "idle")]
+    assert events[0].source == "cupboard#1" and events[0].target == "table#3"
+
+
+@pytest.mark.parametrize("alignment, expected", [
+    ("current", ["breakfast", "breakfast", "idle", "reading"]),
+    ("hybrid", ["breakfast", "breakfast", "breakfast", "reading"]),  # step 4: t-1 is idle -> t
+])
+def test_alignment_options(alignment, expected):
+    assert [e.activity for e in extract_movements(DAY, OBJECTS, alignment)] == expected
+
+
+def test_runs_group_events_by_activity_run():
+    assert run_bounds(ACTS) == [(0, 0), (1, 2), (3, 3), (4, 4)]
+    runs = activity_runs(DAY, OBJECTS, "previous")
+    assert [(r.activity, r.objects) for r in runs] == [
+        ("idle", ()), ("breakfast", ("cup", "plate", "cup")), ("idle", ("book",)), ("reading", ())]
+    assert object_sequences([DAY], OBJECTS)["idle"] == [(), ("book",)]
+
+
+def test_unknown_alignment_is_rejected():
+    with pytest.raises(ValueError, match="expected one of previous, current, hybrid"):
+        extract_movements(DAY, OBJECTS, "later")  # type: ignore[arg-type]
