@@ -43,15 +43,20 @@ def _load(path: str, n_threads: int, n_ctx: int):
     if not Path(path).is_file():
         raise LLMUnavailableError(f"model file does not exist: {path}")
     log.info("loading %s with %d threads", path, n_threads)
+    # logits_all stays off: Gemma's 262k-word output layer on every prompt token would cost
+    # most of the time; only the logits after the last evaluated token are read.
     return Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
-                 n_batch=n_ctx, logits_all=True, verbose=False, seed=0)
+                 n_batch=n_ctx, logits_all=False, verbose=False, seed=0)
 
 
-def _log_softmax_at(row, token: int) -> float:
+def _last_log_softmax(llm):
+    """Log-probabilities of the next token after the last evaluated one."""
+    import llama_cpp
     import numpy as np
 
-    m = float(row.max())
-    return float(row[token]) - m - math.log(float(np.exp(row - m).sum()))
+    row = np.ctypeslib.as_array(llama_cpp.llama_get_logits(llm.ctx), shape=(llm.n_vocab(),)).astype(np.float64)
+    m = row.max()
+    return row - m - math.log(float(np.exp(row - m).sum()))
 
 
 class EmbeddedBackend(LLMBackend):
@@ -65,6 +70,7 @@ class EmbeddedBackend(LLMBackend):
         self.cache = cache
         self._lock = threading.Lock()
         self._llm = None
+        self._memo: dict[tuple[str, str], float] = {}  # context-free scores, reused across calls
 
     @property
     def model_name(self) -> str:  # type: ignore[override]
@@ -76,30 +82,41 @@ class EmbeddedBackend(LLMBackend):
             self._llm = _load(str(path), self.n_threads, self.n_ctx)
         return self._llm
 
-    def continuation_logprobs(self, prefix: str, continuations: list[str]) -> list[float]:
-        """Sum of token log-probabilities of each continuation after ``prefix``."""
+    def continuation_logprobs(self, prefix: str, continuations: list[str], memo: bool = False) -> list[float]:
+        """Sum of token log-probabilities of each continuation after ``prefix``.
+
+        The prefix is evaluated once; each continuation then costs one single-token decode per
+        token after its first (one-token names cost nothing more).
+        """
         llm = self._model()
         with self._lock:
-            head = llm.tokenize(prefix.encode("utf-8"), add_bos=True)
-            llm.reset()
-            llm.eval(head)
-            out = []
-            for text in continuations:
-                tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
-                llm.n_tokens = len(head)
-                llm.eval(tail)
-                scores = llm.scores
-                total = 0.0
-                for i, tok in enumerate(tail):
-                    total += _log_softmax_at(scores[len(head) - 1 + i], tok)
-                out.append(total)
+            todo = [c for c in continuations if not (memo and (prefix, c) in self._memo)]
+            if todo:
+                head = llm.tokenize(prefix.encode("utf-8"), add_bos=True)
+                if len(head) >= self.n_ctx - 16:
+                    raise ValueError(f"prompt of {len(head)} tokens does not fit n_ctx={self.n_ctx}")
+                llm.reset()
+                llm.eval(head)
+                first = _last_log_softmax(llm)
+                for text in todo:
+                    tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
+                    total = float(first[tail[0]])
+                    llm.n_tokens = len(head)
+                    for nxt_tok, tok in zip(tail[1:], tail[:-1]):
+                        llm.eval([tok])
+                        total += float(_last_log_softmax(llm)[nxt_tok])
+                    self._memo[(prefix, text)] = total
+            out = [self._memo[(prefix, c)] for c in continuations]
+            if not memo:
+                for c in todo:
+                    del self._memo[(prefix, c)]
             return out
 
     def score(self, context: ChoiceContext, candidates: tuple[str, ...]) -> dict[str, float]:
         """PMI of each candidate: log p(name | context sentence) - log p(name | null sentence)."""
         conts = [cloze_continuation(c) for c in candidates]
         with_ctx = self.continuation_logprobs(cloze_prefix(context), conts)
-        without = self.continuation_logprobs(NULL_PREFIX, conts)
+        without = self.continuation_logprobs(NULL_PREFIX, conts, memo=True)
         return {c: a - b for c, a, b in zip(candidates, with_ctx, without)}
 
     def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice:
