@@ -60,7 +60,7 @@ def main() -> None:
     except GlobeError as err:
         if _state["verbose"]:
             console.print_exception()
-        console.print("[red]error:[/red]", escape(str(err)), highlight=False)
+        console.print("[red]error:[/red]", escape(str(err)), highlight=False, soft_wrap=True)
         sys.exit(1)
     except typer.Exit as exit_:
         sys.exit(exit_.exit_code)

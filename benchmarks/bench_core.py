@@ -1,0 +1,48 @@
+"""Training and inference time of the n-gram models per household (no LLM).
+
+Median of several runs on the full HOMER+ split, printed beside the paper's figures
+(training 8.33 s, inference 0.86 s) and the targets (<= 0.05 s each per household).
+Usage: python benchmarks/bench_core.py [--repeats 7] [--data DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+from globe.config import GlobeConfig
+from globe.data.csv_logs import load_household
+from globe.data.locate import resolve_data_root
+from globe.evaluation.protocol import evaluate_days
+from globe.pipeline import fit_household
+from globe.reasoning.choice import ObjectChooser
+
+PAPER_TRAIN_S, PAPER_INFER_S, TARGET_S = 8.33, 0.86, 0.05
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--data", default=None)
+    args = parser.parse_args()
+    cfg = GlobeConfig()
+    root = resolve_data_root(args.data)
+    print(f"{'household':9s} {'preprocess s':>12s} {'train s':>9s} {'inference s':>12s} {'paper train/ours':>17s} {'paper infer/ours':>17s}  target <= {TARGET_S} s")
+    for name in cfg.data.households:
+        h = load_household(root, name)
+        pre, train, infer = [], [], []
+        for _ in range(args.repeats):
+            fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
+            pre.append(fitted.preprocess_s)
+            train.append(fitted.train_s)
+            t = time.perf_counter()
+            evaluate_days(h, h.test, fitted.activity, ObjectChooser(fitted.objects), alignment=cfg.sequences.alignment)
+            infer.append(time.perf_counter() - t)
+        p, tr, inf = (statistics.median(x) for x in (pre, train, infer))
+        ok = "ok" if tr <= TARGET_S and inf <= TARGET_S else "MISSED"
+        print(f"{name:9s} {p:12.4f} {tr:9.4f} {inf:12.4f} {PAPER_TRAIN_S / tr:16.0f}x {PAPER_INFER_S / inf:16.0f}x  {ok}")
+
+
+if __name__ == "__main__":
+    main()

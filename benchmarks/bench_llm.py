@@ -1,0 +1,63 @@
+"""GLOBE inference with the embedded LLM per household: cold (no cache) and from the cache.
+
+Targets: <= 20 s per household cold on 2 cores (the paper: 192 s with a hosted model); a re-run
+from the answer cache within 2x of the n-gram-only inference time.
+Usage: python benchmarks/bench_llm.py [--data DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+from globe.config import GlobeConfig
+from globe.data.csv_logs import load_household
+from globe.data.locate import resolve_data_root
+from globe.evaluation.protocol import evaluate_days
+from globe.pipeline import fit_household
+from globe.reasoning.backends.embedded import EmbeddedBackend
+from globe.reasoning.cache import AnswerCache
+from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.gate import UncertaintyGate
+
+PAPER_S, TARGET_S = 192.0, 20.0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--data", default=None)
+    args = parser.parse_args()
+    cfg = GlobeConfig()
+    root = resolve_data_root(args.data)
+    g = cfg.gate
+    with tempfile.TemporaryDirectory() as tmp:
+        cache_path = Path(tmp) / "answers.sqlite3"
+        warm = EmbeddedBackend(n_threads=cfg.llm.n_threads)
+        t = time.perf_counter()
+        warm._model()
+        print(f"model load: {time.perf_counter() - t:.2f} s (once per process, not counted below)")
+        print(f"{'household':9s} {'ngram s':>8s} {'globe cold s':>12s} {'calls':>6s} {'s/call':>7s} {'globe cached s':>14s} {'cached/ngram':>12s} {'paper/cold':>10s}")
+        for name in cfg.data.households:
+            h = load_household(root, name)
+            fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
+            t = time.perf_counter()
+            evaluate_days(h, h.test, fitted.activity, ObjectChooser(fitted.objects))
+            ngram_s = time.perf_counter() - t
+            timings = []
+            for _ in range(2):  # cold, then from the cache
+                backend = EmbeddedBackend(n_threads=cfg.llm.n_threads, cache=AnswerCache(cache_path))
+                backend._llm = warm._model()
+                gate = UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k, min_prob=g.min_prob)
+                t = time.perf_counter()
+                ev = evaluate_days(h, h.test, fitted.activity, gate)
+                timings.append(time.perf_counter() - t)
+            calls = sum(r.asked for r in ev.objects)
+            cold, cached = timings
+            ok = "ok" if cold <= TARGET_S and cached <= 2 * ngram_s else "MISSED"
+            print(f"{name:9s} {ngram_s:8.3f} {cold:12.2f} {calls:6d} {cold / max(calls, 1):7.3f} {cached:14.3f} {cached / ngram_s:11.1f}x {PAPER_S / cold:9.0f}x  {ok}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,70 @@
+"""The command line as a user runs it: a real subprocess, exit codes and visible lines."""
+
+import csv
+import subprocess
+import sys
+
+import pytest
+
+
+def globe(*args, env=None):
+    return subprocess.run([sys.executable, "-m", "globe", *args], capture_output=True, text=True, env=env, timeout=600)
+
+
+def test_version():
+    res = globe("--version")
+    assert res.returncode == 0 and res.stdout.startswith("globe ")
+
+
+def test_evaluate_writes_a_results_folder(tmp_path):
+    res = globe("evaluate", "--households", "B", "--methods", "persistence,ngram", "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert "Table I" in res.stdout and "n-gram Markov" in res.stdout and "(published)" in res.stdout
+    for name in ("table1.csv", "table1.md", "timing.csv", "details.csv", "config.json", "table1.png"):
+        assert (tmp_path / name).is_file(), name
+    rows = list(csv.DictReader((tmp_path / "table1.csv").open()))
+    assert {r["method"] for r in rows} == {"persistence", "ngram"}
+    assert (tmp_path / "records" / "ngram_B_objects.csv").is_file()
+
+
+def test_train_then_predict(tmp_path):
+    assert globe("train", "--household", "A", "--model-dir", str(tmp_path)).returncode == 0
+    res = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up,brushing_teeth")
+    assert res.returncode == 0, res.stderr
+    assert "next activity:" in res.stdout and "next object during" in res.stdout
+    bad = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up,flying")
+    assert bad.returncode == 1 and "unknown activity 'flying'" in bad.stderr
+
+
+def test_missing_data_folder_is_one_clean_line(tmp_path):
+    res = globe("data", "validate", "--data", str(tmp_path / "nope"))
+    assert res.returncode == 1
+    assert "error:" in res.stderr and "data folder not found (from --data)" in res.stderr
+    assert "Traceback" not in res.stderr
+
+
+def test_bad_day_file_names_file_line_and_field(tmp_path, homer_root):
+    import shutil
+
+    home = tmp_path / "HouseholdZ"
+    shutil.copytree(homer_root / "HouseholdA", home, ignore=shutil.ignore_patterns("0[1-6]*.csv"))
+    path = home / "train" / "000.csv"
+    lines = path.read_text().splitlines(keepends=True)
+    lines[5] = lines[5].replace("dining_room#41", "garage#9", 1)
+    path.write_text("".join(lines))
+    res = globe("data", "validate", "--data", str(tmp_path), "--households", "Z")
+    assert res.returncode == 1
+    assert "000.csv:6: column 'knifeblock': unknown location 'garage#9'" in res.stderr.replace("\n", "")
+
+
+def test_bad_config_value_is_reported(tmp_path):
+    cfg = tmp_path / "globe.toml"
+    cfg.write_text("[gate]\nthreshold = 1.5\n")
+    res = globe("evaluate", "--config", str(cfg), "--households", "A", "--out", str(tmp_path / "r"))
+    assert res.returncode == 1 and "gate.threshold" in res.stderr
+
+
+@pytest.mark.parametrize("args", [["evaluate", "--methods", "magic", "--households", "A"]])
+def test_unknown_method(args, tmp_path):
+    res = globe(*args, "--out", str(tmp_path))
+    assert res.returncode == 1 and "unknown method 'magic'" in res.stderr
