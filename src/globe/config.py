@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from globe.errors import ConfigError
 
 Alignment = Literal["previous", "current", "hybrid"]
-ActivityEstimator = Literal["longest", "witten_bell"]
+ActivityEstimator = Literal["longest", "witten_bell", "routine"]
 ObjectEstimator = Literal["longest", "witten_bell"]
 
 
@@ -48,6 +48,22 @@ class ModelConfig(_Section):
     )
     time_weight: float = Field(0.0, ge=0.0, le=10.0, description="exponent of the time-of-day expert P(a | step)")
     time_window: int = Field(2, ge=0, le=200, description="steps pooled on each side for the time-of-day expert")
+    routine_order: int = Field(3, ge=1, le=100, description="routine model: order of the n-gram over activity runs")
+    routine_time_weight: float = Field(1.0, ge=0.0, le=10.0, description="routine model: weight of P(start | step)")
+    routine_time_window: int = Field(3, ge=0, le=200, description="routine model: steps pooled for the start prior")
+    routine_shrinkage: float = Field(1.0, gt=0.0, le=1000.0, description="routine model: pseudo-count of the stay hazard")
+    object_marginal: bool = Field(
+        False, description="mix object predictions over the activity distribution instead of its argmax"
+    )
+
+
+class SelectionConfig(_Section):
+    folds: int = Field(5, ge=2, le=65, description="cross-validation folds over training days")
+    activity_orders: tuple[int, ...] = Field((2, 3, 4, 6), description="n-gram orders tried (witten_bell)")
+    routine_orders: tuple[int, ...] = Field((2, 3, 4), description="run n-gram orders tried (routine)")
+    time_weights: tuple[float, ...] = Field((0.0, 1.0, 2.0), description="time-of-day weights tried")
+    object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
+    run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
 
 
 class GateConfig(_Section):
@@ -92,7 +108,11 @@ class ServiceConfig(_Section):
 
 
 class EvaluationConfig(_Section):
-    methods: tuple[str, ...] = Field(("persistence", "ngram", "globe", "llm_only"), description="Table I rows")
+    methods: tuple[str, ...] = Field(
+        ("persistence", "ngram", "globe", "llm_only", "ngram_smoothed", "routine", "globe_routine"),
+        description="Table I rows",
+    )
+    calibration_bins: int = Field(10, ge=2, le=100, description="bins of the reliability diagrams")
     repeats: int = Field(1, ge=1, le=100, description="timing repeats")
 
 
@@ -100,6 +120,7 @@ class GlobeConfig(_Section):
     data: DataConfig = DataConfig()
     sequences: SequenceConfig = SequenceConfig()
     models: ModelConfig = ModelConfig()
+    selection: SelectionConfig = SelectionConfig()
     gate: GateConfig = GateConfig()
     llm: LLMConfig = LLMConfig()
     noise: NoiseConfig = NoiseConfig()

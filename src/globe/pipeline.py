@@ -11,6 +11,7 @@ from globe.config import ModelConfig
 from globe.data.records import Day, Household
 from globe.models.activity import ActivityModel
 from globe.models.objects import ObjectModel
+from globe.models.routine import RoutineModel
 from globe.sequences.movements import Alignment
 from globe.sequences.runs import activity_runs
 
@@ -30,7 +31,10 @@ def training_sequences(household: Household, days: Sequence[Day], alignment: Ali
     )
 
 
-def activity_model_from(cfg: ModelConfig) -> ActivityModel:
+def activity_model_from(cfg: ModelConfig) -> ActivityModel | RoutineModel:
+    if cfg.activity_estimator == "routine":
+        return RoutineModel(order=cfg.routine_order, time_weight=cfg.routine_time_weight,
+                            time_window=cfg.routine_time_window, shrinkage=cfg.routine_shrinkage)
     return ActivityModel(estimator=cfg.activity_estimator, max_order=cfg.activity_max_order,
                          time_weight=cfg.time_weight, time_window=cfg.time_window)
 
@@ -42,7 +46,7 @@ def object_model_from(cfg: ModelConfig) -> ObjectModel:
 
 @dataclass(frozen=True, slots=True)
 class FittedHousehold:
-    activity: ActivityModel
+    activity: ActivityModel | RoutineModel
     objects: ObjectModel
     train_s: float  # model fitting only (preprocessing excluded)
     preprocess_s: float

@@ -48,18 +48,19 @@ def timing_table(rows: list[dict]) -> Table:
     from globe.evaluation.published import TABLE2
 
     table = Table(title="Table II - time for the whole test split (s)")
-    for col in ("method", "household", "train", "inference", "LLM calls", "LLM s"):
+    for col in ("method", "household", "train", "inference", "LLM calls", "LLM s", "CV s"):
         table.add_column(col, justify="left" if col in ("method", "household") else "right")
     for r in rows:
-        table.add_row(r["method"], r["household"], f"{r['train_s']:.3f}", f"{r['inference_s']:.3f}", str(r["llm_calls"]), f"{r['llm_s']:.2f}")
+        table.add_row(r["method"], r["household"], f"{r['train_s']:.3f}", f"{r['inference_s']:.3f}", str(r["llm_calls"]),
+                      f"{r['llm_s']:.2f}", f"{r['selection_s']:.2f}" if r["selection_s"] else "")
     for method, (tr, inf) in TABLE2.items():
-        table.add_row(f"[dim]{method} (published)[/dim]", "", f"{tr:.2f}", f"{inf:.2f}", "", "")
+        table.add_row(f"[dim]{method} (published)[/dim]", "", f"{tr:.2f}", f"{inf:.2f}", "", "", "")
     return table
 
 
 def run_table1(cfg: GlobeConfig, data: Path | None, households: str | None, methods: list[str], out_dir: Path) -> None:
     from globe.evaluation import experiments, report
-    from globe.evaluation.plots import table1_figure
+    from globe.evaluation.plots import reliability_figure, table1_figure
 
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
@@ -79,6 +80,12 @@ def run_table1(cfg: GlobeConfig, data: Path | None, households: str | None, meth
     report.write_csv(out_dir / "details.csv", details)
     timing = experiments.timing_rows(runs)
     report.write_csv(out_dir / "timing.csv", timing)
+    report.write_csv(out_dir / "selection.csv", experiments.selection_rows(runs),
+                     ["method", "household", "part", "params", "cv_weighted_f1", "chosen"])
+    calib, curves = experiments.calibration_rows(runs, cfg.evaluation.calibration_bins)
+    report.write_csv(out_dir / "calibration.csv", calib)
+    for part, per_method in curves.items():
+        reliability_figure(per_method, f"Reliability of {part} probabilities").savefig(out_dir / f"reliability_{part}.png", dpi=120)
     for run in runs:
         report.write_records(out_dir / "records", f"{run.method}_{run.household}_activity", run.evaluation.activity)
         report.write_records(out_dir / "records", f"{run.method}_{run.household}_objects", run.evaluation.objects)
@@ -87,6 +94,7 @@ def run_table1(cfg: GlobeConfig, data: Path | None, households: str | None, meth
         "# Table I (HOMER+)", "", report.table1_markdown(rows, labels, "weighted"),
         report.table1_markdown(rows, labels, "micro"), report.table1_markdown(rows, labels, "macro"),
         "# Table II (timing)", "", report.timing_markdown(timing), "# Details", "", report.details_markdown(details),
+        "# Calibration (expected calibration error)", "", report.rows_markdown(calib),
     ])
     (out_dir / "table1.md").write_text(md, encoding="utf-8")
     fig = table1_figure(rows, labels)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 import statistics
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
 from globe.config import GlobeConfig
@@ -24,6 +24,7 @@ class MethodRun:
     evaluation: Evaluation
     oracle: Evaluation
     train_s: float
+    selection: dict = field(default_factory=dict)
 
     @property
     def llm_calls(self) -> int:
@@ -43,17 +44,18 @@ def run_methods(
 ) -> list[MethodRun]:
     """Evaluate each method on each household's test days (plus the true-activity oracle)."""
     runs = []
+    selection_cache: dict = {}
     for name in methods:
         method = METHODS[name]
         if method.needs_llm and backend is None:
             log.warning("skipping %s: no LLM backend configured", name)
             continue
         for h in households:
-            prepared = method.prepare(h, config, backend)
+            prepared = method.prepare(h, config, backend, selection_cache)
             tick = (lambda n, _name=name: progress(_name, n)) if progress else None
             ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, progress=tick)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, oracle=True)
-            runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s))
+            runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection))
     return runs
 
 
@@ -108,5 +110,54 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
 
 def timing_rows(runs: Sequence[MethodRun]) -> list[dict]:
     return [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4),
-             "inference_s": round(r.evaluation.inference_s, 4), "llm_calls": r.llm_calls, "llm_s": round(r.llm_s, 4)}
+             "inference_s": round(r.evaluation.inference_s, 4), "llm_calls": r.llm_calls, "llm_s": round(r.llm_s, 4),
+             "selection_s": round(sum(s.seconds for s in r.selection.values()), 4)}
             for r in runs]
+
+
+def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
+    """Every candidate tried by cross-validation on training days, its score, and the choice."""
+    rows, seen = [], set()
+    for run in runs:
+        for part, sel in run.selection.items():
+            if id(sel) in seen:  # methods of one family share their search
+                continue
+            seen.add(id(sel))
+            for params, score in sel.scores:
+                rows.append({"method": run.method, "household": run.household, "part": part,
+                             "params": ";".join(f"{k}={v}" for k, v in params.items()),
+                             "cv_weighted_f1": round(score, 4), "chosen": params == sel.best})
+    return rows
+
+
+def calibration(confidences: Sequence[float], correct: Sequence[bool], bins: int = 10) -> tuple[float, tuple[list[float], list[float], list[int]]]:
+    """Expected calibration error and the reliability curve (mean confidence, accuracy, count per bin)."""
+    buckets: list[list[tuple[float, bool]]] = [[] for _ in range(bins)]
+    for c, ok in zip(confidences, correct):
+        buckets[min(int(c * bins), bins - 1)].append((c, ok))
+    conf, acc, counts, ece, n = [], [], [], 0.0, max(len(confidences), 1)
+    for b in buckets:
+        if not b:
+            continue
+        mc = sum(c for c, _ in b) / len(b)
+        ma = sum(ok for _, ok in b) / len(b)
+        conf.append(mc)
+        acc.append(ma)
+        counts.append(len(b))
+        ece += len(b) / n * abs(mc - ma)
+    return ece, (conf, acc, counts)
+
+
+def calibration_rows(runs: Sequence[MethodRun], bins: int = 10) -> tuple[list[dict], dict[str, dict]]:
+    """ECE of the activity and object probabilities per method (pooled over households)."""
+    rows, curves = [], {"activity": {}, "object": {}}
+    for method in dict.fromkeys(r.method for r in runs):
+        mine = [r for r in runs if r.method == method]
+        acts = [x for r in mine for x in r.evaluation.activity]
+        objs = [x for r in mine for x in r.evaluation.objects]
+        ece_a, curve_a = calibration([x.confidence for x in acts], [x.true == x.predicted for x in acts], bins)
+        ece_o, curve_o = calibration([x.confidence for x in objs], [x.true == x.predicted for x in objs], bins)
+        curves["activity"][method], curves["object"][method] = curve_a, curve_o
+        rows.append({"method": method, "activity_ece": round(ece_a, 4), "object_ece": round(ece_o, 4),
+                     "activity_predictions": len(acts), "object_predictions": len(objs)})
+    return rows, curves

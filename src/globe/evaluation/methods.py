@@ -1,15 +1,22 @@
-"""The Table I rows: how each method predicts activities and chooses objects."""
+"""The Table I rows: how each method predicts activities and chooses objects.
+
+``ngram_smoothed``, ``routine`` and ``globe_routine`` go beyond the paper; their
+hyperparameters are chosen by cross-validation over each household's training days
+(:func:`globe.evaluation.tuning.tuned_models`), never by looking at test days.
+"""
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
-from globe.config import GlobeConfig
+from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation.protocol import ActivityPredictor
+from globe.evaluation.tuning import tuned_models
 from globe.models.baselines import PersistenceModel
+from globe.models.selection import Selection
 from globe.pipeline import FittedHousehold, fit_household
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
@@ -23,6 +30,7 @@ class Prepared:
     activity: ActivityPredictor
     chooser: ObjectChooser
     train_s: float
+    selection: dict[str, Selection] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,42 +38,53 @@ class Method:
     name: str
     label: str
     needs_llm: bool
-    prepare: Callable[[Household, GlobeConfig, LLMBackend | None], Prepared]
+    prepare: Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]
 
 
-def _fit(h: Household, cfg: GlobeConfig) -> FittedHousehold:
-    return fit_household(h, cfg.models, cfg.sequences.alignment)
+def _fit(h: Household, cfg: GlobeConfig, models: ModelConfig | None = None) -> FittedHousehold:
+    return fit_household(h, models or cfg.models, cfg.sequences.alignment)
 
 
-def _gate(fitted: FittedHousehold, cfg: GlobeConfig, backend: LLMBackend | None) -> UncertaintyGate:
+def _gate(fitted: FittedHousehold, cfg: GlobeConfig, backend: LLMBackend | None, marginal: bool) -> UncertaintyGate:
     g = cfg.gate
-    return UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k,
-                           min_prob=g.min_prob, mode=g.mode, combine_weight=g.combine_weight)
+    return UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k, min_prob=g.min_prob,
+                           mode=g.mode, combine_weight=g.combine_weight, marginal=marginal)
 
 
-def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None) -> Prepared:
+def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     fitted = _fit(h, cfg)
     t = time.perf_counter()
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, ObjectChooser(fitted.objects), time.perf_counter() - t + fitted.train_s)
 
 
-def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None) -> Prepared:
+def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     fitted = _fit(h, cfg)
-    return Prepared(fitted.activity, ObjectChooser(fitted.objects), fitted.train_s)
+    return Prepared(fitted.activity, ObjectChooser(fitted.objects, marginal=cfg.models.object_marginal), fitted.train_s)
 
 
-def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None) -> Prepared:
+def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     fitted = _fit(h, cfg)
-    return Prepared(fitted.activity, _gate(fitted, cfg, backend), fitted.train_s)
+    return Prepared(fitted.activity, _gate(fitted, cfg, backend, cfg.models.object_marginal), fitted.train_s)
 
 
-def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None) -> Prepared:
+def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     if backend is None:
         raise ValueError("llm_only needs an LLM backend")
     fitted = _fit(h, cfg)  # only O(a), the candidate lists, is taken from training
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, LLMOnlyChooser(fitted.objects, backend), fitted.train_s)
+
+
+def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]:
+    def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
+        models, selection = tuned_models(h, cfg, family, cache)
+        fitted = _fit(h, cfg, models)
+        chooser = (_gate(fitted, cfg, backend, models.object_marginal) if with_gate
+                   else ObjectChooser(fitted.objects, marginal=models.object_marginal))
+        return Prepared(fitted.activity, chooser, fitted.train_s, selection)
+
+    return prepare
 
 
 METHODS: dict[str, Method] = {
@@ -75,5 +94,8 @@ METHODS: dict[str, Method] = {
         Method("ngram", "n-gram Markov", False, _ngram),
         Method("globe", "GLOBE", True, _globe),
         Method("llm_only", "LLM-only", True, _llm_only),
+        Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False)),
+        Method("routine", "Routine model (CV)", False, _tuned("routine", False)),
+        Method("globe_routine", "GLOBE + routine model", True, _tuned("routine", True)),
     )
 }

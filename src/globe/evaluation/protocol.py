@@ -97,8 +97,14 @@ def evaluate_days(
         for run in activity_runs(day, household.objects, alignment):
             for i, ev in enumerate(run.events):
                 a_hat = run.activity if oracle else predicted[ev.activity_step]
-                context = run.objects[:i] if a_hat == run.activity else ()
-                choice: ObjectChoice = chooser.choose(a_hat, context)
+                belief = {run.activity: 1.0} if oracle else dists[ev.activity_step]
+                so_far = run.objects[:i]
+
+                def context_for(a: str, _run: str = run.activity, _objs: tuple[str, ...] = so_far) -> tuple[str, ...]:
+                    return _objs if a == _run else ()
+
+                context = context_for(a_hat)
+                choice: ObjectChoice = chooser.choose_given(a_hat, belief, context_for)
                 obj_records.append(ObjectRecord(
                     household.name, day.name, ev.step, run.activity, a_hat, context, ev.obj,
                     choice.obj or NO_PREDICTION, choice.confidence, choice.ngram_choice, choice.asked,

@@ -15,10 +15,11 @@ from globe.errors import ModelFileError
 from globe.models.activity import ActivityModel
 from globe.models.baselines import PersistenceModel
 from globe.models.objects import ObjectModel
+from globe.models.routine import RoutineModel
 
 FORMAT = "globe-model"
 FORMAT_VERSION = 1
-_KINDS = {cls.kind: cls for cls in (ActivityModel, ObjectModel, PersistenceModel)}
+_KINDS = {cls.kind: cls for cls in (ActivityModel, ObjectModel, PersistenceModel, RoutineModel)}
 
 
 def model_to_dict(model: Any) -> dict[str, Any]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable, Mapping
 
 
 @dataclass(frozen=True, slots=True)
@@ -23,21 +24,52 @@ class ObjectChoice:
     fallback: str | None = None
 
 
+ContextFor = Callable[[str], tuple[str, ...]]
+MIN_BELIEF = 1e-3  # activities less likely than this cannot change the mixed object ranking much
+
+
+def object_distribution(model, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
+                        marginal: bool) -> dict[str, float]:
+    """The next-object distribution for the predicted ``activity``, or, with ``marginal``, mixed
+    over every activity the activity model finds possible: sum_a P(a) P(o | a, context(a))."""
+    if not marginal or not belief:
+        return model.predict_proba(activity, context_for(activity))
+    mixed: dict[str, float] = {}
+    for a, pa in belief.items():
+        if pa < MIN_BELIEF:
+            continue
+        for o, po in model.predict_proba(a, context_for(a)).items():
+            mixed[o] = mixed.get(o, 0.0) + pa * po
+    total = sum(mixed.values())
+    return {o: p / total for o, p in mixed.items()} if total > 0 else {}
+
+
 class ObjectChooser:
-    """Chooses the next object for (activity, objects so far). The plain n-gram chooser; the
-    uncertainty gate and the LLM-only chooser override :meth:`choose`."""
+    """Chooses the next object. The plain n-gram chooser; the uncertainty gate and the LLM-only
+    chooser override :meth:`choose_given`.
+
+    ``choose_given(activity, belief, context_for)`` gets the predicted activity, the activity
+    model's whole distribution and, for any activity, the objects that count as context
+    (the current run's objects if that activity continues the run, else none).
+    """
 
     name = "ngram"
 
-    def __init__(self, model) -> None:  # model: globe.models.objects.ObjectModel
+    def __init__(self, model, *, marginal: bool = False) -> None:  # model: ObjectModel
         self.model = model
+        self.marginal = marginal
 
-    def ngram_ranking(self, activity: str, history: tuple[str, ...]) -> tuple[list[str], dict[str, float]]:
-        dist = self.model.predict_proba(activity, history)
+    def ngram_ranking(self, activity: str, belief: Mapping[str, float] | None,
+                      context_for: ContextFor) -> tuple[list[str], dict[str, float]]:
+        dist = object_distribution(self.model, activity, belief, context_for, self.marginal)
         return self.model.ranked(activity, dist), dist
 
-    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
-        ranked, dist = self.ngram_ranking(activity, history)
+    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
+        ranked, dist = self.ngram_ranking(activity, belief, context_for)
         if not ranked:
             return ObjectChoice(None, 0.0)
         return ObjectChoice(ranked[0], dist[ranked[0]], ngram_choice=ranked[0])
+
+    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
+        """The next object for a known activity and the objects moved so far in its run."""
+        return self.choose_given(activity, None, lambda a: tuple(history) if a == activity else ())

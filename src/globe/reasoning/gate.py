@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from typing import Literal
+from typing import Literal, Mapping
 
 from globe.errors import LLMError
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ObjectChoice, ObjectChooser
+from globe.reasoning.choice import ContextFor, ObjectChoice, ObjectChooser
 from globe.reasoning.context import ChoiceContext
 
 GateMode = Literal["replace", "combine"]
@@ -28,8 +28,9 @@ class UncertaintyGate(ObjectChooser):
     name = "globe"
 
     def __init__(self, model, backend: LLMBackend | None, *, threshold: float = 0.5, top_k: int = 5,
-                 min_prob: float = 0.1, mode: GateMode = "replace", combine_weight: float = 1.0) -> None:
-        super().__init__(model)
+                 min_prob: float = 0.1, mode: GateMode = "replace", combine_weight: float = 1.0,
+                 marginal: bool = False) -> None:
+        super().__init__(model, marginal=marginal)
         self.backend = backend
         self.threshold = threshold
         self.top_k = top_k
@@ -41,8 +42,8 @@ class UncertaintyGate(ObjectChooser):
     def candidates_for(self, ranked: list[str], dist: dict[str, float]) -> tuple[str, ...]:
         return tuple(o for o in ranked[: self.top_k] if dist[o] > self.min_prob)
 
-    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
-        ranked, dist = self.ngram_ranking(activity, history)
+    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
+        ranked, dist = self.ngram_ranking(activity, belief, context_for)
         if not ranked:
             return ObjectChoice(None, 0.0)
         top = ranked[0]
@@ -57,7 +58,7 @@ class UncertaintyGate(ObjectChooser):
         self.stats["asked"] += 1
         started = time.perf_counter()
         try:
-            answer = self.backend.choose(ChoiceContext(activity, tuple(history)), candidates)
+            answer = self.backend.choose(ChoiceContext(activity, context_for(activity)), candidates)
         except LLMError as err:
             reason = type(err).__name__
             self.stats[f"fallback:{reason}"] += 1
@@ -83,7 +84,7 @@ class LLMOnlyChooser(ObjectChooser):
         self.backend = backend
         self.stats: Counter[str] = Counter()
 
-    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
+    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
         candidates = tuple(sorted(self.model.candidates(activity)))
         if not candidates:
             return ObjectChoice(None, 0.0)
@@ -91,7 +92,7 @@ class LLMOnlyChooser(ObjectChooser):
             return ObjectChoice(candidates[0], 1.0, candidates=candidates)
         started = time.perf_counter()
         try:
-            answer = self.backend.choose(ChoiceContext(activity, tuple(history)), candidates)
+            answer = self.backend.choose(ChoiceContext(activity, context_for(activity)), candidates)
         except LLMError as err:
             self.stats[f"fallback:{type(err).__name__}"] += 1
             return ObjectChoice(None, 0.0, None, True, candidates, None, time.perf_counter() - started, type(err).__name__)
