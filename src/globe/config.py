@@ -105,6 +105,8 @@ class ServiceConfig(_Section):
     database: Path = Field(Path("globe.sqlite3"), description="SQLite file")
     action_threshold: float = Field(0.5, ge=0.0, le=1.0, description="fetch when object p >= this")
     day_start_minute: int = Field(360, ge=0, lt=1440, description="minute at which a new day begins")
+    step_minutes: int = Field(10, ge=1, le=1440, description="minutes between observations (one step)")
+    max_gap_steps: int = Field(36, ge=0, le=1000, description="longer gaps restart the day's history")
 
 
 class EvaluationConfig(_Section):

@@ -8,6 +8,7 @@ from globe.errors import ConfigError, ModelFileError, NotFittedError
 from globe.models.activity import ActivityModel
 from globe.models.io import load_model, save_model
 from globe.models.objects import ObjectModel
+from globe.models.routine import RoutineModel
 
 DAYS = [("sleep", "wake", "eat", "eat", "work"), ("sleep", "wake", "eat", "work", "work"),
         ("sleep", "sleep", "wake", "eat", "tv")]
@@ -59,6 +60,8 @@ MODELS = [
     pytest.param(lambda: ActivityModel(), DAYS, lambda m: m.predict_proba(["sleep", "wake"]), id="activity-longest"),
     pytest.param(lambda: ActivityModel(estimator="witten_bell", max_order=3, time_weight=1.0), DAYS,
                  lambda m: m.predict_proba(["sleep", "wake", "eat"]), id="activity-wb-time"),
+    pytest.param(lambda: RoutineModel(order=2, time_weight=1.0), DAYS,
+                 lambda m: m.predict_proba(["sleep", "wake", "eat"]), id="activity-routine"),
     pytest.param(lambda: ObjectModel(), RUNS, lambda m: m.predict_proba("eat", ("bowl",)), id="object-longest"),
     pytest.param(lambda: ObjectModel(estimator="witten_bell", run_start_token=True), RUNS,
                  lambda m: m.predict_proba("eat", ("bowl",)), id="object-wb"),

@@ -10,7 +10,7 @@ import typer
 from rich.markup import escape
 
 from globe import __version__
-from globe.cli import data_cmd, evaluate_cmd, model_cmd
+from globe.cli import data_cmd, evaluate_cmd, model_cmd, service_cmd
 from globe.cli.common import console
 from globe.errors import GlobeError
 
@@ -21,6 +21,8 @@ app.command("train")(model_cmd.train)
 app.command("predict")(model_cmd.predict)
 app.command("evaluate")(evaluate_cmd.evaluate)
 app.command("reproduce")(evaluate_cmd.reproduce)
+app.command("serve")(service_cmd.serve)
+app.command("robot")(service_cmd.robot)
 
 _state = {"verbose": False}
 
@@ -40,21 +42,7 @@ def _main(
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
 
-def _register_optional() -> None:
-    """Commands whose modules are cheap to import; heavy extras load inside them."""
-    from globe.cli import noise_cmd, service_cmd  # noqa: F401
-
-    app.command("noise")(noise_cmd.noise)
-    app.command("robustness")(noise_cmd.robustness)
-    app.command("serve")(service_cmd.serve)
-    app.command("robot")(service_cmd.robot)
-
-
 def main() -> None:
-    try:
-        _register_optional()
-    except ImportError:  # pragma: no cover - partial checkouts
-        pass
     try:
         app(standalone_mode=False)
     except GlobeError as err:

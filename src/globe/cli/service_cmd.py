@@ -1,0 +1,64 @@
+"""``globe serve`` (the HTTP service) and ``globe robot`` (a simulated robot against it)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from globe.cli.common import ConfigOption, DataOption, console, households_from, out, progress_bar, resolve
+from globe.errors import MissingExtraError
+
+
+def serve(
+    database: Annotated[Path | None, typer.Option("--db", help="SQLite file (created if missing)")] = None,
+    host: Annotated[str | None, typer.Option("--host", help="bind address")] = None,
+    port: Annotated[int | None, typer.Option("--port", help="TCP port")] = None,
+    backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Start the GLOBE assistance service (OpenAPI at /docs)."""
+    cfg = resolve(config, service__database=database, service__host=host, service__port=port, llm__backend=backend)
+    try:
+        import uvicorn
+    except ImportError as err:
+        raise MissingExtraError("uvicorn", "service") from err
+    from globe.service.app import create_app
+
+    console.print(f"GLOBE service on http://{cfg.service.host}:{cfg.service.port} (database {cfg.service.database})")
+    uvicorn.run(create_app(cfg), host=cfg.service.host, port=cfg.service.port, log_level="warning")
+
+
+def robot(
+    url: Annotated[str, typer.Option("--url", help="service base URL")] = "http://127.0.0.1:8765",
+    household: Annotated[str, typer.Option("--household", help="HOMER+ household to replay, e.g. A")] = "A",
+    name: Annotated[str | None, typer.Option("--name", help="household id in the service (default: the household)")] = None,
+    days: Annotated[int, typer.Option("--days", min=1, help="how many test days to replay")] = 10,
+    data: DataOption = None,
+    config: ConfigOption = None,
+    report_file: Annotated[Path | None, typer.Option("--report", help="also write the metrics as JSON")] = None,
+) -> None:
+    """Replay HOMER+ test days through the service as a simulated robot; print assistance metrics."""
+    from globe.service.client import GlobeClient, ServiceError
+    from globe.service.robot import SimulatedRobot, replay_days
+
+    cfg = resolve(config)
+    (h,) = households_from(cfg, data, household)
+    ident = name or h.name
+    with GlobeClient(url) as client:
+        try:
+            client.create_household(ident, h.source)
+        except ServiceError as err:
+            if err.status != 409:
+                raise
+            console.print(f"household {ident!r} exists in the service: continuing with its state")
+        test_days = h.test[:days]
+        with progress_bar(len(test_days), "replaying days") as advance:
+            report = replay_days(client, ident, h, test_days, SimulatedRobot(), progress=advance)
+        summary = report.summary()
+    for key, value in summary.items():
+        out.print(f"{key:20s} {value}")
+    if report_file:
+        report_file.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")

@@ -1,0 +1,121 @@
+"""The robot side: an adapter interface, and a simulated robot that replays HOMER+ days through
+the service as if it were watching the person, fetching when told to act."""
+
+from __future__ import annotations
+
+import datetime as dt
+import statistics
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Protocol, Sequence
+
+from globe.data.records import Day, Household
+from globe.sequences.movements import extract_movements
+from globe.sequences.runs import run_bounds
+from globe.service.client import GlobeClient
+
+
+@dataclass(frozen=True, slots=True)
+class FetchOutcome:
+    obj: str
+    to_location: str | None
+    ok: bool
+    message: str = ""
+
+
+class RobotAdapter(Protocol):
+    """What GLOBE needs from a robot: fetch an object to a place, and say how it went."""
+
+    def fetch(self, obj: str, to_location: str | None) -> FetchOutcome: ...
+
+
+class SimulatedRobot:
+    """A robot that always succeeds and remembers what it fetched."""
+
+    def __init__(self) -> None:
+        self.fetched: list[tuple[str, str | None]] = []
+
+    def fetch(self, obj: str, to_location: str | None) -> FetchOutcome:
+        self.fetched.append((obj, to_location))
+        return FetchOutcome(obj, to_location, True, "simulated")
+
+
+@dataclass(slots=True)
+class AssistanceReport:
+    days: int = 0
+    steps: int = 0
+    fetches: int = 0
+    useful_fetches: int = 0
+    used_objects: int = 0
+    used_fetched_in_advance: int = 0
+    lead_minutes: list[int] = field(default_factory=list)
+    llm_consulted: int = 0
+    latencies_s: list[float] = field(default_factory=list)
+
+    @property
+    def precision(self) -> float:
+        return self.useful_fetches / self.fetches if self.fetches else 0.0
+
+    @property
+    def recall(self) -> float:
+        return self.used_fetched_in_advance / self.used_objects if self.used_objects else 0.0
+
+    def summary(self) -> dict:
+        lat = sorted(self.latencies_s)
+        return {
+            "days": self.days, "steps": self.steps, "fetches": self.fetches,
+            "precision": round(self.precision, 4), "recall": round(self.recall, 4),
+            "median_lead_min": statistics.median(self.lead_minutes) if self.lead_minutes else None,
+            "llm_consult_rate": round(self.llm_consulted / self.steps, 4) if self.steps else 0.0,
+            "latency_median_ms": round(1000 * statistics.median(lat), 2) if lat else None,
+            "latency_p95_ms": round(1000 * lat[int(0.95 * (len(lat) - 1))], 2) if lat else None,
+        }
+
+
+def _timestamp(day_index: int, minute: int, base: dt.date) -> dt.datetime:
+    return dt.datetime.combine(base, dt.time()) + dt.timedelta(days=day_index, minutes=minute)
+
+
+def replay_days(client: GlobeClient, household_name: str, household: Household, days: Sequence[Day],
+                robot: RobotAdapter, *, base_date: dt.date = dt.date(2026, 1, 5), lead_window_steps: int = 6,
+                progress: Callable[[int], None] | None = None) -> AssistanceReport:
+    """Post every step of ``days`` as observations, ask for a prediction after each, and fetch
+    when the service says to act. Returns the assistance metrics.
+
+    A fetch at step t is *useful* if the object moves during the rest of the activity run that
+    is under way at step t+1. A used object (a movement event) counts as *fetched in advance*
+    if it was fetched within ``lead_window_steps`` steps before it moved.
+    """
+    report = AssistanceReport()
+    for d_index, day in enumerate(days):
+        report.days += 1
+        run_end = {t: e for s, e in run_bounds(day.activities) for t in range(s, e + 1)}
+        moves: dict[int, set[str]] = {}
+        for ev in extract_movements(day, household.objects):
+            moves.setdefault(ev.step, set()).add(ev.obj)
+        pending: dict[str, int] = {}  # object -> step fetched (not yet used)
+        for t in range(len(day)):
+            for obj in moves.get(t, ()):  # the person used these objects at step t
+                report.used_objects += 1
+                fetched_at = pending.pop(obj, None)
+                if fetched_at is not None and t - fetched_at <= lead_window_steps:
+                    report.used_fetched_in_advance += 1
+                    report.lead_minutes.append(day.minutes[t] - day.minutes[fetched_at])
+            started = time.perf_counter()
+            client.observe(household_name, _timestamp(d_index, day.minutes[t], base_date), day.activities[t],
+                           dict(zip(household.objects, day.locations[t])))
+            pred = client.prediction(household_name)
+            report.latencies_s.append(time.perf_counter() - started)
+            report.steps += 1
+            report.llm_consulted += pred.llm_consulted
+            if pred.act and pred.object and pred.object not in pending and t + 1 < len(day):
+                outcome = robot.fetch(pred.object, pred.fetch_to)
+                if outcome.ok:
+                    report.fetches += 1
+                    pending[pred.object] = t
+                    horizon = run_end[t + 1]
+                    if any(pred.object in moves.get(u, ()) for u in range(t + 1, horizon + 1)):
+                        report.useful_fetches += 1
+        if progress:
+            progress(1)
+    return report

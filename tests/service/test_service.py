@@ -1,0 +1,145 @@
+"""The service over real loopback HTTP against the real server process and SQLite."""
+
+import datetime as dt
+import threading
+
+import pytest
+
+from globe.models.activity import ActivityModel
+from globe.models.io import model_from_dict
+from globe.models.objects import ObjectModel
+from globe.sequences.runs import activity_runs
+from globe.service.client import GlobeClient, ServiceError
+from globe.service.robot import SimulatedRobot, replay_days
+
+pytestmark = pytest.mark.service
+BASE = dt.datetime(2026, 3, 2)
+
+
+def at(day: int, minute: int) -> dt.datetime:
+    return BASE + dt.timedelta(days=day, minutes=minute)
+
+
+def post_day(client, name, household, day, index, steps=None):
+    for t in range(steps if steps is not None else len(day)):
+        client.observe(name, at(index, day.minutes[t]), day.activities[t], dict(zip(household.objects, day.locations[t])))
+
+
+@pytest.fixture()
+def client(server):
+    with GlobeClient(server.url) as c:
+        yield c
+
+
+def test_incremental_learning_equals_batch_training(client, households):
+    h = households["B"]
+    client.create_household("B", h.source)
+    post_day(client, "B", h, h.test[0], 0)
+    post_day(client, "B", h, h.test[1], 1)
+    post_day(client, "B", h, h.test[2], 2, steps=3)  # the first steps of day 3 close day 2
+    assert client.stats("B")["days_learned"] == 2
+    exported = client.export_model("B")
+    online_act, online_obj = model_from_dict(exported["activity"]), model_from_dict(exported["objects"])
+    days = list(h.train) + [h.test[0], h.test[1]]
+    batch_act = ActivityModel().fit([d.activities for d in days])
+    batch_obj = ObjectModel().fit([(r.activity, r.objects) for d in days for r in activity_runs(d, h.objects)])
+    assert online_act.training_data_ == batch_act.training_data_
+    for t in (1, 20, 60, 100):
+        history = h.test[3].activities[:t]
+        assert online_act.predict_proba(history) == batch_act.predict_proba(history)
+    for activity in batch_obj.indexes_:
+        assert online_obj.predict_proba(activity, ()) == batch_obj.predict_proba(activity, ())
+
+
+def test_state_survives_a_killed_server(server, households):
+    h = households["A"]
+    with GlobeClient(server.url) as c:
+        c.create_household("A", h.source)
+        post_day(c, "A", h, h.test[0], 0)
+        post_day(c, "A", h, h.test[1], 1, steps=40)
+        before_stats, before_pred = c.stats("A"), c.prediction("A")
+    server.kill()  # SIGKILL: no shutdown hook runs
+    server.start()
+    with GlobeClient(server.url) as c:
+        after_stats, after_pred = c.stats("A"), c.prediction("A")
+        assert after_stats == before_stats
+        assert (after_pred.activity, after_pred.object, after_pred.object_probability) == (
+            before_pred.activity, before_pred.object, before_pred.object_probability)
+        with pytest.raises(ServiceError, match="is not after the last observation"):
+            post_day(c, "A", h, h.test[1], 1, steps=1)  # already acknowledged before the kill
+        day = h.test[1]
+        for t in range(40, len(day)):  # the robot goes on where it stopped
+            c.observe("A", at(1, day.minutes[t]), day.activities[t], dict(zip(h.objects, day.locations[t])))
+        assert c.stats("A")["observations"] == 2 * 109
+    assert after_stats["observations"] == 109 + 40
+
+
+def test_bad_input_gets_4xx_naming_the_field_and_changes_nothing(client, households):
+    h = households["C"]
+    client.create_household("C", h.source)
+    post_day(client, "C", h, h.test[0], 0, steps=10)
+    before, pred = client.stats("C"), client.prediction("C")
+    cases = [
+        (lambda: client.observe("nobody", at(0, 500), "idle", {}), 404, None),
+        (lambda: client._call("POST", "/households/C/observations", json={"time": "yesterday-ish", "activity": "idle"}), 422, "time"),
+        (lambda: client.observe("C", at(0, 300), "idle", {}), 422, "time"),  # before the last observation
+        (lambda: client.observe("C", at(0, 600), "idle", {"book": "attic#1"}), 422, "locations.book"),
+        (lambda: client.observe("C", at(0, 600), "idle", {"spaceship": "kitchen#1"}), 422, "locations.spaceship"),
+        (lambda: client._call("POST", "/households/C/observations", json={"time": at(0, 600).isoformat()}), 422, "activity"),
+        (lambda: client.create_household("C", h.source), 409, None),
+        (lambda: client.create_household("D", "/no/such/folder"), 422, "source"),
+    ]
+    for call, status, field in cases:
+        with pytest.raises(ServiceError) as err:
+            call()
+        assert err.value.status == status, err.value
+        if field:
+            assert err.value.field == field, err.value
+    assert client.stats("C") == before
+    assert client.prediction("C").object == pred.object
+
+
+def test_concurrent_clients_are_serialised(server, households):
+    hA, hB = households["A"], households["B"]
+    with GlobeClient(server.url) as c:
+        c.create_household("A", hA.source)
+        c.create_household("B", hB.source)
+    day = hA.test[0]
+    accepted, errors = [], []
+
+    def worker(offset):
+        with GlobeClient(server.url) as c:
+            for t in range(offset, len(day), 4):  # four clients interleave the steps of one day
+                try:
+                    c.observe("A", at(0, day.minutes[t]), day.activities[t], dict(zip(hA.objects, day.locations[t])))
+                    accepted.append(t)
+                except ServiceError as err:
+                    errors.append(err)
+                c.prediction("A")
+
+    def household_b():
+        with GlobeClient(server.url) as c:
+            post_day(c, "B", hB, hB.test[0], 0)
+
+    threads = [threading.Thread(target=worker, args=(i,)) for i in range(4)] + [threading.Thread(target=household_b)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert all(e.status == 422 and e.field == "time" for e in errors)  # out-of-order arrivals only
+    with GlobeClient(server.url) as c:
+        assert c.stats("A")["observations"] == len(accepted)
+        assert c.stats("B")["observations"] == len(hB.test[0])
+        assert c.stats("B")["steps_today"] == len(hB.test[0])
+
+
+def test_simulated_robot_reports_assistance_metrics(client, households):
+    h = households["A"]
+    client.create_household("A", h.source)
+    report = replay_days(client, "A", h, h.test[:2], SimulatedRobot())
+    s = report.summary()
+    assert s["steps"] == 2 * 109 and s["days"] == 2
+    assert s["fetches"] > 0 and 0 < s["precision"] <= 1 and 0 < s["recall"] <= 1
+    assert report.useful_fetches <= report.fetches
+    assert s["latency_median_ms"] > 0
+    assert client.stats("A")["days_learned"] == 1
