@@ -96,7 +96,11 @@ class NoiseConfig(_Section):
     seed: int = Field(0, description="random seed of the generator")
     levels: tuple[float, ...] = Field((0.25, 0.5, 1.0), description="noise levels")
     rate: float = Field(0.35, ge=0.0, le=5.0, description="proposed disturbances per activity run")
-    temperature: float = Field(1.0, gt=0.0, le=10.0, description="sampling temperature over LLM scores")
+    temperature: float = Field(2.0, gt=0.0, le=10.0, description="sampling temperature over LLM scores")
+    types: tuple[Literal["person", "pet", "toddler"], ...] = Field(("person", "pet", "toddler"), description="noise types")
+    train_level: float = Field(0.5, gt=0.0, le=1.0, description="noise level of the training days")
+    test_level: float = Field(1.0, gt=0.0, le=1.0, description="noise level of the test days")
+    thresholds: tuple[float, ...] = Field((0.25, 0.5, 0.75), description="gate thresholds d of the ablation")
 
 
 class ServiceConfig(_Section):

@@ -123,7 +123,12 @@ def reproduce(
     data: DataOption = None,
     config: ConfigOption = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
+    robustness: Annotated[bool, typer.Option("--robustness/--no-robustness", help="also generate HOMER-Noise and run the robustness suite")] = True,
 ) -> None:
     """Run every experiment available on the shipped HOMER+ and write the results folder."""
     cfg = resolve(config, llm__backend=backend)
     run_table1(cfg, data, None, list(cfg.evaluation.methods), out_dir)
+    if robustness:
+        from globe.cli.noise_cmd import run_robustness
+
+        run_robustness(cfg, households_from(cfg, data, None), out_dir / "homer_noise", out_dir / "robustness")

@@ -10,7 +10,7 @@ import typer
 from rich.markup import escape
 
 from globe import __version__
-from globe.cli import data_cmd, evaluate_cmd, model_cmd, service_cmd
+from globe.cli import data_cmd, evaluate_cmd, model_cmd, noise_cmd, service_cmd
 from globe.cli.common import console
 from globe.errors import GlobeError
 
@@ -21,6 +21,8 @@ app.command("train")(model_cmd.train)
 app.command("predict")(model_cmd.predict)
 app.command("evaluate")(evaluate_cmd.evaluate)
 app.command("reproduce")(evaluate_cmd.reproduce)
+app.command("noise")(noise_cmd.noise)
+app.command("robustness")(noise_cmd.robustness)
 app.command("serve")(service_cmd.serve)
 app.command("robot")(service_cmd.robot)
 

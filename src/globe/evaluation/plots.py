@@ -53,3 +53,65 @@ def reliability_figure(curves: dict[str, tuple[list[float], list[float], list[in
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def robustness_figure(rows: Sequence[dict], published_clean: dict[str, float] | None = None) -> Figure:
+    """Object F1 per dataset (clean, person, pet, toddler) and method: all events (solid) and
+    routine events only (hatched)."""
+    datasets = list(dict.fromkeys(r["dataset"] for r in rows))
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    width = 0.8 / (2 * len(methods))
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, method in enumerate(methods):
+        get = {r["dataset"]: r for r in rows if r["method"] == method}
+        xs = [i + (2 * k) * width - 0.4 + width / 2 for i in range(len(datasets))]
+        ax.bar(xs, [get[d]["object_f1"] for d in datasets], width, color=colors[k % len(colors)], label=f"{method}: all events")
+        ax.bar([x + width for x in xs], [get[d]["object_f1_routine"] for d in datasets], width, color=colors[k % len(colors)],
+               alpha=0.45, hatch="//", label=f"{method}: routine events only")
+    if published_clean:
+        for name, value in published_clean.items():
+            ax.axhline(value, ls="--", lw=1, color="black")
+            ax.text(len(datasets) - 0.5, value + 0.01, f"{name} clean (published) {value:.2f}", ha="right", fontsize=7)
+    ax.set_xticks(range(len(datasets)), datasets)
+    ax.set_ylabel("object F1 (weighted, mean of A, B, C)")
+    ax.set_xlabel("test data (noisy: trained at level 0.5, tested at 1.0)")
+    ax.set_ylim(0, 1)
+    ax.set_title("Robustness to person / pet / toddler disturbances")
+    ax.legend(fontsize=7, ncols=2, loc="lower left")
+    fig.tight_layout()
+    return fig
+
+
+def grouped_line_figure(rows: Sequence[dict], x: str, series: str, y: str, title: str, xlabel: str, ylabel: str) -> Figure:
+    """One line per ``series`` value, ``y`` against ``x``."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name in dict.fromkeys(r[series] for r in rows):
+        pts = sorted((r[x], r[y]) for r in rows if r[series] == name and r[y] is not None)
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=str(name))
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def consistency_figure(rows: Sequence[dict], method: str) -> Figure:
+    """Object F1 under more / moderate / less consistent behaviour, per dataset."""
+    mine = [r for r in rows if r["method"] == method]
+    datasets = list(dict.fromkeys(r["dataset"] for r in mine))
+    groups = ("more", "moderate", "less")
+    fig, ax = plt.subplots(figsize=(7, 4))
+    width = 0.8 / len(groups)
+    for k, g in enumerate(groups):
+        vals = [next((r["object_f1"] or 0 for r in mine if r["dataset"] == d and r["consistency"] == g), 0) for d in datasets]
+        ax.bar([i + (k - 1) * width for i in range(len(datasets))], vals, width, label=f"{g} consistent")
+    ax.set_xticks(range(len(datasets)), datasets)
+    ax.set_ylabel("object F1 (weighted)")
+    ax.set_ylim(0, 1)
+    ax.set_title(f"Behavioural consistency ({method}): activities by spread of start time")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,149 @@
+"""The robustness suite on HOMER-Noise (the paper's Figs. 4-6).
+
+- Robustness: train at noise level 0.5, test at 1.0, per noise type, beside clean HOMER+.
+  Object F1 twice: on all movement events (as the paper) and on the routine ones only
+  (injected movements excluded via the manifest).
+- Behavioural consistency: activities split into three equal groups by how regular their start
+  time is across training days (standard deviation of the first start step of the activity in
+  each day where it occurs; lower = more consistent); object F1 per group.
+- Ablations: training noise level 0.25 / 0.5 / 1.0 (test 1.0); threshold d 0.25 / 0.5 / 0.75.
+"""
+
+from __future__ import annotations
+
+import statistics
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable, Sequence
+
+from globe.config import GlobeConfig
+from globe.data.csv_logs import load_household
+from globe.data.records import Household
+from globe.evaluation.methods import METHODS
+from globe.evaluation.metrics import f1
+from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
+from globe.noise.dataset import level_dir, read_manifest
+from globe.reasoning.backends.base import LLMBackend
+
+CLEAN = "clean"
+
+
+@dataclass(frozen=True, slots=True)
+class Dataset:
+    """Households to train and test on, and the injected test movements."""
+
+    name: str
+    households: list[Household]
+    injected: set[tuple[str, str, int, str]]
+
+
+def clean_dataset(households: Sequence[Household]) -> Dataset:
+    return Dataset(CLEAN, list(households), set())
+
+
+def noisy_dataset(root: Path, noise_type: str, train_level: float, test_level: float, names: Sequence[str]) -> Dataset:
+    out = []
+    for name in names:
+        train = load_household(level_dir(root, noise_type, train_level), name)
+        test = load_household(level_dir(root, noise_type, test_level), name)
+        out.append(replace(train, test=test.test))
+    return Dataset(noise_type, out, read_manifest(level_dir(root, noise_type, test_level) / "manifest.csv"))
+
+
+def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMBackend | None) -> list[Evaluation]:
+    cache: dict = {}  # CV results are per dataset (households share names across datasets)
+    out = []
+    for h in data.households:
+        prepared = METHODS[method].prepare(h, cfg, backend, cache)
+        out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=cfg.sequences.alignment,
+                                 injected=lambda day, step, obj, _h=h.name: (_h, day, step, obj) in data.injected))
+    return out
+
+
+def _obj_f1(records: Sequence[ObjectRecord]) -> float:
+    return f1([r.true for r in records], [r.predicted for r in records])
+
+
+def score_row(dataset: str, method: str, evals: Sequence[Evaluation], **extra: object) -> dict:
+    """Mean over households of activity F1, object F1 (all events), object F1 (routine events)."""
+    act = statistics.fmean(f1([r.true for r in e.activity], [r.predicted for r in e.activity]) for e in evals)
+    obj = statistics.fmean(_obj_f1(e.objects) for e in evals)
+    routine = statistics.fmean(_obj_f1([r for r in e.objects if not r.injected]) for e in evals)
+    injected = sum(r.injected for e in evals for r in e.objects)
+    return {"dataset": dataset, "method": method, **extra, "activity_f1": round(act, 4), "object_f1": round(obj, 4),
+            "object_f1_routine": round(routine, 4), "mean_f1": round((act + obj) / 2, 4),
+            "object_events": sum(len(e.objects) for e in evals), "injected_events": injected}
+
+
+def consistency_groups(households: Sequence[Household]) -> dict[str, dict[str, str]]:
+    """Per household: activity -> 'more' / 'moderate' / 'less' consistent (tertiles of the spread
+    of its first start step across training days)."""
+    groups: dict[str, dict[str, str]] = {}
+    for h in households:
+        starts: dict[str, list[int]] = {}
+        for day in h.train:
+            seen = set()
+            for t, a in enumerate(day.activities):
+                if a not in seen:
+                    seen.add(a)
+                    starts.setdefault(a, []).append(t)
+        spread = {a: statistics.pstdev(s) for a, s in starts.items()}
+        ordered = sorted(spread, key=lambda a: (spread[a], a))
+        n = len(ordered)
+        groups[h.name] = {a: ("more" if i < n / 3 else "moderate" if i < 2 * n / 3 else "less") for i, a in enumerate(ordered)}
+    return groups
+
+
+def consistency_rows(dataset: str, method: str, evals: Sequence[Evaluation], groups: dict[str, dict[str, str]]) -> list[dict]:
+    rows = []
+    for group in ("more", "moderate", "less"):
+        recs = [r for e in evals for r in e.objects if groups.get(r.household, {}).get(r.true_activity) == group]
+        rows.append({"dataset": dataset, "method": method, "consistency": group,
+                     "object_f1": round(_obj_f1(recs), 4) if recs else None, "object_events": len(recs)})
+    return rows
+
+
+@dataclass(slots=True)
+class RobustnessResults:
+    robustness: list[dict]
+    consistency: list[dict]
+    train_level: list[dict]
+    threshold: list[dict]
+
+
+def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, backend: LLMBackend | None,
+              methods: Sequence[str] = ("ngram", "globe", "routine"),
+              progress: Callable[[str], None] | None = None) -> RobustnessResults:
+    names = [h.name for h in clean]
+    n = cfg.noise
+    methods = [m for m in methods if backend is not None or not METHODS[m].needs_llm]
+    gate_method = "globe" if backend is not None else "ngram"
+    datasets = [clean_dataset(clean)] + [noisy_dataset(noise_root, t, n.train_level, n.test_level, names) for t in n.types]
+    groups = consistency_groups(clean)
+    res = RobustnessResults([], [], [], [])
+    for data in datasets:
+        for method in methods:
+            if progress:
+                progress(f"{data.name}: {method}")
+            evals = evaluate_dataset(cfg, data, method, backend)
+            res.robustness.append(score_row(data.name, method, evals))
+            res.consistency.extend(consistency_rows(data.name, method, evals, groups))
+            if method == gate_method:
+                res.threshold.append(score_row(data.name, method, evals, threshold=cfg.gate.threshold))
+        for d in n.thresholds:
+            if d == cfg.gate.threshold or backend is None:
+                continue
+            if progress:
+                progress(f"{data.name}: threshold {d}")
+            evals = evaluate_dataset(cfg.with_overrides({"gate.threshold": d}), data, gate_method, backend)
+            res.threshold.append(score_row(data.name, gate_method, evals, threshold=d))
+    for t in n.types:
+        for level in n.levels:
+            if progress:
+                progress(f"{t}: train level {level}")
+            data = noisy_dataset(noise_root, t, level, n.test_level, names)
+            for method in ("ngram", gate_method) if gate_method != "ngram" else ("ngram",):
+                evals = evaluate_dataset(cfg, data, method, backend)
+                res.train_level.append(score_row(t, method, evals, train_level=level))
+    res.threshold.sort(key=lambda r: (r["dataset"], r["threshold"]))
+    return res
