@@ -1,9 +1,14 @@
-"""Session fixtures: the real HOMER+ data (resolved exactly as the CLI does) and fitted models."""
+"""Session fixtures: the real HOMER+ data (resolved exactly as the CLI does), fitted models, the
+embedded Gemma model and llama-cpp-python's OpenAI-compatible server."""
 
 from __future__ import annotations
 
 import os
 import random
+import socket
+import subprocess
+import sys
+import time
 
 import pytest
 
@@ -11,6 +16,7 @@ from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
 from globe.pipeline import fit_household
+from tests.helpers import free_port
 
 
 def pytest_report_header(config):
@@ -44,3 +50,48 @@ def config() -> GlobeConfig:
 def fitted(households, config):
     """Paper-configuration models per household (never mutated by tests)."""
     return {n: fit_household(h, config.models, config.sequences.alignment) for n, h in households.items()}
+
+
+@pytest.fixture(scope="session")
+def gguf_path():
+    from globe.reasoning.backends.embedded import packaged_model_path
+
+    return packaged_model_path()
+
+
+@pytest.fixture(scope="session")
+def embedded_llm(gguf_path):
+    from globe.reasoning.backends.embedded import EmbeddedBackend
+
+    return EmbeddedBackend(model_path=gguf_path, n_threads=2)
+
+
+@pytest.fixture(scope="session")
+def llm_server(gguf_path, tmp_path_factory):
+    """``python -m llama_cpp.server`` on a free loopback port; yields its base URL."""
+    port = free_port()
+    log = tmp_path_factory.mktemp("llm-server") / "server.log"
+    with log.open("w") as fh:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "llama_cpp.server", "--model", str(gguf_path), "--host", "127.0.0.1",
+             "--port", str(port), "--n_threads", "2", "--n_ctx", "512"],
+            stdout=fh, stderr=subprocess.STDOUT,
+        )
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"llama_cpp.server exited: {log.read_text()[-2000:]}")
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+                break
+        except OSError:
+            time.sleep(0.2)
+    else:
+        proc.kill()
+        pytest.fail("llama_cpp.server did not start within 60 s")
+    yield f"http://127.0.0.1:{port}/v1"
+    proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()

@@ -78,7 +78,7 @@ def test_gate_over_the_real_server_never_loses_the_prediction(llm_server):
 
 
 def test_remote_backend_unreachable_server_is_an_llm_error():
-    from tests.reasoning.conftest import free_port
+    from tests.helpers import free_port
 
     backend = RemoteBackend(model="m", base_url=f"http://127.0.0.1:{free_port()}/v1", api_key="x", timeout_s=2, max_retries=0)
     with pytest.raises(LLMUnavailableError):

@@ -11,7 +11,7 @@ import time
 import httpx
 import pytest
 
-from tests.reasoning.conftest import free_port
+from tests.helpers import free_port
 
 
 class Server:
