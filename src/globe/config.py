@@ -115,7 +115,7 @@ class ServiceConfig(_Section):
 
 class EvaluationConfig(_Section):
     methods: tuple[str, ...] = Field(
-        ("persistence", "ngram", "globe", "llm_only", "ngram_smoothed", "routine", "globe_routine"),
+        ("persistence", "ngram", "globe", "globe_combine", "llm_only", "ngram_smoothed", "routine", "globe_routine"),
         description="Table I rows",
     )
     calibration_bins: int = Field(10, ge=2, le=100, description="bins of the reliability diagrams")

@@ -102,3 +102,11 @@ def test_model_file_errors(tmp_path):
         load_model(bad)
     with pytest.raises(ModelFileError, match="model file not found"):
         load_model(tmp_path / "none.json")
+
+
+def test_confidence_is_the_top_probability():
+    m = ActivityModel().fit(DAYS)
+    assert m.confidence(["sleep", "wake", "eat"]) == 0.5
+    om = ObjectModel().fit(RUNS)
+    assert om.confidence("eat", ("bowl",)) == 0.5
+    assert om.confidence("dance") == 0.0

@@ -2,6 +2,7 @@
 
 import datetime as dt
 import threading
+import time
 
 import pytest
 
@@ -143,3 +144,36 @@ def test_simulated_robot_reports_assistance_metrics(client, households):
     assert report.useful_fetches <= report.fetches
     assert s["latency_median_ms"] > 0
     assert client.stats("A")["days_learned"] == 1
+
+
+def test_no_acknowledged_observation_is_lost_when_killed_mid_stream(server, households):
+    h = households["B"]
+    day = h.test[4]
+    with GlobeClient(server.url) as c:
+        c.create_household("B", h.source)
+    acknowledged = []
+    stop = threading.Event()
+
+    def stream():
+        with GlobeClient(server.url, timeout_s=5) as c:
+            for t in range(len(day)):
+                if stop.is_set():
+                    return
+                try:
+                    c.observe("B", at(0, day.minutes[t]), day.activities[t], dict(zip(h.objects, day.locations[t])))
+                except Exception:  # the server died under us: this one was not acknowledged
+                    return
+                acknowledged.append(t)
+
+    th = threading.Thread(target=stream)
+    th.start()
+    while len(acknowledged) < 30 and th.is_alive():
+        time.sleep(0.005)
+    assert len(acknowledged) >= 30
+    server.kill()  # SIGKILL while requests are in flight
+    stop.set()
+    th.join()
+    server.start()
+    with GlobeClient(server.url) as c:
+        stored = c.stats("B")["observations"]
+    assert len(acknowledged) <= stored <= len(acknowledged) + 1  # at most the one in flight, committed unacknowledged

@@ -68,6 +68,10 @@ def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: di
     return Prepared(fitted.activity, _gate(fitted, cfg, backend, cfg.models.object_marginal), fitted.train_s)
 
 
+def _globe_combine(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
+    return _globe(h, cfg.with_overrides({"gate.mode": "combine"}), backend, cache)
+
+
 def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     if backend is None:
         raise ValueError("llm_only needs an LLM backend")
@@ -93,6 +97,7 @@ METHODS: dict[str, Method] = {
         Method("persistence", "Persistence", False, _persistence),
         Method("ngram", "n-gram Markov", False, _ngram),
         Method("globe", "GLOBE", True, _globe),
+        Method("globe_combine", "GLOBE, LLM + n-gram scores", True, _globe_combine),
         Method("llm_only", "LLM-only", True, _llm_only),
         Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False)),
         Method("routine", "Routine model (CV)", False, _tuned("routine", False)),

@@ -101,3 +101,7 @@ class ActivityModel(CountingModel):
         """Most probable next activity (ties: training frequency, then name)."""
         ranked = self.ranked(self.predict_proba(history))
         return ranked[0] if ranked else None
+
+    def confidence(self, history: Sequence[str]) -> float:
+        """The top probability: what the gate and the robot's action threshold look at."""
+        return max(self.predict_proba(history).values(), default=0.0)

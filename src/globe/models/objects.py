@@ -74,3 +74,7 @@ class ObjectModel(CountingModel):
     def predict(self, activity: str, history: Sequence[str] = ()) -> str | None:
         ranked = self.ranked(activity, self.predict_proba(activity, history))
         return ranked[0] if ranked else None
+
+    def confidence(self, activity: str, history: Sequence[str] = ()) -> float:
+        """The top probability: below the gate's threshold d the LLM is consulted."""
+        return max(self.predict_proba(activity, history).values(), default=0.0)

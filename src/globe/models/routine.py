@@ -148,3 +148,7 @@ class RoutineModel(CountingModel):
     def predict(self, history: Sequence[str]) -> str | None:
         ranked = self.ranked(self.predict_proba(history))
         return ranked[0] if ranked else None
+
+    def confidence(self, history: Sequence[str]) -> float:
+        """The top probability: what the gate and the robot's action threshold look at."""
+        return max(self.predict_proba(history).values(), default=0.0)

@@ -1,0 +1,52 @@
+"""HOMER-Noise generation time: all homes x noise types at level 1.0, cold and from the cache.
+
+Targets: <= 10 minutes cold with the embedded LLM on 2 cores; <= 10 s from the cache.
+Usage: python benchmarks/bench_noise.py [--data DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+from globe.config import GlobeConfig
+from globe.data.csv_logs import load_household
+from globe.data.locate import resolve_data_root
+from globe.noise.generate import propose
+from globe.noise.proposals import LLMScorer
+from globe.reasoning.backends.embedded import EmbeddedBackend
+from globe.reasoning.cache import AnswerCache
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--data", default=None)
+    args = parser.parse_args()
+    cfg = GlobeConfig()
+    root = resolve_data_root(args.data)
+    homes = [load_household(root, n) for n in cfg.data.households]
+    n = cfg.noise
+    with tempfile.TemporaryDirectory() as tmp:
+        cache = Path(tmp) / "scores.sqlite3"
+        shared = EmbeddedBackend(n_threads=cfg.llm.n_threads)
+        shared._model()
+        results = []
+        for label in ("cold", "cached"):
+            backend = EmbeddedBackend(n_threads=cfg.llm.n_threads, cache=AnswerCache(cache))
+            backend._llm = shared._model()
+            scorer = LLMScorer(backend)
+            t = time.perf_counter()
+            count = sum(len(propose(h, nt, scorer, seed=n.seed, rate=n.rate, temperature=n.temperature).injections)
+                        for nt in n.types for h in homes)
+            results.append((label, time.perf_counter() - t, count))
+        for (label, seconds, count), target in zip(results, (600.0, 10.0)):
+            ok = "ok" if seconds <= target else "MISSED"
+            print(f"{label:7s} {seconds:8.2f} s for {count} movements (3 homes x {len(n.types)} types, level 1.0); "
+                  f"target <= {target:g} s: {ok}")
+        print(f"cache speed-up: {results[0][1] / results[1][1]:.0f}x")
+
+
+if __name__ == "__main__":
+    main()
