@@ -64,6 +64,8 @@ class SelectionConfig(_Section):
     time_weights: tuple[float, ...] = Field((0.0, 1.0, 2.0), description="time-of-day weights tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
     run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
+    gate_thresholds: tuple[float, ...] = Field((0.25, 0.5, 0.75), description="gate thresholds d tried")
+    combine_weights: tuple[float, ...] = Field((0.5, 1.0, 2.0, 4.0), description="weights of n-gram log p tried (combine)")
 
 
 class GateConfig(_Section):

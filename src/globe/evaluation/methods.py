@@ -11,10 +11,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-from globe.config import GlobeConfig, ModelConfig
+from globe.config import GateConfig, GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation.protocol import ActivityPredictor
-from globe.evaluation.tuning import tuned_models
+from globe.evaluation.tuning import tuned_gate, tuned_models
 from globe.models.baselines import PersistenceModel
 from globe.models.selection import Selection
 from globe.pipeline import FittedHousehold, fit_household
@@ -45,8 +45,9 @@ def _fit(h: Household, cfg: GlobeConfig, models: ModelConfig | None = None) -> F
     return fit_household(h, models or cfg.models, cfg.sequences.alignment)
 
 
-def _gate(fitted: FittedHousehold, cfg: GlobeConfig, backend: LLMBackend | None, marginal: bool) -> UncertaintyGate:
-    g = cfg.gate
+def _gate(fitted: FittedHousehold, cfg: GlobeConfig, backend: LLMBackend | None, marginal: bool,
+          g: GateConfig | None = None) -> UncertaintyGate:
+    g = g or cfg.gate
     return UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k, min_prob=g.min_prob,
                            mode=g.mode, combine_weight=g.combine_weight, marginal=marginal)
 
@@ -84,8 +85,12 @@ def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LL
     def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
         models, selection = tuned_models(h, cfg, family, cache)
         fitted = _fit(h, cfg, models)
-        chooser = (_gate(fitted, cfg, backend, models.object_marginal) if with_gate
-                   else ObjectChooser(fitted.objects, marginal=models.object_marginal))
+        if with_gate and backend is not None:
+            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache)
+            selection = selection | {"gate": gate_sel}
+            chooser: ObjectChooser = _gate(fitted, cfg, backend, models.object_marginal, gate_cfg)
+        else:
+            chooser = ObjectChooser(fitted.objects, marginal=models.object_marginal)
         return Prepared(fitted.activity, chooser, fitted.train_s, selection)
 
     return prepare
@@ -101,6 +106,6 @@ METHODS: dict[str, Method] = {
         Method("llm_only", "LLM-only", True, _llm_only),
         Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False)),
         Method("routine", "Routine model (CV)", False, _tuned("routine", False)),
-        Method("globe_routine", "GLOBE + routine model", True, _tuned("routine", True)),
+        Method("globe_routine", "GLOBE + routine model (gate CV)", True, _tuned("routine", True)),
     )
 }

@@ -3,22 +3,26 @@
 The activity model's parameters are chosen on next-activity F1 over held-out training days.
 The object model's are then chosen where they matter: object F1 under the full protocol
 (predicted activity, mixed over the activity distribution) on the held-out days, with the
-chosen activity model. Test days are never used.
+chosen activity model. Last, the LLM gate (threshold d, replace or combine with weight w, or not
+asking at all) is chosen the same way, so the LLM is used only as far as it helped on held-out
+training days. Test days are never used.
 """
 
 from __future__ import annotations
 
 from typing import Any, Sequence
 
-from globe.config import GlobeConfig, ModelConfig
+from globe.config import GateConfig, GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.evaluation.protocol import evaluate_days
 from globe.models.activity import ActivityModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.models.selection import Selection, activity_fold, grid, select
-from globe.pipeline import activity_model_from, training_sequences
+from globe.pipeline import activity_model_from, object_model_from, training_sequences
+from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.gate import UncertaintyGate
 
 
 class _Joint:
@@ -65,4 +69,47 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tu
     obj = select(list(h.train), ospace, lambda p: _Joint(h, models, cfg.sequences.alignment, p), _joint_fold, sel.folds)
     models = models.model_copy(update={"object_estimator": obj.best["estimator"], "run_start_token": obj.best["run_start_token"]})
     cache[key] = (models, {"activity": act, "objects": obj})
+    return cache[key]
+
+
+class _GateJoint:
+    """Fold models for one gate setting; fits are memoised per fold (they do not depend on it)."""
+
+    def __init__(self, household: Household, models: ModelConfig, alignment: str, backend: LLMBackend,
+                 params: dict[str, Any], memo: dict) -> None:
+        self.household, self.models, self.alignment = household, models, alignment
+        self.backend, self.params, self.memo = backend, params, memo
+
+    def fit(self, days: Sequence[Day]) -> "_GateJoint":
+        key = tuple(d.name for d in days)
+        if key not in self.memo:
+            seqs = training_sequences(self.household, days, self.alignment)  # type: ignore[arg-type]
+            self.memo[key] = (activity_model_from(self.models).fit(seqs.activities),
+                              object_model_from(self.models).fit(seqs.runs))
+        self.activity_, self.objects_ = self.memo[key]
+        return self
+
+
+def _gate_fold(model: _GateJoint, days: Sequence[Day]) -> tuple[list[str], list[str]]:
+    gate = UncertaintyGate(model.objects_, model.backend, marginal=model.models.object_marginal, **model.params)
+    ev = evaluate_days(model.household, days, model.activity_, gate, alignment=model.alignment)  # type: ignore[arg-type]
+    return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
+
+
+def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLMBackend, cache: dict) -> tuple[GateConfig, Selection]:
+    """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is a candidate
+    and wins ties, so the LLM must earn its place on held-out days."""
+    key = (h.name, "gate", models.activity_estimator)
+    if key in cache:
+        return cache[key]
+    sel, g = cfg.selection, cfg.gate
+    styles = [{"mode": "replace", "combine_weight": g.combine_weight}] + [
+        {"mode": "combine", "combine_weight": w} for w in sel.combine_weights]
+    space = [{"threshold": 0.0, "mode": "replace", "combine_weight": g.combine_weight}] + [
+        {"threshold": d, **style} for d in sel.gate_thresholds for style in styles]
+    common = {"top_k": g.top_k, "min_prob": g.min_prob}
+    memo: dict = {}
+    chosen = select(list(h.train), space,
+                    lambda p: _GateJoint(h, models, cfg.sequences.alignment, backend, p | common, memo), _gate_fold, sel.folds)
+    cache[key] = (g.model_copy(update=chosen.best), chosen)
     return cache[key]
