@@ -6,13 +6,13 @@ from collections import Counter
 from typing import Hashable, Sequence
 
 from globe.models.backoff import ESTIMATORS, longest_distribution, witten_bell_distribution
-from globe.models.base import CountingModel, rank
+from globe.models.base import ActivityModelBase
 from globe.models.suffix_index import SuffixIndex
 
 DAY_START = "<day>"
 
 
-class ActivityModel(CountingModel):
+class ActivityModel(ActivityModelBase):
     """P(a_t | a_0 .. a_{t-1}) with a day-start token and backoff (maximum n = ``max_order``).
 
     ``estimator="longest"`` (default) is the paper's rule: the longest context seen in training
@@ -30,11 +30,6 @@ class ActivityModel(CountingModel):
         self.time_window = time_window
 
     # -- training ---------------------------------------------------------------------------
-    def fit(self, days: Sequence[Sequence[str]]) -> "ActivityModel":
-        """Train from scratch on per-day activity sequences."""
-        self._reset()
-        return self.partial_fit(days)
-
     def partial_fit(self, days: Sequence[Sequence[str]]) -> "ActivityModel":
         """Add observed days to the counts (no retraining of what was seen before)."""
         if not hasattr(self, "training_data_"):
@@ -93,15 +88,3 @@ class ActivityModel(CountingModel):
         for t, (state, matched) in enumerate(self.index_.scan((DAY_START, *day[:-1]) if day else ())):
             out.append(self._distribution(state, matched, t))
         return out
-
-    def ranked(self, distribution: dict[str, float]) -> list[str]:
-        return rank(distribution, self.frequency_)  # type: ignore[return-value]
-
-    def predict(self, history: Sequence[str]) -> str | None:
-        """Most probable next activity (ties: training frequency, then name)."""
-        ranked = self.ranked(self.predict_proba(history))
-        return ranked[0] if ranked else None
-
-    def confidence(self, history: Sequence[str]) -> float:
-        """The top probability: what the gate and the robot's action threshold look at."""
-        return max(self.predict_proba(history).values(), default=0.0)

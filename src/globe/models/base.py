@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Hashable, Mapping
+from collections import Counter
+from typing import Any, ClassVar, Hashable, Mapping, Sequence
 
 from globe.errors import ConfigError, NotFittedError
 
@@ -48,3 +49,37 @@ class CountingModel:
 def rank(distribution: Mapping[Hashable, float], frequency: Mapping[Hashable, int]) -> list[Hashable]:
     """Labels by probability; ties by training frequency, then by label (deterministic)."""
     return sorted(distribution, key=lambda w: (-distribution[w], -frequency.get(w, 0), str(w)))
+
+
+class ActivityModelBase(CountingModel):
+    """What every next-activity model shares: fit = reset + partial_fit, ranking, argmax,
+    confidence, and a default prefix scan (subclasses override it with a linear pass)."""
+
+    frequency_: Counter
+
+    def fit(self, days: Sequence[Sequence[str]]):
+        """Train from scratch on per-day activity sequences."""
+        self._reset()
+        return self.partial_fit(days)
+
+    def partial_fit(self, days: Sequence[Sequence[str]]):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
+        """``[predict_proba(day[:t]) for t in range(len(day))]``."""
+        return [self.predict_proba(day[:t]) for t in range(len(day))]
+
+    def ranked(self, distribution: Mapping[str, float]) -> list[str]:
+        return rank(distribution, self.frequency_)  # type: ignore[return-value]
+
+    def predict(self, history: Sequence[str]) -> str | None:
+        """Most probable next activity (ties: training frequency, then name)."""
+        ranked = self.ranked(self.predict_proba(history))
+        return ranked[0] if ranked else None
+
+    def confidence(self, history: Sequence[str]) -> float:
+        """The top probability: what the gate and the robot's action threshold look at."""
+        return max(self.predict_proba(history).values(), default=0.0)

@@ -5,20 +5,16 @@ from __future__ import annotations
 from collections import Counter
 from typing import Sequence
 
-from globe.models.base import CountingModel, rank
+from globe.models.base import ActivityModelBase
 
 
-class PersistenceModel(CountingModel):
+class PersistenceModel(ActivityModelBase):
     """"The activity stays the same": the floor every activity model must clear.
 
     With no history it predicts the most frequent first activity of the training days.
     """
 
     kind = "persistence"
-
-    def fit(self, days: Sequence[Sequence[str]]) -> "PersistenceModel":
-        self._reset()
-        return self.partial_fit(days)
 
     def partial_fit(self, days: Sequence[Sequence[str]]) -> "PersistenceModel":
         if not hasattr(self, "training_data_"):
@@ -38,17 +34,3 @@ class PersistenceModel(CountingModel):
             return {history[-1]: 1.0}
         total = sum(self.first_.values())
         return {a: c / total for a, c in self.first_.items()} if total else {}
-
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
-        return [self.predict_proba(day[:t]) for t in range(len(day))]
-
-    def ranked(self, distribution: dict[str, float]) -> list[str]:
-        return rank(distribution, self.frequency_)  # type: ignore[return-value]
-
-    def predict(self, history: Sequence[str]) -> str | None:
-        ranked = self.ranked(self.predict_proba(history))
-        return ranked[0] if ranked else None
-
-    def confidence(self, history: Sequence[str]) -> float:
-        """The top probability: what the gate and the robot's action threshold look at."""
-        return max(self.predict_proba(history).values(), default=0.0)

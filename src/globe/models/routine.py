@@ -23,24 +23,19 @@ from collections import Counter
 from typing import Sequence
 
 from globe.models.backoff import witten_bell_distribution
-from globe.models.base import CountingModel, rank
+from globe.models.base import ActivityModelBase
 from globe.models.suffix_index import SuffixIndex
+from globe.sequences.runs import run_bounds
 
 DAY_START = "<day>"
 
 
 def runs_of(day: Sequence[str]) -> list[tuple[str, int, int]]:
     """(activity, first step, last step) of each maximal run."""
-    out: list[tuple[str, int, int]] = []
-    start = 0
-    for t in range(1, len(day) + 1):
-        if t == len(day) or day[t] != day[start]:
-            out.append((day[start], start, t - 1))
-            start = t
-    return out
+    return [(day[first], first, last) for first, last in run_bounds(day)]
 
 
-class RoutineModel(CountingModel):
+class RoutineModel(ActivityModelBase):
     """Semi-Markov activity model with duration and time-of-day awareness (see module doc)."""
 
     _parameter_constraints = {"order": int, "time_weight": float, "time_window": int,
@@ -55,10 +50,6 @@ class RoutineModel(CountingModel):
         self.shrinkage = shrinkage
         self.duration_cap = duration_cap
         self.hour_steps = hour_steps
-
-    def fit(self, days: Sequence[Sequence[str]]) -> "RoutineModel":
-        self._reset()
-        return self.partial_fit(days)
 
     def partial_fit(self, days: Sequence[Sequence[str]]) -> "RoutineModel":
         if not hasattr(self, "training_data_"):
@@ -141,14 +132,3 @@ class RoutineModel(CountingModel):
             else:
                 runs.append((day[t], t, t))
         return out
-
-    def ranked(self, distribution: dict[str, float]) -> list[str]:
-        return rank(distribution, self.frequency_)  # type: ignore[return-value]
-
-    def predict(self, history: Sequence[str]) -> str | None:
-        ranked = self.ranked(self.predict_proba(history))
-        return ranked[0] if ranked else None
-
-    def confidence(self, history: Sequence[str]) -> float:
-        """The top probability: what the gate and the robot's action threshold look at."""
-        return max(self.predict_proba(history).values(), default=0.0)

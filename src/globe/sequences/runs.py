@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Sequence
 
 from globe.data.records import Day
 from globe.sequences.movements import Alignment, MovementEvent, extract_movements
@@ -25,7 +25,7 @@ class ActivityRun:
         return tuple(e.obj for e in self.events)
 
 
-def run_bounds(activities: tuple[str, ...]) -> list[tuple[int, int]]:
+def run_bounds(activities: Sequence[str]) -> list[tuple[int, int]]:
     """(start, end) of every maximal run of equal activities."""
     bounds, start = [], 0
     for t in range(1, len(activities) + 1):
