@@ -121,7 +121,6 @@ class EvaluationConfig(_Section):
         description="Table I rows",
     )
     calibration_bins: int = Field(10, ge=2, le=100, description="bins of the reliability diagrams")
-    repeats: int = Field(1, ge=1, le=100, description="timing repeats")
 
 
 class GlobeConfig(_Section):

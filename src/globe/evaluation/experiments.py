@@ -103,7 +103,7 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
             "gate_opened": len(asked),
             "gate_rate": round(len(asked) / len(ev.objects), 4) if ev.objects else 0.0,
             "llm_fallbacks": sum(r.fallback is not None for r in asked),
-            "llm_changed_choice": sum(r.predicted != r.ngram_choice for r in asked if r.fallback is None),
+            "llm_changed_choice": sum(r.predicted != r.ngram_choice for r in asked if r.fallback is None and r.ngram_choice),
         })
     return rows
 

@@ -18,7 +18,7 @@ END = "</s>"  # closes every training sequence; never predicted
 class SuffixIndex:
     """Generalised suffix automaton with occurrence counts, built incrementally."""
 
-    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_n_sequences", "_n_tokens", "_skip")
+    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_n_sequences", "_skip")
 
     def __init__(self, never_predicted: Iterable[Hashable] = ()) -> None:
         self._skip = frozenset(never_predicted) | {END}
@@ -30,16 +30,13 @@ class SuffixIndex:
         self._counts: list[int] | None = None
         self._dist: dict[int, dict[Hashable, int]] = {}
         self._n_sequences = 0
-        self._n_tokens = 0
 
     # -- building ---------------------------------------------------------------------------
     def add(self, sequence: Iterable[Hashable]) -> None:
         """Append one training sequence (an :data:`END` label is added after it)."""
         nxt, link, length, own = self._next, self._link, self._len, self._own
         last = self._last
-        n = 0
         for c in (*sequence, END):
-            n += 1
             cur = len(length)
             nxt.append({})
             length.append(length[last] + 1)
@@ -66,7 +63,6 @@ class SuffixIndex:
                     link[cur] = clone
             last = cur
         self._last = last
-        self._n_tokens += n
         self._n_sequences += 1
         self._counts = None
         self._dist.clear()
@@ -87,9 +83,6 @@ class SuffixIndex:
     def n_sequences(self) -> int:
         return self._n_sequences
 
-    @property
-    def n_tokens(self) -> int:
-        return self._n_tokens
 
     def successors(self, state: int) -> dict[Hashable, int]:
         """How often each label followed the contexts of ``state`` (END, start labels excluded)."""
