@@ -68,3 +68,17 @@ def test_bad_config_value_is_reported(tmp_path):
 def test_unknown_method(args, tmp_path):
     res = globe(*args, "--out", str(tmp_path))
     assert res.returncode == 1 and "unknown method 'magic'" in res.stderr
+
+
+def test_noise_command_writes_loadable_levels_and_a_summary(tmp_path):
+    res = globe("noise", "--noise-dir", str(tmp_path), "--households", "C", "--types", "pet",
+                "--levels", "0.5,1", "--backend", "none", "--seed", "3")
+    assert res.returncode == 0, res.stderr
+    assert "HOMER-Noise" in res.stdout and "pet" in res.stdout
+    import json
+
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["seed"] == 3 and summary["scorer"] == "uniform"
+    assert summary["types"]["pet"]["per_level"]["0.5"] <= summary["types"]["pet"]["per_level"]["1"]
+    check = globe("data", "validate", "--data", str(tmp_path / "pet" / "1"), "--households", "C")
+    assert check.returncode == 0, check.stderr

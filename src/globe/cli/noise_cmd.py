@@ -72,12 +72,14 @@ def noise(
     households: HouseholdsOption = None,
     seed: Annotated[int | None, typer.Option("--seed", help="random seed")] = None,
     types: Annotated[str | None, typer.Option("--types", help="comma-separated: person,pet,toddler")] = None,
+    levels: Annotated[str | None, typer.Option("--levels", help="comma-separated noise levels, e.g. 0.25,0.5,1")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded or none (uniform)")] = None,
     config: ConfigOption = None,
 ) -> None:
     """Generate HOMER-Noise: every home x noise type x level, with manifests and a summary."""
     cfg = resolve(config, noise__seed=seed, llm__backend=backend,
-                  noise__types=tuple(t.strip() for t in types.split(",")) if types else None)
+                  noise__types=tuple(t.strip() for t in types.split(",")) if types else None,
+                  noise__levels=tuple(float(x) for x in levels.split(",")) if levels else None)
     summary = generate(cfg, households_from(cfg, data, households), noise_dir)
     print_summary(summary)
     console.print(f"HOMER-Noise in {noise_dir}")
