@@ -107,7 +107,9 @@ def run_robustness(cfg: GlobeConfig, households: list[Household], noise_dir: Pat
     report.write_csv(out_dir / "ablation_threshold.csv", res.threshold)
     robustness_figure(res.robustness, {"SLaTe-PRO": TABLE1["slate_pro"][1]}).savefig(out_dir / "robustness.png", dpi=130)
     for method in dict.fromkeys(r["method"] for r in res.consistency):
-        consistency_figure(res.consistency, method).savefig(out_dir / f"consistency_{method}.png", dpi=130)
+        for definition in dict.fromkeys(r["definition"] for r in res.consistency):
+            consistency_figure(res.consistency, method, definition).savefig(
+                out_dir / f"consistency_{method}_{definition}.png", dpi=130)
     if res.train_level:
         grouped_line_figure([r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level], "train_level", "series",
                             "object_f1", "Training noise level (tested at 1.0)", "training noise level",

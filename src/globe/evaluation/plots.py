@@ -98,9 +98,9 @@ def grouped_line_figure(rows: Sequence[dict], x: str, series: str, y: str, title
     return fig
 
 
-def consistency_figure(rows: Sequence[dict], method: str) -> Figure:
+def consistency_figure(rows: Sequence[dict], method: str, definition: str) -> Figure:
     """Object F1 under more / moderate / less consistent behaviour, per dataset."""
-    mine = [r for r in rows if r["method"] == method]
+    mine = [r for r in rows if r["method"] == method and r["definition"] == definition]
     datasets = list(dict.fromkeys(r["dataset"] for r in mine))
     groups = ("more", "moderate", "less")
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -111,7 +111,7 @@ def consistency_figure(rows: Sequence[dict], method: str) -> Figure:
     ax.set_xticks(range(len(datasets)), datasets)
     ax.set_ylabel("object F1 (weighted)")
     ax.set_ylim(0, 1)
-    ax.set_title(f"Behavioural consistency ({method}): activities by spread of start time")
+    ax.set_title(f"Behavioural consistency ({method}): activities by {definition.replace('_', ' ')}")
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig

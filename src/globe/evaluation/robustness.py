@@ -3,15 +3,15 @@
 - Robustness: train at noise level 0.5, test at 1.0, per noise type, beside clean HOMER+.
   Object F1 twice: on all movement events (as the paper) and on the routine ones only
   (injected movements excluded via the manifest).
-- Behavioural consistency: activities split into three equal groups by how regular their start
-  time is across training days (standard deviation of the first start step of the activity in
-  each day where it occurs; lower = more consistent); object F1 per group.
+- Behavioural consistency: activities split into three equal groups by how regular they are
+  across training days, by two definitions (see :func:`consistency_groups`); object F1 per group.
 - Ablations: training noise level 0.25 / 0.5 / 1.0 (test 1.0); threshold d 0.25 / 0.5 / 0.75.
 """
 
 from __future__ import annotations
 
 import statistics
+from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Sequence
@@ -24,6 +24,7 @@ from globe.evaluation.metrics import f1
 from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
 from globe.noise.dataset import level_dir, read_manifest
 from globe.reasoning.backends.base import LLMBackend
+from globe.sequences.runs import activity_runs
 
 CLEAN = "clean"
 
@@ -75,30 +76,54 @@ def score_row(dataset: str, method: str, evals: Sequence[Evaluation], **extra: o
             "object_events": sum(len(e.objects) for e in evals), "injected_events": injected}
 
 
-def consistency_groups(households: Sequence[Household]) -> dict[str, dict[str, str]]:
-    """Per household: activity -> 'more' / 'moderate' / 'less' consistent (tertiles of the spread
-    of its first start step across training days)."""
+def _tertiles(spread: dict[str, float]) -> dict[str, str]:
+    """Lowest third of spread -> 'more' consistent, middle -> 'moderate', top -> 'less'."""
+    ordered = sorted(spread, key=lambda a: (spread[a], a))
+    n = len(ordered)
+    return {a: ("more" if i < n / 3 else "moderate" if i < 2 * n / 3 else "less") for i, a in enumerate(ordered)}
+
+
+def consistency_groups(households: Sequence[Household], definition: str = "start_time") -> dict[str, dict[str, str]]:
+    """Per household: activity -> 'more' / 'moderate' / 'less' consistent, from training days.
+
+    ``start_time``: standard deviation of the activity's first start step across the days it
+    occurs in. ``object_sequence``: 1 - the share of the activity's runs (with movements) whose
+    object sequence is its most common one.
+    """
     groups: dict[str, dict[str, str]] = {}
     for h in households:
-        starts: dict[str, list[int]] = {}
-        for day in h.train:
-            seen = set()
-            for t, a in enumerate(day.activities):
-                if a not in seen:
-                    seen.add(a)
-                    starts.setdefault(a, []).append(t)
-        spread = {a: statistics.pstdev(s) for a, s in starts.items()}
-        ordered = sorted(spread, key=lambda a: (spread[a], a))
-        n = len(ordered)
-        groups[h.name] = {a: ("more" if i < n / 3 else "moderate" if i < 2 * n / 3 else "less") for i, a in enumerate(ordered)}
+        spread: dict[str, float] = {}
+        if definition == "start_time":
+            starts: dict[str, list[int]] = {}
+            for day in h.train:
+                seen = set()
+                for t, a in enumerate(day.activities):
+                    if a not in seen:
+                        seen.add(a)
+                        starts.setdefault(a, []).append(t)
+            spread = {a: statistics.pstdev(s) for a, s in starts.items()}
+        elif definition == "object_sequence":
+            by_activity: dict[str, Counter[tuple[str, ...]]] = {}
+            for day in h.train:
+                for run in activity_runs(day, h.objects):
+                    if run.objects:
+                        by_activity.setdefault(run.activity, Counter())[run.objects] += 1
+            spread = {a: 1 - c.most_common(1)[0][1] / sum(c.values()) for a, c in by_activity.items()}
+        else:
+            raise ValueError(f"unknown consistency definition {definition!r}; expected start_time or object_sequence")
+        groups[h.name] = _tertiles(spread)
     return groups
 
 
-def consistency_rows(dataset: str, method: str, evals: Sequence[Evaluation], groups: dict[str, dict[str, str]]) -> list[dict]:
+CONSISTENCY_DEFINITIONS = ("start_time", "object_sequence")
+
+
+def consistency_rows(dataset: str, method: str, evals: Sequence[Evaluation], groups: dict[str, dict[str, str]],
+                     definition: str) -> list[dict]:
     rows = []
     for group in ("more", "moderate", "less"):
         recs = [r for e in evals for r in e.objects if groups.get(r.household, {}).get(r.true_activity) == group]
-        rows.append({"dataset": dataset, "method": method, "consistency": group,
+        rows.append({"dataset": dataset, "method": method, "definition": definition, "consistency": group,
                      "object_f1": round(_obj_f1(recs), 4) if recs else None, "object_events": len(recs)})
     return rows
 
@@ -119,7 +144,7 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
     methods = [m for m in methods if backend is not None or not METHODS[m].needs_llm]
     gate_method = "globe" if backend is not None else "ngram"
     datasets = [clean_dataset(clean)] + [noisy_dataset(noise_root, t, n.train_level, n.test_level, names) for t in n.types]
-    groups = consistency_groups(clean)
+    groups = {d: consistency_groups(clean, d) for d in CONSISTENCY_DEFINITIONS}
     res = RobustnessResults([], [], [], [])
     for data in datasets:
         for method in methods:
@@ -127,7 +152,8 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
                 progress(f"{data.name}: {method}")
             evals = evaluate_dataset(cfg, data, method, backend)
             res.robustness.append(score_row(data.name, method, evals))
-            res.consistency.extend(consistency_rows(data.name, method, evals, groups))
+            for definition, by_home in groups.items():
+                res.consistency.extend(consistency_rows(data.name, method, evals, by_home, definition))
             if method == gate_method:
                 res.threshold.append(score_row(data.name, method, evals, threshold=cfg.gate.threshold))
         for d in n.thresholds:

@@ -1,0 +1,46 @@
+"""The robustness suite on a small generated HOMER-Noise (uniform proposals, no LLM)."""
+
+from dataclasses import replace
+
+import pytest
+
+from globe.config import GlobeConfig
+from globe.noise.dataset import level_dir, read_manifest, write_level
+from globe.noise.generate import propose
+from globe.noise.proposals import UniformScorer
+from globe.evaluation.robustness import consistency_groups, run_suite
+
+
+@pytest.fixture(scope="module")
+def setup(households, tmp_path_factory):
+    h = households["C"]
+    small = replace(h, train=h.train[:10], test=h.test[:3])
+    cfg = GlobeConfig().with_overrides({"noise.types": ("pet",), "noise.levels": (0.5, 1.0)})
+    root = tmp_path_factory.mktemp("noise")
+    proposals = {("C", "pet"): propose(small, "pet", UniformScorer(), rate=1.0)}
+    for level in (0.5, 1.0):
+        write_level(root, [small], proposals, "pet", level)
+    return cfg, small, root
+
+
+def test_suite_scores_all_and_routine_events(setup):
+    cfg, small, root = setup
+    res = run_suite(cfg, [small], root, None, methods=("ngram",))
+    clean = next(r for r in res.robustness if r["dataset"] == "clean")
+    pet = next(r for r in res.robustness if r["dataset"] == "pet")
+    injected_test = [m for m in read_manifest(level_dir(root, "pet", 1.0) / "manifest.csv") if m[1].startswith("test/")]
+    assert pet["injected_events"] == len(injected_test) > 0
+    assert pet["object_events"] == clean["object_events"] + pet["injected_events"]
+    assert clean["injected_events"] == 0 and clean["object_f1"] == clean["object_f1_routine"]
+    assert {(r["definition"], r["consistency"]) for r in res.consistency} == {
+        (d, g) for d in ("start_time", "object_sequence") for g in ("more", "moderate", "less")}
+    assert sorted(r["train_level"] for r in res.train_level) == [0.5, 1.0]
+
+
+def test_consistency_groups_split_activities_into_thirds(setup):
+    _, small, _ = setup
+    groups = consistency_groups([small], "start_time")["C"]
+    counts = {g: sum(v == g for v in groups.values()) for g in ("more", "moderate", "less")}
+    assert max(counts.values()) - min(counts.values()) <= 1
+    with pytest.raises(ValueError, match="unknown consistency definition"):
+        consistency_groups([small], "vibes")
