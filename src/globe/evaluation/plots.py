@@ -107,7 +107,7 @@ def consistency_figure(rows: Sequence[dict], method: str, definition: str) -> Fi
     width = 0.8 / len(groups)
     for k, g in enumerate(groups):
         vals = [next((r["object_f1"] or 0 for r in mine if r["dataset"] == d and r["consistency"] == g), 0) for d in datasets]
-        ax.bar([i + (k - 1) * width for i in range(len(datasets))], vals, width, label=f"{g} consistent")
+        ax.bar([i + (k - 1) * width for i in range(len(datasets))], vals, width, label=f"{g}{'ly' if g == 'moderate' else ''} consistent")
     ax.set_xticks(range(len(datasets)), datasets)
     ax.set_ylabel("object F1 (weighted)")
     ax.set_ylim(0, 1)

@@ -8,7 +8,7 @@ step of the day. A day begins at ``day_start_minute``; when an observation belon
 the finished day is added to both models (``partial_fit``), so the result equals training on
 all days at once. A gap longer than one step is filled by repeating the last observed step
 (the person is assumed to have gone on doing the same thing), up to ``max_gap_steps``; a longer
-gap starts the day's history afresh from the new observation.
+gap ends the day early (what was seen is learned) and starts its history afresh.
 """
 
 from __future__ import annotations
@@ -97,13 +97,15 @@ class OnlineAssistant:
             self._reset_day(key)
         elif self._day_key is None:
             self._reset_day(key)
-        minute = obs.time.hour * 60 + obs.time.minute
+        midnight = dt.datetime.combine(dt.date.fromisoformat(key), dt.time(), tzinfo=obs.time.tzinfo)
+        minute = int((obs.time - midnight).total_seconds() // 60)  # 00:00 of the next date is 1440
         if self._minutes:
             missing = round((minute - self._minutes[-1]) / self.step_minutes) - 1
-            if missing > self.max_gap_steps:
+            if missing > self.max_gap_steps:  # learn what was seen, then start afresh
+                self._learn_current_day()
                 self._reset_day(key)
             else:
-                for i in range(max(0, missing)):
+                for _ in range(max(0, missing)):
                     self._append(self._minutes[-1] + self.step_minutes, self._activities[-1], self._states[-1])
         state = dict(self._states[-1]) if self._states else dict(self._start_state)
         state.update(obs.locations)

@@ -1,0 +1,61 @@
+"""The online assistant without HTTP: day roll-over, gaps, partial rows."""
+
+import datetime as dt
+
+import pytest
+
+from globe.errors import DataError
+from globe.pipeline import fit_household
+from globe.reasoning.choice import ObjectChooser
+from globe.service.assistant import Observation, OnlineAssistant
+
+
+@pytest.fixture()
+def assistant(households, config):
+    h = households["A"]
+    fitted = fit_household(h, config.models, config.sequences.alignment)
+    return OnlineAssistant(h, fitted.activity, ObjectChooser(fitted.objects), max_gap_steps=6)
+
+
+def at(minute, day=0):
+    return dt.datetime(2026, 3, 2) + dt.timedelta(days=day, minutes=minute)
+
+
+def test_a_whole_day_including_midnight_is_one_day(assistant, households):
+    day = households["A"].test[0]
+    for t in range(len(day)):
+        assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(assistant.household.objects, day.locations[t]))))
+    live = assistant.current_day()
+    assert live.minutes == day.minutes and live.activities == day.activities and live.locations == day.locations
+    assistant.observe(Observation(at(360, 1), "wake_up", {}))  # 06:00 next day: roll over and learn
+    assert assistant.days_learned == 1 and assistant.stats()["steps_today"] == 1
+
+
+def test_short_gaps_repeat_the_last_step_and_long_gaps_restart(assistant):
+    assistant.observe(Observation(at(360), "wake_up", {}))
+    assistant.observe(Observation(at(400), "breakfast", {"bowl": "table#114"}))  # 3 steps missing
+    day = assistant.current_day()
+    assert day.minutes == (360, 370, 380, 390, 400)
+    assert day.activities == ("wake_up",) * 4 + ("breakfast",)
+    assert dict(zip(assistant.household.objects, day.locations[-1]))["bowl"] == "table#114"
+    assistant.observe(Observation(at(600), "reading", {}))  # 19 steps missing > max_gap_steps
+    assert assistant.current_day().minutes == (600,) and assistant.days_learned == 1
+
+
+def test_validation_names_the_field(assistant):
+    assistant.observe(Observation(at(360), "wake_up", {}))
+    with pytest.raises(DataError) as err:
+        assistant.validate(Observation(at(350), "idle", {}))
+    assert err.value.field == "time"
+    with pytest.raises(DataError) as err:
+        assistant.validate(Observation(at(370), "idle", {"bowl": "roof#1"}))
+    assert err.value.field == "locations.bowl"
+
+
+def test_prediction_has_an_action_decision(assistant, households):
+    day = households["A"].test[1]
+    for t in range(30):
+        assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(assistant.household.objects, day.locations[t]))))
+    p = assistant.predict()
+    assert p.activity is not None and 0 < p.activity_probability <= 1
+    assert p.act == (p.obj is not None and p.object_probability >= assistant.action_threshold)
