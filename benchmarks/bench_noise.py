@@ -35,7 +35,6 @@ def main() -> None:
         results = []
         for label in ("cold", "cached"):
             backend = EmbeddedBackend(n_threads=cfg.llm.n_threads, cache=AnswerCache(cache))
-            backend._llm = shared._model()
             scorer = LLMScorer(backend)
             t = time.perf_counter()
             count = sum(len(propose(h, nt, scorer, seed=n.seed, rate=n.rate, temperature=n.temperature).injections)

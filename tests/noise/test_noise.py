@@ -114,11 +114,9 @@ def test_embedded_llm_proposals_are_plausible_and_cached(small, embedded_llm, tm
 
     one_day = replace(small, train=small.train[:1], test=())
     backend = EmbeddedBackend(model_path=embedded_llm.model_path, cache=AnswerCache(tmp_path / "c.sqlite3"))
-    backend._llm = embedded_llm._model()
     first = propose(one_day, "toddler", LLMScorer(backend), rate=1.0)
     assert first.injections and all(i.origin.startswith("llm:embedded") for i in first.injections)
     cached = EmbeddedBackend(model_path=embedded_llm.model_path, cache=AnswerCache(tmp_path / "c.sqlite3"))
-    cached._llm = backend._llm
     assert propose(one_day, "toddler", LLMScorer(cached), rate=1.0).injections == first.injections
     assert cached.cache.hits > 0 and cached.cache.misses == 0
     # the scores see the activity: a toddler during breakfast carries food more than a razor

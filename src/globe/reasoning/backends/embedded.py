@@ -34,8 +34,9 @@ def packaged_model_path() -> Path:
 
 
 @functools.lru_cache(maxsize=4)
-def _load(path: str, n_threads: int, n_ctx: int):
-    """One llama.cpp model per (file, threads, context) per process."""
+def _load(path: str, n_threads: int, n_ctx: int) -> tuple[object, threading.Lock]:
+    """One llama.cpp model per (file, threads, context) per process, with the lock that every
+    backend sharing it must hold (a llama.cpp context is not thread-safe)."""
     try:
         from llama_cpp import Llama
     except ImportError as err:
@@ -45,8 +46,9 @@ def _load(path: str, n_threads: int, n_ctx: int):
     log.info("loading %s with %d threads", path, n_threads)
     # logits_all stays off: Gemma's 262k-word output layer on every prompt token would cost
     # most of the time; only the logits after the last evaluated token are read.
-    return Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
-                 n_batch=n_ctx, logits_all=False, verbose=False, seed=0)
+    llm = Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
+                n_batch=n_ctx, logits_all=False, verbose=False, seed=0)
+    return llm, threading.Lock()
 
 
 def _last_log_softmax(llm):
@@ -68,8 +70,8 @@ class EmbeddedBackend(LLMBackend):
         self.n_threads = n_threads
         self.n_ctx = n_ctx
         self.cache = cache
-        self._lock = threading.Lock()
         self._llm = None
+        self._lock: threading.Lock | None = None
         self._memo: dict[tuple[str, str], float] = {}  # context-free scores, reused across calls
 
     @property
@@ -79,7 +81,7 @@ class EmbeddedBackend(LLMBackend):
     def _model(self):
         if self._llm is None:
             path = self.model_path or packaged_model_path()
-            self._llm = _load(str(path), self.n_threads, self.n_ctx)
+            self._llm, self._lock = _load(str(path), self.n_threads, self.n_ctx)
         return self._llm
 
     def continuation_logprobs(self, prefix: str, continuations: list[str], memo: bool = False) -> list[float]:
@@ -89,7 +91,7 @@ class EmbeddedBackend(LLMBackend):
         token after its first (one-token names cost nothing more).
         """
         llm = self._model()
-        with self._lock:
+        with self._lock:  # type: ignore[union-attr]
             todo = [c for c in continuations if not (memo and (prefix, c) in self._memo)]
             if todo:
                 head = llm.tokenize(prefix.encode("utf-8"), add_bos=True)
