@@ -5,10 +5,10 @@ from dataclasses import replace
 import pytest
 
 from globe.config import GlobeConfig
+from globe.evaluation.robustness import consistency_groups, run_suite
 from globe.noise.dataset import level_dir, read_manifest, write_level
 from globe.noise.generate import propose
 from globe.noise.proposals import UniformScorer
-from globe.evaluation.robustness import consistency_groups, run_suite
 
 
 @pytest.fixture(scope="module")

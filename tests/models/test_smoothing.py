@@ -5,11 +5,11 @@ import math
 import pytest
 
 from globe.models.backoff import witten_bell_distribution
+from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.models.selection import folds, grid, select
 from globe.models.suffix_index import SuffixIndex
 from globe.reasoning.choice import object_distribution
-from globe.models.objects import ObjectModel
 
 
 def test_witten_bell_by_hand():

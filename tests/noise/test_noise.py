@@ -6,7 +6,7 @@ import pytest
 
 from globe.data.csv_logs import load_household
 from globe.noise.dataset import level_dir, read_manifest, summary, write_level
-from globe.noise.generate import apply, propose
+from globe.noise.generate import propose
 from globe.noise.proposals import LLMScorer, UniformScorer
 from globe.noise.rules import CLOSED, HIGH, HomeRules, resolve_destination
 from globe.sequences.movements import extract_movements

@@ -8,7 +8,14 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from globe.cli.common import ConfigOption, DataOption, HouseholdsOption, households_from, out, resolve
+from globe.cli.common import (
+    ConfigOption,
+    DataOption,
+    HouseholdsOption,
+    households_from,
+    out,
+    resolve,
+)
 from globe.sequences.runs import activity_runs
 
 app = typer.Typer(help="Validate and import household observation logs.", no_args_is_help=True)

@@ -9,7 +9,16 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from globe.cli.common import ConfigOption, DataOption, HouseholdsOption, console, households_from, out, progress_bar, resolve
+from globe.cli.common import (
+    ConfigOption,
+    DataOption,
+    HouseholdsOption,
+    console,
+    households_from,
+    out,
+    progress_bar,
+    resolve,
+)
 from globe.config import GlobeConfig
 from globe.errors import ConfigError
 from globe.evaluation.methods import METHODS

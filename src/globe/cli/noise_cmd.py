@@ -9,7 +9,16 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from globe.cli.common import ConfigOption, DataOption, HouseholdsOption, console, households_from, out, progress_bar, resolve
+from globe.cli.common import (
+    ConfigOption,
+    DataOption,
+    HouseholdsOption,
+    console,
+    households_from,
+    out,
+    progress_bar,
+    resolve,
+)
 from globe.config import GlobeConfig
 from globe.data.records import Household
 
@@ -87,7 +96,11 @@ def noise(
 
 def run_robustness(cfg: GlobeConfig, households: list[Household], noise_dir: Path, out_dir: Path) -> None:
     from globe.evaluation import report
-    from globe.evaluation.plots import consistency_figure, grouped_line_figure, robustness_figure
+    from globe.evaluation.plots import (
+        consistency_figure,
+        grouped_line_figure,
+        robustness_figure,
+    )
     from globe.evaluation.published import TABLE1
     from globe.evaluation.robustness import run_suite
 

@@ -8,7 +8,15 @@ from typing import Annotated
 
 import typer
 
-from globe.cli.common import ConfigOption, DataOption, console, households_from, out, progress_bar, resolve
+from globe.cli.common import (
+    ConfigOption,
+    DataOption,
+    console,
+    households_from,
+    out,
+    progress_bar,
+    resolve,
+)
 from globe.errors import MissingExtraError
 
 

@@ -5,7 +5,11 @@ from __future__ import annotations
 from collections import Counter
 from typing import Iterable, Sequence
 
-from globe.models.backoff import ESTIMATORS, longest_distribution, witten_bell_distribution
+from globe.models.backoff import (
+    ESTIMATORS,
+    longest_distribution,
+    witten_bell_distribution,
+)
 from globe.models.base import CountingModel, rank
 from globe.models.suffix_index import SuffixIndex
 

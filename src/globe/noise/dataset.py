@@ -58,7 +58,7 @@ def read_manifest(path: Path) -> set[tuple[str, str, int, str]]:
 
 def summary(proposals: dict[tuple[str, str], Proposals], levels: Sequence[float]) -> dict:
     out: dict = {"levels": list(levels), "types": {}}
-    for (house, noise_type), props in sorted(proposals.items()):
+    for (_house, noise_type), props in sorted(proposals.items()):
         entry = out["types"].setdefault(noise_type, {"proposed_valid": 0, "dropped": Counter(), "per_level": {},
                                                      "objects": Counter(), "destinations": Counter()})
         entry["proposed_valid"] += len(props.injections)

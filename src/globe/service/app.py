@@ -17,9 +17,20 @@ from globe.config import GlobeConfig
 from globe.errors import DataError, GlobeError, LLMError, StoreError
 from globe.models.io import model_to_dict
 from globe.service.assistant import Observation
-from globe.service.registry import DuplicateHouseholdError, Registry, UnknownHouseholdError
-from globe.service.schemas import (ErrorOut, FeedbackIn, HouseholdCreate, HouseholdInfo, ObservationAck,
-                                   ObservationIn, PredictionOut)
+from globe.service.registry import (
+    DuplicateHouseholdError,
+    Registry,
+    UnknownHouseholdError,
+)
+from globe.service.schemas import (
+    ErrorOut,
+    FeedbackIn,
+    HouseholdCreate,
+    HouseholdInfo,
+    ObservationAck,
+    ObservationIn,
+    PredictionOut,
+)
 from globe.service.store import Store
 
 

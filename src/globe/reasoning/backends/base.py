@@ -27,6 +27,3 @@ class LLMBackend(ABC):
 
     @abstractmethod
     def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice: ...
-
-    def close(self) -> None:  # pragma: no cover - trivial default
-        """Release resources (a model, a connection)."""

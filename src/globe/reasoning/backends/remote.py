@@ -8,7 +8,12 @@ from __future__ import annotations
 
 import os
 
-from globe.errors import LLMAnswerError, LLMTimeoutError, LLMUnavailableError, MissingExtraError
+from globe.errors import (
+    LLMAnswerError,
+    LLMTimeoutError,
+    LLMUnavailableError,
+    MissingExtraError,
+)
 from globe.reasoning.backends.base import Choice, LLMBackend
 from globe.reasoning.cache import AnswerCache, cache_key
 from globe.reasoning.context import ChoiceContext, normalise_answer
