@@ -9,9 +9,12 @@ once; each candidate then costs only its own few tokens.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import math
+import os
+import sys
 import threading
 from pathlib import Path
 
@@ -46,9 +49,27 @@ def _load(path: str, n_threads: int, n_ctx: int) -> tuple[object, threading.Lock
     log.info("loading %s with %d threads", path, n_threads)
     # logits_all stays off: Gemma's 262k-word output layer on every prompt token would cost
     # most of the time; only the logits after the last evaluated token are read.
-    llm = Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
-                n_batch=n_ctx, logits_all=False, verbose=False, seed=0)
+    with _native_stderr_silenced():  # llama.cpp writes some load notices past verbose=False
+        llm = Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
+                    n_batch=n_ctx, logits_all=False, verbose=False, seed=0)
     return llm, threading.Lock()
+
+
+@contextlib.contextmanager
+def _native_stderr_silenced():
+    """Point file descriptor 2 at /dev/null for native code; Python's own stderr is untouched
+    unless it writes meanwhile (it is flushed first)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)
 
 
 def _last_log_softmax(llm):
