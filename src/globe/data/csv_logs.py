@@ -48,6 +48,12 @@ def _check_header(path: Path, header: list[str], required: Iterable[str]) -> Non
         seen.add(name)
 
 
+def _ragged(path: Path, lineno: int, row: list[str], header: list[str]) -> DataError:
+    """A row with too few fields names the first column it lacks."""
+    field = header[len(row)] if len(row) < len(header) else None
+    return DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno, field=field)
+
+
 def read_nodes(path: Path) -> tuple[Node, ...]:
     """Read ``nodes.csv``: every node of the home and where each starts the day."""
     rows = _read_rows(path)
@@ -59,7 +65,7 @@ def read_nodes(path: Path) -> tuple[Node, ...]:
         if not row:
             continue
         if len(row) != len(header):
-            raise DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno)
+            raise _ragged(path, lineno, row, header)
         movable = row[col["movable"]].strip()
         if movable not in ("0", "1"):
             raise DataError(f"{movable!r} is not 0 or 1", source=str(path), line=lineno, field="movable")
@@ -94,7 +100,7 @@ def read_day(path: Path, objects: tuple[str, ...], locations: frozenset[str], na
         if not row:
             continue
         if len(row) != len(header):
-            raise DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno)
+            raise _ragged(path, lineno, row, header)
         raw_minute = row[i_min].strip()
         try:
             minute = int(raw_minute)
