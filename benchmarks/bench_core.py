@@ -7,13 +7,10 @@ Usage: python benchmarks/bench_core.py [--repeats 7] [--data DIR]
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import time
 
-from globe.config import GlobeConfig
-from globe.data.csv_logs import load_household
-from globe.data.locate import resolve_data_root
+from common import setup
 from globe.evaluation.protocol import evaluate_days
 from globe.pipeline import fit_household
 from globe.reasoning.choice import ObjectChooser
@@ -22,15 +19,9 @@ PAPER_TRAIN_S, PAPER_INFER_S, TARGET_S = 8.33, 0.86, 0.05
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--data", default=None)
-    args = parser.parse_args()
-    cfg = GlobeConfig()
-    root = resolve_data_root(args.data)
+    cfg, homes, args = setup(__doc__, {"--repeats": {"type": int, "default": 7, "help": "runs per figure (median)"}})
     print(f"{'household':9s} {'preprocess s':>12s} {'train s':>9s} {'inference s':>12s} {'paper train/ours':>17s} {'paper infer/ours':>17s}  target <= {TARGET_S} s")
-    for name in cfg.data.households:
-        h = load_household(root, name)
+    for h in homes:
         pre, train, infer = [], [], []
         for _ in range(args.repeats):
             fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
@@ -41,7 +32,7 @@ def main() -> None:
             infer.append(time.perf_counter() - t)
         p, tr, inf = (statistics.median(x) for x in (pre, train, infer))
         ok = "ok" if tr <= TARGET_S and inf <= TARGET_S else "MISSED"
-        print(f"{name:9s} {p:12.4f} {tr:9.4f} {inf:12.4f} {PAPER_TRAIN_S / tr:16.0f}x {PAPER_INFER_S / inf:16.0f}x  {ok}")
+        print(f"{h.name:9s} {p:12.4f} {tr:9.4f} {inf:12.4f} {PAPER_TRAIN_S / tr:16.0f}x {PAPER_INFER_S / inf:16.0f}x  {ok}")
 
 
 if __name__ == "__main__":

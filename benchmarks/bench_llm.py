@@ -7,14 +7,11 @@ Usage: python benchmarks/bench_llm.py [--data DIR]
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 from pathlib import Path
 
-from globe.config import GlobeConfig
-from globe.data.csv_logs import load_household
-from globe.data.locate import resolve_data_root
+from common import setup
 from globe.evaluation.protocol import evaluate_days
 from globe.pipeline import fit_household
 from globe.reasoning.backends.embedded import EmbeddedBackend
@@ -26,11 +23,7 @@ PAPER_S, TARGET_S = 192.0, 20.0
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--data", default=None)
-    args = parser.parse_args()
-    cfg = GlobeConfig()
-    root = resolve_data_root(args.data)
+    cfg, homes, _ = setup(__doc__)
     g = cfg.gate
     with tempfile.TemporaryDirectory() as tmp:
         cache_path = Path(tmp) / "answers.sqlite3"
@@ -39,8 +32,7 @@ def main() -> None:
         warm._model()
         print(f"model load: {time.perf_counter() - t:.2f} s (once per process and shared by every backend; not counted below)")
         print(f"{'household':9s} {'ngram s':>8s} {'globe cold s':>12s} {'calls':>6s} {'s/call':>7s} {'globe cached s':>14s} {'cached/ngram':>12s} {'paper/cold':>10s}")
-        for name in cfg.data.households:
-            h = load_household(root, name)
+        for h in homes:
             fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
             t = time.perf_counter()
             evaluate_days(h, h.test, fitted.activity, ObjectChooser(fitted.objects))
@@ -55,7 +47,7 @@ def main() -> None:
             calls = sum(r.asked for r in ev.objects)
             cold, cached = timings
             ok = "ok" if cold <= TARGET_S and cached <= 2 * ngram_s else "MISSED"
-            print(f"{name:9s} {ngram_s:8.3f} {cold:12.2f} {calls:6d} {cold / max(calls, 1):7.3f} {cached:14.3f} {cached / ngram_s:11.1f}x {PAPER_S / cold:9.0f}x  {ok}")
+            print(f"{h.name:9s} {ngram_s:8.3f} {cold:12.2f} {calls:6d} {cold / max(calls, 1):7.3f} {cached:14.3f} {cached / ngram_s:11.1f}x {PAPER_S / cold:9.0f}x  {ok}")
 
 
 if __name__ == "__main__":

@@ -8,31 +8,21 @@ Usage: python benchmarks/bench_models.py [--data DIR]
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import time
 
-from globe.config import GlobeConfig
-from globe.data.csv_logs import load_household
-from globe.data.locate import resolve_data_root
+from common import setup
 from globe.evaluation.methods import METHODS
 from globe.evaluation.metrics import f1
 from globe.evaluation.protocol import evaluate_days
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--data", default=None)
-    args = parser.parse_args()
-    cfg = GlobeConfig()
-    root = resolve_data_root(args.data)
-    homes = [load_household(root, n) for n in cfg.data.households]
+    cfg, homes, _ = setup(__doc__)
     print(f"{'method':15s} {'home':4s} {'act F1':>7s} {'change F1':>9s} {'obj F1':>7s} {'train s':>8s} {'CV s':>6s}")
     for method in ("persistence", "ngram", "routine"):
         rows = []
         cache: dict = {}
         for h in homes:
-            t = time.perf_counter()
             prepared = METHODS[method].prepare(h, cfg, None, cache)
             cv = sum(s.seconds for s in prepared.selection.values())
             ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser)
@@ -42,7 +32,6 @@ def main() -> None:
                    f1([r.true for r in ev.objects], [r.predicted for r in ev.objects]), prepared.train_s, cv)
             rows.append(row)
             print(f"{method:15s} {h.name:4s} {row[0]:7.3f} {row[1]:9.3f} {row[2]:7.3f} {row[3]:8.4f} {row[4]:6.2f}")
-            del t
         mean = [statistics.fmean(r[i] for r in rows) for i in range(5)]
         verdict = ""
         if method == "routine":

@@ -6,14 +6,11 @@ Usage: python benchmarks/bench_noise.py [--data DIR]
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 from pathlib import Path
 
-from globe.config import GlobeConfig
-from globe.data.csv_logs import load_household
-from globe.data.locate import resolve_data_root
+from common import setup
 from globe.noise.generate import propose
 from globe.noise.proposals import LLMScorer
 from globe.reasoning.backends.embedded import EmbeddedBackend
@@ -21,12 +18,7 @@ from globe.reasoning.cache import AnswerCache
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--data", default=None)
-    args = parser.parse_args()
-    cfg = GlobeConfig()
-    root = resolve_data_root(args.data)
-    homes = [load_household(root, n) for n in cfg.data.households]
+    cfg, homes, _ = setup(__doc__)
     n = cfg.noise
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "scores.sqlite3"
