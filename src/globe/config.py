@@ -64,8 +64,8 @@ class SelectionConfig(_Section):
     time_weights: tuple[float, ...] = Field((0.0, 1.0, 2.0), description="time-of-day weights tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
     run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
-    gate_thresholds: tuple[float, ...] = Field((0.25, 0.5, 0.75), description="gate thresholds d tried")
-    combine_weights: tuple[float, ...] = Field((0.5, 1.0, 2.0, 4.0), description="weights of n-gram log p tried (combine)")
+    gate_thresholds: tuple[float, ...] = Field((0.25, 0.5), description="gate thresholds d tried")
+    combine_weights: tuple[float, ...] = Field((1.0, 4.0), description="weights of n-gram log p tried (combine)")
 
 
 class GateConfig(_Section):
@@ -76,6 +76,7 @@ class GateConfig(_Section):
         "replace", description="'replace' = LLM picks; 'combine' = LLM score + n-gram log p"
     )
     combine_weight: float = Field(1.0, ge=0.0, le=100.0, description="weight of n-gram log p in 'combine'")
+    examples: int = Field(0, ge=0, le=50, description="recent runs of the activity shown to the LLM (0 = the paper's prompt)")
 
 
 class LLMConfig(_Section):
@@ -117,7 +118,8 @@ class ServiceConfig(_Section):
 
 class EvaluationConfig(_Section):
     methods: tuple[str, ...] = Field(
-        ("persistence", "ngram", "globe", "globe_combine", "llm_only", "ngram_smoothed", "routine", "globe_routine"),
+        ("persistence", "ngram", "globe", "globe_combine", "globe_personal", "llm_only", "ngram_smoothed", "routine",
+         "globe_routine"),
         description="Table I rows",
     )
     calibration_bins: int = Field(10, ge=2, le=100, description="bins of the reliability diagrams")

@@ -89,3 +89,23 @@ def test_reply_matching():
     assert match_candidate("Tooth Paste", ("tooth_paste", "book")) == "tooth_paste"
     assert match_candidate("book\nbecause reading", ("tooth_paste", "book")) == "book"
     assert match_candidate("a spoon maybe", ("spoon",)) is None
+
+
+def test_personalised_prompt_follows_this_persons_habit(embedded_llm):
+    # a person who listens to a headset while reading: the habit beats the generic "book"
+    habit = (("headset",), ("headset",), ("headset",))
+    context = ChoiceContext("reading", (), habit)
+    choice = embedded_llm.choose(context, ("book", "headset"))
+    assert choice.answer == "headset"
+    other = ChoiceContext("reading", (), (("book",), ("book",), ("book",)))
+    assert embedded_llm.choose(other, ("book", "headset")).answer == "book"
+
+
+def test_scores_do_not_depend_on_what_was_evaluated_before(embedded_llm):
+    # the prefix cache must not change the ranking: the same question before and after another
+    context = ChoiceContext("breakfast", ("bowl",), (("bowl", "milk"), ("bowl", "milk")))
+    first = embedded_llm.score(context, ("milk", "spoon", "toothbrush"))
+    embedded_llm.score(ChoiceContext("breakfast", ("plate",), (("plate", "fork"),)), ("fork", "milk"))
+    again = embedded_llm.score(context, ("milk", "spoon", "toothbrush"))
+    assert sorted(first, key=first.get) == sorted(again, key=again.get)
+    assert all(abs(first[c] - again[c]) < 0.5 for c in first)

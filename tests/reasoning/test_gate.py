@@ -107,3 +107,21 @@ def test_llm_only_offers_every_object_of_the_activity(model):
     ("food-peanut butter", "food_peanut_butter")])
 def test_answers_are_normalised(reply, expected):
     assert normalise_answer(reply) == expected
+
+
+def test_personalised_gate_sends_the_persons_recent_runs(model):
+    backend = Scripted(answer="bowl")
+    gate(model, backend, examples=2).choose("eat", ("teapot",))
+    context = backend.calls[0][0]
+    assert context.examples == (("plate", "knife"), ("plate", "knife"))  # the last two runs of "eat"
+    assert model.recent_runs("eat", 3) == (("plate", "fork"), ("plate", "knife"), ("plate", "knife"))
+
+
+def test_prompts_show_the_habits():
+    from globe.reasoning.context import ChoiceContext
+    from globe.reasoning.prompts import diary_prefix, remote_prompt
+
+    ctx = ChoiceContext("breakfast", ("bowl",), (("bowl", "food_cereal"), ("plate",)))
+    assert diary_prefix(ctx) == "Day 1, breakfast: bowl, food cereal.\nDay 2, breakfast: plate.\nDay 3, breakfast: bowl,"
+    text = remote_prompt(ctx, ("milk", "spoon"))
+    assert "- bowl -> food_cereal" in text and text.endswith("Return only one object name from this list: [milk, spoon]")

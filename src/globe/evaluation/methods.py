@@ -49,7 +49,7 @@ def _gate(fitted: FittedHousehold, cfg: GlobeConfig, backend: LLMBackend | None,
           g: GateConfig | None = None) -> UncertaintyGate:
     g = g or cfg.gate
     return UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k, min_prob=g.min_prob,
-                           mode=g.mode, combine_weight=g.combine_weight, marginal=marginal)
+                           mode=g.mode, combine_weight=g.combine_weight, marginal=marginal, examples=g.examples)
 
 
 def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
@@ -73,6 +73,14 @@ def _globe_combine(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, c
     return _globe(h, cfg.with_overrides({"gate.mode": "combine"}), backend, cache)
 
 
+PERSONAL_EXAMPLES = 4  # the person's last runs of the activity shown to the LLM
+
+
+def _globe_personal(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
+    examples = cfg.gate.examples or PERSONAL_EXAMPLES
+    return _globe(h, cfg.with_overrides({"gate.examples": examples}), backend, cache)
+
+
 def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     if backend is None:
         raise ValueError("llm_only needs an LLM backend")
@@ -86,7 +94,7 @@ def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LL
         models, selection = tuned_models(h, cfg, family, cache)
         fitted = _fit(h, cfg, models)
         if with_gate and backend is not None:
-            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache)
+            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache, cfg.gate.examples or PERSONAL_EXAMPLES)
             selection = selection | {"gate": gate_sel}
             chooser: ObjectChooser = _gate(fitted, cfg, backend, models.object_marginal, gate_cfg)
         else:
@@ -103,9 +111,10 @@ METHODS: dict[str, Method] = {
         Method("ngram", "n-gram Markov", False, _ngram),
         Method("globe", "GLOBE", True, _globe),
         Method("globe_combine", "GLOBE, LLM + n-gram scores", True, _globe_combine),
+        Method("globe_personal", "GLOBE, personalised prompt", True, _globe_personal),
         Method("llm_only", "LLM-only", True, _llm_only),
         Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False)),
         Method("routine", "Routine model (CV)", False, _tuned("routine", False)),
-        Method("globe_routine", "GLOBE + routine model (gate CV)", True, _tuned("routine", True)),
+        Method("globe_routine", "GLOBE + routine model (personalised, gate CV)", True, _tuned("routine", True)),
     )
 }

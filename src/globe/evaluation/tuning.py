@@ -96,10 +96,12 @@ def _gate_fold(model: _GateJoint, days: Sequence[Day]) -> tuple[list[str], list[
     return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
 
 
-def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLMBackend, cache: dict) -> tuple[GateConfig, Selection]:
+def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLMBackend, cache: dict,
+               examples: int = 0) -> tuple[GateConfig, Selection]:
     """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is a candidate
-    and wins ties, so the LLM must earn its place on held-out days."""
-    key = (h.name, "gate", models.activity_estimator)
+    and wins ties, so the LLM must earn its place on held-out days. ``examples`` recent runs of
+    the activity personalise the prompt (fixed, not searched)."""
+    key = (h.name, "gate", models.activity_estimator, examples)
     if key in cache:
         return cache[key]
     sel, g = cfg.selection, cfg.gate
@@ -107,9 +109,9 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
         {"mode": "combine", "combine_weight": w} for w in sel.combine_weights]
     space = [{"threshold": 0.0, "mode": "replace", "combine_weight": g.combine_weight}] + [
         {"threshold": d, **style} for d in sel.gate_thresholds for style in styles]
-    common = {"top_k": g.top_k, "min_prob": g.min_prob}
+    common = {"top_k": g.top_k, "min_prob": g.min_prob, "examples": examples}
     memo: dict = {}
     chosen = select(list(h.train), space,
                     lambda p: _GateJoint(h, models, cfg.sequences.alignment, backend, p | common, memo), _gate_fold, sel.folds)
-    cache[key] = (g.model_copy(update=chosen.best), chosen)
+    cache[key] = (g.model_copy(update=chosen.best | {"examples": examples}), chosen)
     return cache[key]

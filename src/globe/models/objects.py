@@ -56,6 +56,18 @@ class ObjectModel(CountingModel):
     def _prefixed(self, objects: Sequence[str]) -> tuple[str, ...]:
         return (RUN_START, *objects) if self.run_start_token else tuple(objects)
 
+    def recent_runs(self, activity: str, k: int) -> tuple[tuple[str, ...], ...]:
+        """The last ``k`` observed runs of ``activity`` in which something moved, oldest first:
+        this person's own examples, shown to the LLM."""
+        self._check_fitted()
+        found: list[tuple[str, ...]] = []
+        for a, objects in reversed(self.training_data_):
+            if len(found) == k:
+                break
+            if a == activity and objects:
+                found.append(objects)
+        return tuple(reversed(found))
+
     def candidates(self, activity: str) -> tuple[str, ...]:
         """O(a): every object seen moving during ``activity`` in training, sorted."""
         self._check_fitted()

@@ -7,10 +7,12 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True, slots=True)
 class ChoiceContext:
-    """The predicted activity and the objects already moved in the current activity run."""
+    """The predicted activity, the objects already moved in the current activity run, and (to
+    personalise the LLM) this person's most recent runs of the same activity, oldest first."""
 
     activity: str
     objects: tuple[str, ...]
+    examples: tuple[tuple[str, ...], ...] = ()
 
 
 def humanise(label: str) -> str:

@@ -19,7 +19,8 @@ class UncertaintyGate(ObjectChooser):
     """GLOBE's object chooser.
 
     When the n-gram's top probability is below ``threshold`` (d), its top-``top_k`` objects with
-    p > ``min_prob`` go to the LLM with the activity and the run's objects. Fewer than two
+    p > ``min_prob`` go to the LLM with the activity and the run's objects (and, with
+    ``examples`` > 0, this person's last runs of the activity, which personalise the prompt). Fewer than two
     candidates: nothing to ask. ``replace`` takes the LLM's pick; ``combine`` adds
     ``combine_weight`` * log p_ngram to the LLM's per-candidate scores. Any LLM failure or
     off-list answer falls back to the n-gram's choice for that one prediction, and is counted.
@@ -29,7 +30,7 @@ class UncertaintyGate(ObjectChooser):
 
     def __init__(self, model, backend: LLMBackend | None, *, threshold: float = 0.5, top_k: int = 5,
                  min_prob: float = 0.1, mode: GateMode = "replace", combine_weight: float = 1.0,
-                 marginal: bool = False) -> None:
+                 marginal: bool = False, examples: int = 0) -> None:
         super().__init__(model, marginal=marginal)
         self.backend = backend
         self.threshold = threshold
@@ -37,6 +38,7 @@ class UncertaintyGate(ObjectChooser):
         self.min_prob = min_prob
         self.mode = mode
         self.combine_weight = combine_weight
+        self.examples = examples
         self.stats: Counter[str] = Counter()
 
     def candidates_for(self, ranked: list[str], dist: dict[str, float]) -> tuple[str, ...]:
@@ -58,7 +60,8 @@ class UncertaintyGate(ObjectChooser):
         self.stats["asked"] += 1
         started = time.perf_counter()
         try:
-            answer = self.backend.choose(ChoiceContext(activity, context_for(activity)), candidates)
+            examples = self.model.recent_runs(activity, self.examples) if self.examples else ()
+            answer = self.backend.choose(ChoiceContext(activity, context_for(activity), examples), candidates)
         except LLMError as err:
             reason = type(err).__name__
             self.stats[f"fallback:{reason}"] += 1

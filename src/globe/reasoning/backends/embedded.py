@@ -1,10 +1,18 @@
-"""Embedded backend: Gemma 3 270M (base) in process through llama.cpp, choosing by PMI.
+"""Embedded backend: Gemma 3 270M (base) in process through llama.cpp, choosing by scoring.
 
 A base model picks the first item of any list it is shown, so it is never asked to choose.
-Each candidate is scored as the continuation of a sentence about the activity and the
-objects so far, minus its score after a context-free sentence (pointwise mutual
-information): order-free, and always a listed candidate. The shared sentence is evaluated
-once; each candidate then costs only its own few tokens.
+Each candidate is scored as the continuation of a text, which is order-free and always yields a
+listed candidate:
+
+- with the person's own recent runs of the activity (``ChoiceContext.examples``), a diary of
+  those runs followed by today's line so far; the model copies the person's patterns, so the
+  plain log-probability is the score;
+- without them, a sentence about the activity and the objects so far, minus the candidate's
+  score after a context-free sentence (pointwise mutual information).
+
+The text is evaluated once (and its longest prefix already in the model's cache is reused:
+consecutive questions about one activity share their diary); each candidate then costs only its
+own few tokens.
 """
 
 from __future__ import annotations
@@ -16,13 +24,15 @@ import math
 import os
 import sys
 import threading
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from globe.errors import LLMUnavailableError, MissingExtraError
 from globe.reasoning.backends.base import Choice, LLMBackend
 from globe.reasoning.cache import AnswerCache, cache_key
 from globe.reasoning.context import ChoiceContext
-from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefix
+from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefix, diary_prefix
 
 log = logging.getLogger(__name__)
 
@@ -36,10 +46,19 @@ def packaged_model_path() -> Path:
     return Path(assemble())
 
 
+@dataclass(slots=True)
+class _Loaded:
+    """A llama.cpp model shared by every backend of the process, the lock they must hold (a
+    llama.cpp context is not thread-safe), and the tokens whose keys/values it holds now."""
+
+    llm: Any
+    lock: threading.Lock
+    cached_head: list[int] = field(default_factory=list)
+
+
 @functools.lru_cache(maxsize=4)
-def _load(path: str, n_threads: int, n_ctx: int) -> tuple[object, threading.Lock]:
-    """One llama.cpp model per (file, threads, context) per process, with the lock that every
-    backend sharing it must hold (a llama.cpp context is not thread-safe)."""
+def _load(path: str, n_threads: int, n_ctx: int) -> _Loaded:
+    """One llama.cpp model per (file, threads, context) per process."""
     try:
         from llama_cpp import Llama
     except ImportError as err:
@@ -52,7 +71,7 @@ def _load(path: str, n_threads: int, n_ctx: int) -> tuple[object, threading.Lock
     with _native_stderr_silenced():  # llama.cpp writes some load notices past verbose=False
         llm = Llama(model_path=path, n_ctx=n_ctx, n_threads=n_threads, n_threads_batch=n_threads,
                     n_batch=n_ctx, logits_all=False, verbose=False, seed=0)
-    return llm, threading.Lock()
+    return _Loaded(llm, threading.Lock())
 
 
 @contextlib.contextmanager
@@ -91,19 +110,21 @@ class EmbeddedBackend(LLMBackend):
         self.n_threads = n_threads
         self.n_ctx = n_ctx
         self.cache = cache
-        self._llm = None
-        self._lock: threading.Lock | None = None
+        self._loaded: _Loaded | None = None
         self._memo: dict[tuple[str, str], float] = {}  # context-free scores, reused across calls
 
     @property
     def model_name(self) -> str:  # type: ignore[override]
         return Path(self.model_path).name if self.model_path else "gemma3-270m-q4_k_m"
 
-    def _model(self):
-        if self._llm is None:
+    def _shared(self) -> _Loaded:
+        if self._loaded is None:
             path = self.model_path or packaged_model_path()
-            self._llm, self._lock = _load(str(path), self.n_threads, self.n_ctx)
-        return self._llm
+            self._loaded = _load(str(path), self.n_threads, self.n_ctx)
+        return self._loaded
+
+    def _model(self):
+        return self._shared().llm
 
     def continuation_logprobs(self, prefix: str, continuations: list[str], memo: bool = False) -> list[float]:
         """Sum of token log-probabilities of each continuation after ``prefix``.
@@ -111,15 +132,15 @@ class EmbeddedBackend(LLMBackend):
         The prefix is evaluated once; each continuation then costs one single-token decode per
         token after its first (one-token names cost nothing more).
         """
-        llm = self._model()
-        with self._lock:  # type: ignore[union-attr]
+        shared = self._shared()
+        llm = shared.llm
+        with shared.lock:
             todo = [c for c in continuations if not (memo and (prefix, c) in self._memo)]
             if todo:
                 head = llm.tokenize(prefix.encode("utf-8"), add_bos=True)
                 if len(head) >= self.n_ctx - 16:
                     raise ValueError(f"prompt of {len(head)} tokens does not fit n_ctx={self.n_ctx}")
-                llm.reset()
-                llm.eval(head)
+                self._eval_head(shared, head)
                 first = _last_log_softmax(llm)
                 for text in todo:
                     tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
@@ -135,18 +156,37 @@ class EmbeddedBackend(LLMBackend):
                     del self._memo[(prefix, c)]
             return out
 
+    @staticmethod
+    def _eval_head(shared: _Loaded, head: list[int]) -> None:
+        """Evaluate ``head``, reusing its longest prefix still in the model's cache (the last
+        token is always evaluated again, so its logits are fresh). Call with the lock held."""
+        common = 0
+        for a, b in zip(shared.cached_head, head[:-1]):
+            if a != b:
+                break
+            common += 1
+        shared.llm.n_tokens = common
+        shared.llm.eval(head[common:])
+        shared.cached_head = list(head)
+
+    def prompt(self, context: ChoiceContext) -> str:
+        return diary_prefix(context) if context.examples else cloze_prefix(context)
+
     def score(self, context: ChoiceContext, candidates: tuple[str, ...]) -> dict[str, float]:
-        """PMI of each candidate: log p(name | context sentence) - log p(name | null sentence)."""
+        """Diary log-probability (with examples) or PMI of each candidate (without)."""
         conts = [cloze_continuation(c) for c in candidates]
-        with_ctx = self.continuation_logprobs(cloze_prefix(context), conts)
+        with_ctx = self.continuation_logprobs(self.prompt(context), conts)
+        if context.examples:
+            return dict(zip(candidates, with_ctx))
         without = self.continuation_logprobs(NULL_PREFIX, conts, memo=True)
         return {c: a - b for c, a, b in zip(candidates, with_ctx, without)}
 
     def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice:
         key = None
         if self.cache is not None:
-            key = cache_key(backend=self.name, model=self.model_name, prefix=cloze_prefix(context),
-                            null=NULL_PREFIX, candidates=sorted(candidates), method="pmi")
+            key = cache_key(backend=self.name, model=self.model_name, prefix=self.prompt(context),
+                            null=None if context.examples else NULL_PREFIX, candidates=sorted(candidates),
+                            method="diary" if context.examples else "pmi")
             hit = self.cache.get(key)
             if hit is not None:
                 return Choice(hit["answer"], hit["scores"], cached=True)
