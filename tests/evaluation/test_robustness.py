@@ -5,7 +5,7 @@ from dataclasses import replace
 import pytest
 
 from globe.config import GlobeConfig
-from globe.evaluation.robustness import consistency_groups, run_suite
+from globe.evaluation.robustness import consistency_groups, run_suite, write_robustness_results
 from globe.noise.dataset import level_dir, read_manifest, write_level
 from globe.noise.generate import propose
 from globe.noise.proposals import UniformScorer
@@ -23,9 +23,13 @@ def setup(households, tmp_path_factory):
     return cfg, small, root
 
 
-def test_suite_scores_all_and_routine_events(setup):
+def test_suite_scores_all_and_routine_events(setup, tmp_path):
     cfg, small, root = setup
     res = run_suite(cfg, [small], root, None, methods=("ngram",))
+    write_robustness_results(tmp_path, res)
+    for name in ("robustness.csv", "consistency.csv", "ablation_train_level.csv", "robustness.md", "robustness.png",
+                 "consistency_ngram_start_time.png", "ablation_train_level.png"):
+        assert (tmp_path / name).is_file(), name
     clean = next(r for r in res.robustness if r["dataset"] == "clean")
     pet = next(r for r in res.robustness if r["dataset"] == "pet")
     injected_test = [m for m in read_manifest(level_dir(root, "pet", 1.0) / "manifest.csv") if m[1].startswith("test/")]

@@ -68,48 +68,20 @@ def timing_table(rows: list[dict]) -> Table:
 
 
 def run_table1(cfg: GlobeConfig, data: Path | None, households: str | None, methods: list[str], out_dir: Path) -> None:
-    from globe.evaluation import experiments, report
-    from globe.evaluation.plots import reliability_figure, table1_figure
+    from globe.evaluation.experiments import run_methods
+    from globe.evaluation.results import write_table1_results
 
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise ConfigError(f"unknown method {unknown[0]!r}; expected one of {', '.join(METHODS)}")
     hs = households_from(cfg, data, households)
     backend = _backend(cfg, methods)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    report.write_json(out_dir / "config.json", cfg.model_dump(mode="json"))
-    total = sum(len(h.test) for h in hs) * len(methods)
     started = time.perf_counter()
-    with progress_bar(total, "evaluating") as advance:
-        runs = experiments.run_methods(cfg, hs, methods, backend, progress=lambda m, n: advance(n, f"evaluating {m}"))
-    labels = {name: m.label for name, m in METHODS.items()}
-    rows = experiments.table1_rows(runs)
-    report.write_csv(out_dir / "table1.csv", rows)
-    details = experiments.detail_rows(runs)
-    report.write_csv(out_dir / "details.csv", details)
-    timing = experiments.timing_rows(runs)
-    report.write_csv(out_dir / "timing.csv", timing)
-    report.write_csv(out_dir / "selection.csv", experiments.selection_rows(runs),
-                     ["method", "household", "part", "params", "cv_weighted_f1", "chosen"])
-    calib, curves = experiments.calibration_rows(runs, cfg.evaluation.calibration_bins)
-    report.write_csv(out_dir / "calibration.csv", calib)
-    for part, per_method in curves.items():
-        reliability_figure(per_method, f"Reliability of {part} probabilities").savefig(out_dir / f"reliability_{part}.png", dpi=120)
-    for run in runs:
-        report.write_records(out_dir / "records", f"{run.method}_{run.household}_activity", run.evaluation.activity)
-        report.write_records(out_dir / "records", f"{run.method}_{run.household}_objects", run.evaluation.objects)
-        report.write_records(out_dir / "records", f"{run.method}_{run.household}_objects_oracle", run.oracle.objects)
-    md = "\n".join([
-        "# Table I (HOMER+)", "", report.table1_markdown(rows, labels, "weighted"),
-        report.table1_markdown(rows, labels, "micro"), report.table1_markdown(rows, labels, "macro"),
-        "# Table II (timing)", "", report.timing_markdown(timing), "# Details", "", report.details_markdown(details),
-        "# Calibration (expected calibration error)", "", report.rows_markdown(calib),
-    ])
-    (out_dir / "table1.md").write_text(md, encoding="utf-8")
-    fig = table1_figure(rows, labels)
-    fig.savefig(out_dir / "table1.png", dpi=130)
-    out.print(table1_table(rows, labels))
-    out.print(timing_table(timing))
+    with progress_bar(sum(len(h.test) for h in hs) * len(methods), "evaluating") as advance:
+        runs = run_methods(cfg, hs, methods, backend, progress=lambda m, n: advance(n, f"evaluating {m}"))
+    results = write_table1_results(out_dir, runs, cfg)
+    out.print(table1_table(results.rows, results.labels))
+    out.print(timing_table(results.timing))
     console.print(f"results in {out_dir} ({time.perf_counter() - started:.1f} s)")
 
 

@@ -95,14 +95,7 @@ def noise(
 
 
 def run_robustness(cfg: GlobeConfig, households: list[Household], noise_dir: Path, out_dir: Path) -> None:
-    from globe.evaluation import report
-    from globe.evaluation.plots import (
-        consistency_figure,
-        grouped_line_figure,
-        robustness_figure,
-    )
-    from globe.evaluation.published import TABLE1
-    from globe.evaluation.robustness import run_suite
+    from globe.evaluation.robustness import run_suite, write_robustness_results
 
     if not (noise_dir / "summary.json").is_file():
         print_summary(generate(cfg, households, noise_dir))
@@ -111,32 +104,9 @@ def run_robustness(cfg: GlobeConfig, households: list[Household], noise_dir: Pat
         from globe.reasoning.backends import backend_from_config
 
         backend = backend_from_config(cfg.llm)
-    out_dir.mkdir(parents=True, exist_ok=True)
     with console.status("robustness suite") as status:
         res = run_suite(cfg, households, noise_dir, backend, progress=lambda s: status.update(f"robustness suite: {s}"))
-    report.write_csv(out_dir / "robustness.csv", res.robustness)
-    report.write_csv(out_dir / "consistency.csv", res.consistency)
-    report.write_csv(out_dir / "ablation_train_level.csv", res.train_level)
-    report.write_csv(out_dir / "ablation_threshold.csv", res.threshold)
-    robustness_figure(res.robustness, {"SLaTe-PRO": TABLE1["slate_pro"][1]}).savefig(out_dir / "robustness.png", dpi=130)
-    for method in dict.fromkeys(r["method"] for r in res.consistency):
-        for definition in dict.fromkeys(r["definition"] for r in res.consistency):
-            consistency_figure(res.consistency, method, definition).savefig(
-                out_dir / f"consistency_{method}_{definition}.png", dpi=130)
-    if res.train_level:
-        grouped_line_figure([r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level], "train_level", "series",
-                            "object_f1", "Training noise level (tested at 1.0)", "training noise level",
-                            "object F1 (weighted)").savefig(out_dir / "ablation_train_level.png", dpi=130)
-    if res.threshold:
-        grouped_line_figure(res.threshold, "threshold", "dataset", "object_f1", "Gate threshold d",
-                            "threshold d", "object F1 (weighted)").savefig(out_dir / "ablation_threshold.png", dpi=130)
-    md = "\n".join(["# Robustness (train at noise 0.5, test at 1.0)", "", report.rows_markdown(res.robustness),
-                    f"Published SLaTe-PRO on clean HOMER+: object F1 {TABLE1['slate_pro'][1]:.2f} (its per-noise values are "
-                    "only shown graphically in the paper).", "",
-                    "# Behavioural consistency", "", report.rows_markdown(res.consistency),
-                    "# Ablation: training noise level", "", report.rows_markdown(res.train_level),
-                    "# Ablation: threshold d", "", report.rows_markdown(res.threshold)])
-    (out_dir / "robustness.md").write_text(md, encoding="utf-8")
+    write_robustness_results(out_dir, res)
     table = Table(title="Robustness: object F1, all events / routine events only (mean of households)")
     for col in ("dataset", "method", "activity F1", "object F1 all", "object F1 routine", "injected"):
         table.add_column(col)
