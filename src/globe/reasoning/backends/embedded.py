@@ -137,10 +137,7 @@ class EmbeddedBackend(LLMBackend):
         with shared.lock:
             todo = [c for c in continuations if not (memo and (prefix, c) in self._memo)]
             if todo:
-                head = llm.tokenize(prefix.encode("utf-8"), add_bos=True)
-                if len(head) >= self.n_ctx - 16:
-                    raise ValueError(f"prompt of {len(head)} tokens does not fit n_ctx={self.n_ctx}")
-                self._eval_head(shared, head)
+                head = self._eval_prompt(shared, prefix)
                 first = _last_log_softmax(llm)
                 for text in todo:
                     tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
@@ -156,18 +153,32 @@ class EmbeddedBackend(LLMBackend):
                     del self._memo[(prefix, c)]
             return out
 
-    @staticmethod
-    def _eval_head(shared: _Loaded, head: list[int]) -> None:
-        """Evaluate ``head``, reusing its longest prefix still in the model's cache (the last
-        token is always evaluated again, so its logits are fresh). Call with the lock held."""
-        common = 0
-        for a, b in zip(shared.cached_head, head[:-1]):
-            if a != b:
-                break
-            common += 1
-        shared.llm.n_tokens = common
-        shared.llm.eval(head[common:])
-        shared.cached_head = list(head)
+    def _eval_prompt(self, shared: _Loaded, prompt: str) -> list[int]:
+        """Evaluate ``prompt``; returns its tokens. Call with the lock held.
+
+        A multi-line prompt is evaluated as two fixed batches: everything up to its last line
+        (kept in the model's cache and reused while it stays the same, e.g. one activity's
+        diary) and the last line. A one-line prompt is evaluated afresh. Either way the
+        arithmetic never depends on what was asked before, so scores are reproducible.
+        """
+        llm = shared.llm
+        base, newline, last = prompt.rpartition("\n")
+        if newline:
+            first = llm.tokenize((base + newline).encode("utf-8"), add_bos=True)
+            second = llm.tokenize(last.encode("utf-8"), add_bos=False)
+        else:
+            first, second = llm.tokenize(prompt.encode("utf-8"), add_bos=True), []
+        if len(first) + len(second) >= self.n_ctx - 16:
+            raise ValueError(f"prompt of {len(first) + len(second)} tokens does not fit n_ctx={self.n_ctx}")
+        if second and shared.cached_head == first:
+            llm.n_tokens = len(first)
+        else:
+            llm.reset()
+            llm.eval(first)
+            shared.cached_head = list(first)
+        if second:
+            llm.eval(second)
+        return first + second
 
     def prompt(self, context: ChoiceContext) -> str:
         return diary_prefix(context) if context.examples else cloze_prefix(context)
