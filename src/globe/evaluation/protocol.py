@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Callable, Protocol, Sequence
 
 from globe.data.records import Day, Household
-from globe.reasoning.choice import ObjectChoice, ObjectChooser
+from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
 from globe.sequences.movements import Alignment
 from globe.sequences.runs import activity_runs
 
@@ -98,11 +98,7 @@ def evaluate_days(
             for i, ev in enumerate(run.events):
                 a_hat = run.activity if oracle else predicted[ev.activity_step]
                 belief = {run.activity: 1.0} if oracle else dists[ev.activity_step]
-                so_far = run.objects[:i]
-
-                def context_for(a: str, _run: str = run.activity, _objs: tuple[str, ...] = so_far) -> tuple[str, ...]:
-                    return _objs if a == _run else ()
-
+                context_for = run_context(run.activity, run.objects[:i])
                 context = context_for(a_hat)
                 choice: ObjectChoice = chooser.choose_given(a_hat, belief, context_for)
                 obj_records.append(ObjectRecord(

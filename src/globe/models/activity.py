@@ -10,7 +10,7 @@ from globe.models.backoff import (
     longest_distribution,
     witten_bell_distribution,
 )
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, windowed_prior
 from globe.models.suffix_index import SuffixIndex
 
 DAY_START = "<day>"
@@ -65,16 +65,8 @@ class ActivityModel(ActivityModelBase):
             dist = self._with_time(dist, step)
         return dist  # type: ignore[return-value]
 
-    def _time_prior(self, step: int) -> dict[str, float]:
-        """P(a | step), pooled over +-time_window steps, add-one smoothed."""
-        counts: Counter[str] = Counter()
-        for t in range(max(0, step - self.time_window), min(len(self.by_step_), step + self.time_window + 1)):
-            counts.update(self.by_step_[t])
-        total = sum(counts.values()) + len(self.classes_)
-        return {a: (counts.get(a, 0) + 1) / total for a in self.classes_}
-
     def _with_time(self, dist: dict[Hashable, float], step: int) -> dict[str, float]:
-        prior = self._time_prior(step)
+        prior = windowed_prior(self.by_step_, step, self.time_window, self.classes_)
         mixed = {a: p * prior.get(a, 1e-9) ** self.time_weight for a, p in dist.items()}
         total = sum(mixed.values())
         return {a: p / total for a, p in mixed.items()} if total > 0 else dict(dist)  # type: ignore[misc]

@@ -46,6 +46,16 @@ class CountingModel:
         return f"{type(self).__name__}({args})"
 
 
+def windowed_prior(by_step: Sequence[Mapping[str, int]], step: int, window: int,
+                   classes: Sequence[str]) -> dict[str, float]:
+    """P(a | step): counts pooled over ``step`` +- ``window``, add-one smoothed over ``classes``."""
+    counts: Counter[str] = Counter()
+    for t in range(max(0, step - window), min(len(by_step), step + window + 1)):
+        counts.update(by_step[t])
+    total = sum(counts.values()) + len(classes)
+    return {a: (counts.get(a, 0) + 1) / total for a in classes}
+
+
 def rank(distribution: Mapping[Hashable, float], frequency: Mapping[Hashable, int]) -> list[Hashable]:
     """Labels by probability; ties by training frequency, then by label (deterministic)."""
     return sorted(distribution, key=lambda w: (-distribution[w], -frequency.get(w, 0), str(w)))

@@ -23,7 +23,7 @@ from collections import Counter
 from typing import Sequence
 
 from globe.models.backoff import witten_bell_distribution
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, windowed_prior
 from globe.models.suffix_index import SuffixIndex
 from globe.sequences.runs import run_bounds
 
@@ -93,13 +93,6 @@ class RoutineModel(ActivityModelBase):
             p = (self.stayed_[key] + k * p) / (self.seen_[key] + k)
         return p
 
-    def _start_prior(self, step: int) -> dict[str, float]:
-        counts: Counter[str] = Counter()
-        for t in range(max(0, step - self.time_window), min(len(self.starts_), step + self.time_window + 1)):
-            counts.update(self.starts_[t])
-        total = sum(counts.values()) + len(self.classes_)
-        return {a: (counts.get(a, 0) + 1) / total for a in self.classes_}
-
     def _distribution(self, runs: list[tuple[str, int, int]], step: int) -> dict[str, float]:
         if not runs:
             total = sum(self.first_.values())
@@ -110,7 +103,7 @@ class RoutineModel(ActivityModelBase):
         nxt = witten_bell_distribution(self.runs_, state, matched, self.order, self.classes_)
         nxt.pop(current, None)
         if self.time_weight > 0:
-            prior = self._start_prior(step)
+            prior = windowed_prior(self.starts_, step, self.time_window, self.classes_)
             nxt = {b: p * prior[b] ** self.time_weight for b, p in nxt.items()}
         z = sum(nxt.values())
         dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}

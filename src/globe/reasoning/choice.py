@@ -25,6 +25,14 @@ class ObjectChoice:
 
 
 ContextFor = Callable[[str], tuple[str, ...]]
+
+
+def run_context(run_activity: str | None, objects: tuple[str, ...]) -> ContextFor:
+    """Context for a hypothesised activity: the current run's objects if that activity continues
+    the run, else none (a new run starts empty)."""
+    objects = tuple(objects)
+    return lambda activity: objects if activity == run_activity else ()
+
 MIN_BELIEF = 1e-3  # activities less likely than this cannot change the mixed object ranking much
 
 
@@ -72,4 +80,4 @@ class ObjectChooser:
 
     def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
         """The next object for a known activity and the objects moved so far in its run."""
-        return self.choose_given(activity, None, lambda a: tuple(history) if a == activity else ())
+        return self.choose_given(activity, None, run_context(activity, history))

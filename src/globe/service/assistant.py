@@ -21,7 +21,7 @@ from typing import Mapping, Sequence
 
 from globe.data.records import Day, Household
 from globe.errors import DataError, UnknownLabelError
-from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.choice import ObjectChooser, run_context
 from globe.sequences.runs import activity_runs
 
 
@@ -121,12 +121,7 @@ class OnlineAssistant:
         if not ranked:
             return Prediction(self._day_key or "", len(history), None, 0.0, None, 0.0, False, None, False, None)
         nxt = ranked[0]
-        current, run_objects = self._current_run()
-
-        def context_for(a: str) -> tuple[str, ...]:
-            return run_objects if a == current else ()
-
-        choice = self.chooser.choose_given(nxt, belief, context_for)
+        choice = self.chooser.choose_given(nxt, belief, run_context(*self._current_run()))
         act = choice.obj is not None and choice.confidence >= self.action_threshold
         return Prediction(self._day_key or "", len(history), nxt, belief[nxt], choice.obj, choice.confidence,
                           choice.asked, choice.fallback, act, self.fetch_target(nxt, choice.obj))

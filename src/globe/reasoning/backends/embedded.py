@@ -10,9 +10,8 @@ listed candidate:
 - without them, a sentence about the activity and the objects so far, minus the candidate's
   score after a context-free sentence (pointwise mutual information).
 
-The text is evaluated once (and its longest prefix already in the model's cache is reused:
-consecutive questions about one activity share their diary); each candidate then costs only its
-own few tokens.
+The text is evaluated once (a diary already in the model's cache is reused: consecutive
+questions about one activity share it); each candidate then costs only its own few tokens.
 """
 
 from __future__ import annotations
@@ -135,7 +134,8 @@ class EmbeddedBackend(LLMBackend):
         shared = self._shared()
         llm = shared.llm
         with shared.lock:
-            todo = [c for c in continuations if not (memo and (prefix, c) in self._memo)]
+            known = {c: self._memo[(prefix, c)] for c in continuations if memo and (prefix, c) in self._memo}
+            todo = [c for c in continuations if c not in known]
             if todo:
                 head = self._eval_prompt(shared, prefix)
                 first = _last_log_softmax(llm)
@@ -146,12 +146,10 @@ class EmbeddedBackend(LLMBackend):
                     for nxt_tok, tok in zip(tail[1:], tail[:-1]):
                         llm.eval([tok])
                         total += float(_last_log_softmax(llm)[nxt_tok])
-                    self._memo[(prefix, text)] = total
-            out = [self._memo[(prefix, c)] for c in continuations]
-            if not memo:
-                for c in todo:
-                    del self._memo[(prefix, c)]
-            return out
+                    known[text] = total
+                    if memo:
+                        self._memo[(prefix, text)] = total
+            return [known[c] for c in continuations]
 
     def _eval_prompt(self, shared: _Loaded, prompt: str) -> list[int]:
         """Evaluate ``prompt``; returns its tokens. Call with the lock held.
