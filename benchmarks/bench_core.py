@@ -12,7 +12,7 @@ import time
 
 from common import setup
 from globe.evaluation.protocol import evaluate_days
-from globe.pipeline import fit_household
+from globe.assembly import fit_household
 from globe.reasoning.choice import ObjectChooser
 
 PAPER_TRAIN_S, PAPER_INFER_S, TARGET_S = 8.33, 0.86, 0.05
@@ -24,7 +24,7 @@ def main() -> None:
     for h in homes:
         pre, train, infer = [], [], []
         for _ in range(args.repeats):
-            fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
+            fitted = fit_household(h, cfg)
             pre.append(fitted.preprocess_s)
             train.append(fitted.train_s)
             t = time.perf_counter()

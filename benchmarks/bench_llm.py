@@ -13,20 +13,17 @@ import time
 from pathlib import Path
 
 from common import setup
-from globe.evaluation.methods import PERSONAL_EXAMPLES
+from globe.assembly import fit_household, object_chooser
 from globe.evaluation.protocol import evaluate_days
-from globe.pipeline import fit_household
 from globe.reasoning.backends.embedded import EmbeddedBackend
 from globe.reasoning.cache import AnswerCache
 from globe.reasoning.choice import ObjectChooser
-from globe.reasoning.gate import UncertaintyGate
 
 PAPER_S, TARGET_S = 192.0, 20.0
 
 
 def main() -> None:
     cfg, homes, _ = setup(__doc__)
-    g = cfg.gate
     with tempfile.TemporaryDirectory() as tmp:
         cache_path = Path(tmp) / "answers.sqlite3"
         warm = EmbeddedBackend(n_threads=cfg.llm.n_threads)
@@ -35,17 +32,17 @@ def main() -> None:
         print(f"model load: {time.perf_counter() - t:.2f} s (once per process and shared by every backend; not counted below)")
         print(f"{'prompt':9s} {'household':9s} {'ngram s':>8s} {'globe cold s':>12s} {'calls':>6s} {'s/call':>7s} "
               f"{'globe cached s':>14s} {'cached/ngram':>12s} {'paper/cold':>10s}")
-        for prompt, examples in (("paper", 0), ("personal", PERSONAL_EXAMPLES)):
+        for prompt, examples in (("paper", 0), ("personal", cfg.evaluation.personal_examples)):
             for h in homes:
-                fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
+                fitted = fit_household(h, cfg)
                 t = time.perf_counter()
                 evaluate_days(h, h.test, fitted.activity, ObjectChooser(fitted.objects))
                 ngram_s = time.perf_counter() - t
                 timings = []
                 for _ in range(2):  # cold, then from the cache
                     backend = EmbeddedBackend(n_threads=cfg.llm.n_threads, cache=AnswerCache(cache_path))
-                    gate = UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k,
-                                           min_prob=g.min_prob, examples=examples)
+                    gate = object_chooser(fitted.objects, cfg.gate.model_copy(update={"examples": examples}), backend,
+                                          marginal=False)
                     t = time.perf_counter()
                     ev = evaluate_days(h, h.test, fitted.activity, gate)
                     timings.append(time.perf_counter() - t)

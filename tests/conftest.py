@@ -15,7 +15,7 @@ import pytest
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
-from globe.pipeline import fit_household
+from globe.assembly import fit_household
 from tests.helpers import free_port
 
 
@@ -49,7 +49,7 @@ def config() -> GlobeConfig:
 @pytest.fixture(scope="session")
 def fitted(households, config):
     """Paper-configuration models per household (never mutated by tests)."""
-    return {n: fit_household(h, config.models, config.sequences.alignment) for n, h in households.items()}
+    return {n: fit_household(h, config) for n, h in households.items()}
 
 
 @pytest.fixture(scope="session")

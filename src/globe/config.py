@@ -47,10 +47,10 @@ class ModelConfig(_Section):
         False, description="condition the first object of a run on the run start (not in the paper)"
     )
     time_weight: float = Field(0.0, ge=0.0, le=10.0, description="exponent of the time-of-day expert P(a | step)")
-    time_window: int = Field(2, ge=0, le=200, description="steps pooled on each side for the time-of-day expert")
+    time_window: int = Field(2, ge=1, le=200, description="steps pooled on each side for the time-of-day expert")
     routine_order: int = Field(3, ge=1, le=100, description="routine model: order of the n-gram over activity runs")
     routine_time_weight: float = Field(1.0, ge=0.0, le=10.0, description="routine model: weight of P(start | step)")
-    routine_time_window: int = Field(3, ge=0, le=200, description="routine model: steps pooled for the start prior")
+    routine_time_window: int = Field(3, ge=1, le=200, description="routine model: steps pooled for the start prior")
     routine_shrinkage: float = Field(1.0, gt=0.0, le=1000.0, description="routine model: pseudo-count of the stay hazard")
     object_marginal: bool = Field(
         False, description="mix object predictions over the activity distribution instead of its argmax"
@@ -123,6 +123,9 @@ class EvaluationConfig(_Section):
         description="Table I rows",
     )
     calibration_bins: int = Field(10, ge=2, le=100, description="bins of the reliability diagrams")
+    personal_examples: int = Field(
+        4, ge=1, le=50, description="recent runs shown to the LLM by the personalised rows (globe_personal, globe_routine)"
+    )
 
 
 class GlobeConfig(_Section):

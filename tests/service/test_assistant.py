@@ -5,7 +5,7 @@ import datetime as dt
 import pytest
 
 from globe.errors import DataError
-from globe.pipeline import fit_household
+from globe.assembly import fit_household
 from globe.reasoning.choice import ObjectChooser
 from globe.service.assistant import Observation, OnlineAssistant
 
@@ -13,7 +13,7 @@ from globe.service.assistant import Observation, OnlineAssistant
 @pytest.fixture()
 def assistant(households, config):
     h = households["A"]
-    fitted = fit_household(h, config.models, config.sequences.alignment)
+    fitted = fit_household(h, config)
     return OnlineAssistant(h, fitted.activity, ObjectChooser(fitted.objects), max_gap_steps=6)
 
 

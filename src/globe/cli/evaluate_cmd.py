@@ -19,6 +19,7 @@ from globe.cli.common import (
     progress_bar,
     resolve,
 )
+from globe import assembly
 from globe.config import GlobeConfig
 from globe.errors import ConfigError
 from globe.evaluation.methods import METHODS
@@ -27,11 +28,9 @@ OutOption = Annotated[Path, typer.Option("--out", help="results folder to write"
 
 
 def _backend(cfg: GlobeConfig, methods: list[str]):
-    if not any(METHODS[m].needs_llm for m in methods) or cfg.llm.backend == "none":
+    if not any(METHODS[m].needs_llm for m in methods):
         return None
-    from globe.reasoning.backends import backend_from_config
-
-    return backend_from_config(cfg.llm)
+    return assembly.llm_backend(cfg.llm)
 
 
 def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:

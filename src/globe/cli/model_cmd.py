@@ -7,10 +7,10 @@ from typing import Annotated
 
 import typer
 
+from globe.assembly import fit_household
 from globe.cli.common import ConfigOption, DataOption, households_from, out, resolve
 from globe.errors import DataError
 from globe.models.io import load_model, save_model
-from globe.pipeline import fit_household
 
 ModelDir = Annotated[Path, typer.Option("--model-dir", help="folder with activity.json and objects.json")]
 
@@ -24,7 +24,7 @@ def train(
     """Fit the activity and object models on a household's training days and save them."""
     cfg = resolve(config)
     (h,) = households_from(cfg, data, household)
-    fitted = fit_household(h, cfg.models, cfg.sequences.alignment)
+    fitted = fit_household(h, cfg)
     save_model(fitted.activity, model_dir / "activity.json")
     save_model(fitted.objects, model_dir / "objects.json")
     out.print(f"trained on {len(h.train)} days of household {h.name} in {fitted.train_s * 1000:.1f} ms -> {model_dir}")

@@ -19,24 +19,11 @@ from globe.cli.common import (
     progress_bar,
     resolve,
 )
+from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
 
 NoiseDir = Annotated[Path, typer.Option("--noise-dir", help="where HOMER-Noise is (or will be) written")]
-
-
-def _scorer(cfg: GlobeConfig):
-    from globe.noise.proposals import LLMScorer, UniformScorer
-
-    if cfg.llm.backend == "none":
-        return UniformScorer()
-    if cfg.llm.backend != "embedded":
-        from globe.errors import ConfigError
-
-        raise ConfigError("the noise generator scores sentences: use llm.backend 'embedded' (or 'none' for uniform proposals)")
-    from globe.reasoning.backends import backend_from_config
-
-    return LLMScorer(backend_from_config(cfg.llm))
 
 
 def generate(cfg: GlobeConfig, households: list[Household], noise_dir: Path) -> dict:
@@ -44,7 +31,7 @@ def generate(cfg: GlobeConfig, households: list[Household], noise_dir: Path) -> 
     from globe.noise import dataset
     from globe.noise.generate import propose
 
-    scorer = _scorer(cfg)
+    scorer = assembly.noise_scorer(cfg)
     n = cfg.noise
     proposals = {}
     started = time.perf_counter()
@@ -99,11 +86,7 @@ def run_robustness(cfg: GlobeConfig, households: list[Household], noise_dir: Pat
 
     if not (noise_dir / "summary.json").is_file():
         print_summary(generate(cfg, households, noise_dir))
-    backend = None
-    if cfg.llm.backend != "none":
-        from globe.reasoning.backends import backend_from_config
-
-        backend = backend_from_config(cfg.llm)
+    backend = assembly.llm_backend(cfg.llm)
     with console.status("robustness suite") as status:
         res = run_suite(cfg, households, noise_dir, backend, progress=lambda s: status.update(f"robustness suite: {s}"))
     write_robustness_results(out_dir, res)

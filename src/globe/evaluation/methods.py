@@ -11,16 +11,16 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-from globe.config import GateConfig, GlobeConfig, ModelConfig
+from globe import assembly
+from globe.assembly import FittedHousehold
+from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation.protocol import ActivityPredictor
-from globe.evaluation.tuning import tuned_gate, tuned_models
+from globe.evaluation.tuning import Selection, tuned_gate, tuned_models
 from globe.models.baselines import PersistenceModel
-from globe.models.selection import Selection
-from globe.pipeline import FittedHousehold, fit_household
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
-from globe.reasoning.gate import LLMOnlyChooser, UncertaintyGate
+from globe.reasoning.gate import LLMOnlyChooser
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,14 +42,7 @@ class Method:
 
 
 def _fit(h: Household, cfg: GlobeConfig, models: ModelConfig | None = None) -> FittedHousehold:
-    return fit_household(h, models or cfg.models, cfg.sequences.alignment)
-
-
-def _gate(fitted: FittedHousehold, cfg: GlobeConfig, backend: LLMBackend | None, marginal: bool,
-          g: GateConfig | None = None) -> UncertaintyGate:
-    g = g or cfg.gate
-    return UncertaintyGate(fitted.objects, backend, threshold=g.threshold, top_k=g.top_k, min_prob=g.min_prob,
-                           mode=g.mode, combine_weight=g.combine_weight, marginal=marginal, examples=g.examples)
+    return assembly.fit_household(h, cfg if models is None else cfg.model_copy(update={"models": models}))
 
 
 def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
@@ -61,24 +54,27 @@ def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cac
 
 def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     fitted = _fit(h, cfg)
-    return Prepared(fitted.activity, ObjectChooser(fitted.objects, marginal=cfg.models.object_marginal), fitted.train_s)
+    return Prepared(fitted.activity, assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=cfg.models.object_marginal),
+                    fitted.train_s)
 
 
 def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     fitted = _fit(h, cfg)
-    return Prepared(fitted.activity, _gate(fitted, cfg, backend, cfg.models.object_marginal), fitted.train_s)
+    chooser = assembly.object_chooser(fitted.objects, cfg.gate, backend, marginal=cfg.models.object_marginal)
+    return Prepared(fitted.activity, chooser, fitted.train_s)
 
 
 def _globe_combine(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     return _globe(h, cfg.with_overrides({"gate.mode": "combine"}), backend, cache)
 
 
-PERSONAL_EXAMPLES = 4  # the person's last runs of the activity shown to the LLM
+def personal_examples(cfg: GlobeConfig) -> int:
+    """How many of the person's recent runs the personalised rows show the LLM."""
+    return cfg.gate.examples or cfg.evaluation.personal_examples
 
 
 def _globe_personal(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    examples = cfg.gate.examples or PERSONAL_EXAMPLES
-    return _globe(h, cfg.with_overrides({"gate.examples": examples}), backend, cache)
+    return _globe(h, cfg.with_overrides({"gate.examples": personal_examples(cfg)}), backend, cache)
 
 
 def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
@@ -93,12 +89,12 @@ def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LL
     def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
         models, selection = tuned_models(h, cfg, family, cache)
         fitted = _fit(h, cfg, models)
+        gate_cfg = cfg.gate
         if with_gate and backend is not None:
-            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache, cfg.gate.examples or PERSONAL_EXAMPLES)
+            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache, personal_examples(cfg))
             selection = selection | {"gate": gate_sel}
-            chooser: ObjectChooser = _gate(fitted, cfg, backend, models.object_marginal, gate_cfg)
-        else:
-            chooser = ObjectChooser(fitted.objects, marginal=models.object_marginal)
+        chooser = assembly.object_chooser(fitted.objects, gate_cfg, backend if with_gate else None,
+                                          marginal=models.object_marginal)
         return Prepared(fitted.activity, chooser, fitted.train_s, selection)
 
     return prepare

@@ -1,47 +1,116 @@
-"""Cross-validated model configurations for the methods beyond the paper.
+"""Cross-validation over *training* days only: the one home of model and gate selection.
+
+Test days are never looked at: a home the model has not seen (or a real routine dataset kept
+outside the project) must get the same treatment. Folds are contiguous blocks of days, so a
+validation fold is a stretch of days the model has not seen.
 
 The activity model's parameters are chosen on next-activity F1 over held-out training days.
 The object model's are then chosen where they matter: object F1 under the full protocol
 (predicted activity, mixed over the activity distribution) on the held-out days, with the
 chosen activity model. Last, the LLM gate (threshold d, replace or combine with weight w, or not
 asking at all) is chosen the same way, so the LLM is used only as far as it helped on held-out
-training days. Test days are never used.
+training days.
 """
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+import itertools
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Protocol, Sequence
 
+from globe import assembly
 from globe.config import GateConfig, GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
+from globe.evaluation.metrics import f1
 from globe.evaluation.protocol import evaluate_days
-from globe.models.activity import ActivityModel
-from globe.models.objects import ObjectModel
-from globe.models.routine import RoutineModel
-from globe.models.selection import Selection, activity_fold, grid, select
-from globe.pipeline import activity_model_from, object_model_from, training_sequences
+from globe.models.base import ActivityModelBase
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ObjectChooser
-from globe.reasoning.gate import UncertaintyGate
+from globe.sequences.runs import training_sequences
 
 
-class _Joint:
-    """A (activity config, object params) pair that ``select`` can fit on a fold of days."""
+@dataclass(frozen=True, slots=True)
+class Selection:
+    """The chosen parameters, every candidate's mean validation score, and the time it took."""
 
-    def __init__(self, household: Household, models: ModelConfig, alignment: str, params: dict[str, Any]) -> None:
-        self.household, self.models, self.alignment, self.params = household, models, alignment, params
+    best: dict[str, Any]
+    scores: list[tuple[dict[str, Any], float]] = field(default_factory=list)
+    seconds: float = 0.0
 
-    def fit(self, days: Sequence[Day]) -> "_Joint":
-        seqs = training_sequences(self.household, days, self.alignment)  # type: ignore[arg-type]
-        self.activity_ = activity_model_from(self.models).fit(seqs.activities)
-        self.objects_ = ObjectModel(**self.params).fit(seqs.runs)
+
+def grid(space: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
+    keys = list(space)
+    return [dict(zip(keys, values)) for values in itertools.product(*(space[k] for k in keys))]
+
+
+def folds(n: int, k: int) -> list[tuple[list[int], list[int]]]:
+    """Contiguous k-fold split of n items: (train indices, validation indices)."""
+    k = max(2, min(k, n))
+    bounds = [round(i * n / k) for i in range(k + 1)]
+    return [([j for j in range(n) if not bounds[i] <= j < bounds[i + 1]], list(range(bounds[i], bounds[i + 1])))
+            for i in range(k)]
+
+
+class Fittable(Protocol):
+    def fit(self, items: Sequence[Any]) -> Any: ...
+
+
+def select(items: Sequence[Any], candidates: list[dict[str, Any]], make: Callable[[dict[str, Any]], Fittable],
+           predict_fold: Callable[[Any, Sequence[Any]], tuple[list[str], list[str]]], k: int = 5) -> Selection:
+    """Pick the candidate with the best mean weighted F1 over k folds (ties: listed first)."""
+    started = time.perf_counter()
+    splits = folds(len(items), k)
+    scored = []
+    for params in candidates:
+        fold_scores = []
+        for train_idx, val_idx in splits:
+            model = make(params).fit([items[i] for i in train_idx])
+            true, pred = predict_fold(model, [items[i] for i in val_idx])
+            fold_scores.append(f1(true, pred) if true else 0.0)
+        scored.append((params, sum(fold_scores) / len(fold_scores)))
+    best = max(scored, key=lambda ps: ps[1])[0] if scored else {}
+    return Selection(dict(best), scored, time.perf_counter() - started)
+
+
+def activity_fold(model: ActivityModelBase, days: Sequence[Sequence[str]]) -> tuple[list[str], list[str]]:
+    """Next-activity predictions at steps 1..T-1 of held-out days."""
+    true, pred = [], []
+    for day in days:
+        for t, dist in enumerate(model.scan_proba(day)):
+            if t == 0:
+                continue
+            ranked = model.ranked(dist)
+            true.append(day[t])
+            pred.append(ranked[0] if ranked else "<none>")
+    return true, pred
+
+
+class _FoldModels:
+    """Both models of one configuration, fitted on a fold of training days. Fits are memoised
+    per (configuration, fold) in ``memo``, so candidates that share them (every gate setting)
+    fit once."""
+
+    def __init__(self, household: Household, config: GlobeConfig, memo: dict) -> None:
+        self.household, self.config, self.memo = household, config, memo
+
+    def fit(self, days: Sequence[Day]) -> "_FoldModels":
+        key = (self.config.models, tuple(d.name for d in days))
+        if key not in self.memo:
+            self.memo[key] = assembly.fit_household(self.household, self.config, days)
+        self.fitted = self.memo[key]
         return self
 
 
-def _joint_fold(model: _Joint, days: Sequence[Day]) -> tuple[list[str], list[str]]:
-    chooser = ObjectChooser(model.objects_, marginal=model.models.object_marginal)
-    ev = evaluate_days(model.household, days, model.activity_, chooser, alignment=model.alignment)  # type: ignore[arg-type]
-    return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
+def _object_fold(gate: GateConfig, backend: LLMBackend | None) -> Callable[[_FoldModels, Sequence[Day]], tuple[list[str], list[str]]]:
+    """Object predictions on held-out days under the full protocol, with the gate of ``gate``."""
+
+    def predict(model: _FoldModels, days: Sequence[Day]) -> tuple[list[str], list[str]]:
+        cfg = model.config
+        chooser = assembly.object_chooser(model.fitted.objects, gate, backend, marginal=cfg.models.object_marginal)
+        ev = evaluate_days(model.household, days, model.fitted.activity, chooser, alignment=cfg.sequences.alignment)
+        return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
+
+    return predict
 
 
 def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tuple[ModelConfig, dict[str, Selection]]:
@@ -53,47 +122,24 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tu
     sel = cfg.selection
     seqs = training_sequences(h, h.train, cfg.sequences.alignment)
     if family == "routine":
-        space = grid({"order": sel.routine_orders, "time_weight": sel.time_weights})
-        act = select(seqs.activities, space, lambda p: RoutineModel(**p), activity_fold, sel.folds)
-        overrides: dict[str, Any] = {"activity_estimator": "routine", "routine_order": act.best["order"],
-                                     "routine_time_weight": act.best["time_weight"], "object_marginal": True}
+        space = grid({"routine_order": sel.routine_orders, "routine_time_weight": sel.time_weights})
+        base = {"activity_estimator": "routine", "object_marginal": True}
     elif family == "witten_bell":
-        space = grid({"max_order": sel.activity_orders, "time_weight": sel.time_weights})
-        act = select(seqs.activities, space, lambda p: ActivityModel(estimator="witten_bell", **p), activity_fold, sel.folds)
-        overrides = {"activity_estimator": "witten_bell", "activity_max_order": act.best["max_order"],
-                     "time_weight": act.best["time_weight"]}
+        space = grid({"activity_max_order": sel.activity_orders, "time_weight": sel.time_weights})
+        base = {"activity_estimator": "witten_bell"}
     else:
         raise ValueError(f"unknown model family {family!r}; expected 'routine' or 'witten_bell'")
-    models = cfg.models.model_copy(update=overrides)
-    ospace = grid({"estimator": sel.object_estimators, "run_start_token": sel.run_start_token})
-    obj = select(list(h.train), ospace, lambda p: _Joint(h, models, cfg.sequences.alignment, p), _joint_fold, sel.folds)
-    models = models.model_copy(update={"object_estimator": obj.best["estimator"], "run_start_token": obj.best["run_start_token"]})
+    act = select(seqs.activities, space, lambda p: assembly.activity_model(cfg.models.model_copy(update=base | p)),
+                 activity_fold, sel.folds)
+    models = cfg.models.model_copy(update=base | act.best)
+    ospace = grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token})
+    memo: dict = {}
+    obj = select(list(h.train), ospace,
+                 lambda p: _FoldModels(h, cfg.model_copy(update={"models": models.model_copy(update=p)}), memo),
+                 _object_fold(cfg.gate, None), sel.folds)
+    models = models.model_copy(update=obj.best)
     cache[key] = (models, {"activity": act, "objects": obj})
     return cache[key]
-
-
-class _GateJoint:
-    """Fold models for one gate setting; fits are memoised per fold (they do not depend on it)."""
-
-    def __init__(self, household: Household, models: ModelConfig, alignment: str, backend: LLMBackend,
-                 params: dict[str, Any], memo: dict) -> None:
-        self.household, self.models, self.alignment = household, models, alignment
-        self.backend, self.params, self.memo = backend, params, memo
-
-    def fit(self, days: Sequence[Day]) -> "_GateJoint":
-        key = tuple(d.name for d in days)
-        if key not in self.memo:
-            seqs = training_sequences(self.household, days, self.alignment)  # type: ignore[arg-type]
-            self.memo[key] = (activity_model_from(self.models).fit(seqs.activities),
-                              object_model_from(self.models).fit(seqs.runs))
-        self.activity_, self.objects_ = self.memo[key]
-        return self
-
-
-def _gate_fold(model: _GateJoint, days: Sequence[Day]) -> tuple[list[str], list[str]]:
-    gate = UncertaintyGate(model.objects_, model.backend, marginal=model.models.object_marginal, **model.params)
-    ev = evaluate_days(model.household, days, model.activity_, gate, alignment=model.alignment)  # type: ignore[arg-type]
-    return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
 
 
 def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLMBackend, cache: dict,
@@ -101,7 +147,7 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
     """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is a candidate
     and wins ties, so the LLM must earn its place on held-out days. ``examples`` recent runs of
     the activity personalise the prompt (fixed, not searched)."""
-    key = (h.name, "gate", models.activity_estimator, examples)
+    key = (h.name, "gate", models, examples)
     if key in cache:
         return cache[key]
     sel, g = cfg.selection, cfg.gate
@@ -109,9 +155,15 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
         {"mode": "combine", "combine_weight": w} for w in sel.combine_weights]
     space = [{"threshold": 0.0, "mode": "replace", "combine_weight": g.combine_weight}] + [
         {"threshold": d, **style} for d in sel.gate_thresholds for style in styles]
-    common = {"top_k": g.top_k, "min_prob": g.min_prob, "examples": examples}
+    fold_cfg = cfg.model_copy(update={"models": models})
     memo: dict = {}
-    chosen = select(list(h.train), space,
-                    lambda p: _GateJoint(h, models, cfg.sequences.alignment, backend, p | common, memo), _gate_fold, sel.folds)
+    scored = []
+    started = time.perf_counter()
+    for params in space:
+        gate = g.model_copy(update=params | {"examples": examples})
+        one = select(list(h.train), [params], lambda p: _FoldModels(h, fold_cfg, memo), _object_fold(gate, backend), sel.folds)
+        scored.extend(one.scores)
+    best = max(scored, key=lambda ps: ps[1])[0]
+    chosen = Selection(dict(best), scored, time.perf_counter() - started)
     cache[key] = (g.model_copy(update=chosen.best | {"examples": examples}), chosen)
     return cache[key]

@@ -14,7 +14,7 @@ tends to copy one remembered day. This model factors the next step instead:
   now, add-one smoothed, raised to ``time_weight``.
 
 Training is counting; ``partial_fit`` adds days; parameters are chosen by cross-validation over
-training days (:mod:`globe.models.selection`).
+training days (:mod:`globe.evaluation.tuning`).
 """
 
 from __future__ import annotations

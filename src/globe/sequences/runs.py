@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Sequence
 
-from globe.data.records import Day
+from globe.data.records import Day, Household
 from globe.sequences.movements import Alignment, MovementEvent, extract_movements
 
 
@@ -47,10 +47,16 @@ def activity_runs(day: Day, objects: tuple[str, ...], alignment: Alignment = "pr
     ]
 
 
-def object_sequences(days: Iterable[Day], objects: tuple[str, ...], alignment: Alignment = "previous") -> dict[str, list[tuple[str, ...]]]:
-    """Object sequences grouped by activity: one sequence per activity run (empty runs kept)."""
-    grouped: dict[str, list[tuple[str, ...]]] = defaultdict(list)
-    for day in days:
-        for run in activity_runs(day, objects, alignment):
-            grouped[run.activity].append(run.objects)
-    return dict(grouped)
+@dataclass(frozen=True, slots=True)
+class TrainingSequences:
+    """What the models count: per-day activity sequences and (activity, objects) per run."""
+
+    activities: list[tuple[str, ...]]
+    runs: list[tuple[str, tuple[str, ...]]]
+
+
+def training_sequences(household: Household, days: Sequence[Day], alignment: Alignment) -> TrainingSequences:
+    return TrainingSequences(
+        [d.activities for d in days],
+        [(r.activity, r.objects) for d in days for r in activity_runs(d, household.objects, alignment)],
+    )

@@ -12,7 +12,7 @@ from fastapi import Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
-from globe import __version__
+from globe import __version__, assembly
 from globe.config import GlobeConfig
 from globe.errors import DataError, GlobeError, LLMError, StoreError
 from globe.models.io import model_to_dict
@@ -38,12 +38,7 @@ def create_app(config: GlobeConfig) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI):
         store = Store(config.service.database)
-        backend = None
-        if config.llm.backend != "none":
-            from globe.reasoning.backends import backend_from_config
-
-            backend = backend_from_config(config.llm)
-        registry = Registry(store, config, backend)
+        registry = Registry(store, config, assembly.llm_backend(config.llm))
         registry.load_all()
         app.state.registry = registry
         yield

@@ -5,14 +5,12 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
+from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.records import Household
 from globe.errors import DataError, GlobeError
-from globe.pipeline import fit_household
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ObjectChooser
-from globe.reasoning.gate import UncertaintyGate
 from globe.service.assistant import Observation, OnlineAssistant
 from globe.service.store import Store
 
@@ -36,20 +34,7 @@ class Registry:
         self._lock = threading.Lock()
 
     def build(self, household: Household) -> OnlineAssistant:
-        cfg = self.config
-        fitted = fit_household(household, cfg.models, cfg.sequences.alignment)
-        marginal = cfg.models.object_marginal
-        if self.backend is not None:
-            g = cfg.gate
-            chooser: ObjectChooser = UncertaintyGate(fitted.objects, self.backend, threshold=g.threshold, top_k=g.top_k,
-                                                     min_prob=g.min_prob, mode=g.mode, combine_weight=g.combine_weight,
-                                                     marginal=marginal)
-        else:
-            chooser = ObjectChooser(fitted.objects, marginal=marginal)
-        s = cfg.service
-        return OnlineAssistant(household, fitted.activity, chooser, alignment=cfg.sequences.alignment,
-                               action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
-                               step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps)
+        return assembly.assistant(household, self.config, self.backend)
 
     def load_all(self) -> None:
         """Rebuild every stored household: re-count training days, replay observations."""

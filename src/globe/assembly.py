@@ -1,0 +1,112 @@
+"""The one assembly point: every runtime object GLOBE uses is built here from a ``GlobeConfig``.
+
+Models, choosers, backends and assistants never read configuration themselves. Evaluation,
+tuning, the service and the CLI all build through these functions, so a setting cannot reach
+one front end and silently miss another (the gate's ``examples`` once missed the service).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Sequence
+
+from globe.config import GateConfig, GlobeConfig, LLMConfig, ModelConfig
+from globe.data.records import Day, Household
+from globe.models.activity import ActivityModel
+from globe.models.objects import ObjectModel
+from globe.models.routine import RoutineModel
+from globe.reasoning.backends.base import LLMBackend
+from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.gate import UncertaintyGate
+from globe.sequences.runs import training_sequences
+
+if TYPE_CHECKING:
+    from globe.noise.proposals import Scorer
+    from globe.service.assistant import OnlineAssistant
+
+
+def activity_model(models: ModelConfig) -> ActivityModel | RoutineModel:
+    """An unfitted next-activity model for the ``models`` section."""
+    if models.activity_estimator == "routine":
+        return RoutineModel(order=models.routine_order, time_weight=models.routine_time_weight,
+                            time_window=models.routine_time_window, shrinkage=models.routine_shrinkage)
+    return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
+                         time_weight=models.time_weight, time_window=models.time_window)
+
+
+def object_model(models: ModelConfig) -> ObjectModel:
+    """An unfitted next-object model for the ``models`` section."""
+    return ObjectModel(estimator=models.object_estimator, max_order=models.object_max_order,
+                       run_start_token=models.run_start_token)
+
+
+@dataclass(frozen=True, slots=True)
+class FittedHousehold:
+    activity: ActivityModel | RoutineModel
+    objects: ObjectModel
+    train_s: float  # model fitting only (preprocessing excluded)
+    preprocess_s: float
+
+
+def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day] | None = None) -> FittedHousehold:
+    """Preprocess the training days (``household.train`` unless ``days`` is given) and fit both
+    models of ``config.models``, timing each part."""
+    t0 = time.perf_counter()
+    seqs = training_sequences(household, household.train if days is None else days, config.sequences.alignment)
+    t1 = time.perf_counter()
+    activity = activity_model(config.models).fit(seqs.activities)
+    objects = object_model(config.models).fit(seqs.runs)
+    return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0)
+
+
+def llm_backend(llm: LLMConfig) -> LLMBackend | None:
+    """The configured LLM backend (``none`` -> None); heavy imports happen only here."""
+    if llm.backend == "none":
+        return None
+    from globe.reasoning.cache import AnswerCache
+
+    cache = AnswerCache(llm.cache_dir / "llm-answers.sqlite3") if llm.cache_dir else None
+    if llm.backend == "embedded":
+        from globe.reasoning.backends.embedded import EmbeddedBackend
+
+        return EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx, cache=cache)
+    from globe.reasoning.backends.remote import RemoteBackend
+
+    return RemoteBackend(model=llm.remote_model, base_url=llm.base_url, temperature=llm.temperature,
+                         max_tokens=llm.max_tokens, timeout_s=llm.timeout_s, max_retries=llm.max_retries, cache=cache)
+
+
+def object_chooser(objects: ObjectModel, gate: GateConfig, backend: LLMBackend | None, *, marginal: bool) -> ObjectChooser:
+    """GLOBE's uncertainty gate over ``objects`` when there is a backend, else the plain n-gram."""
+    if backend is None:
+        return ObjectChooser(objects, marginal=marginal)
+    return UncertaintyGate(objects, backend, threshold=gate.threshold, top_k=gate.top_k, min_prob=gate.min_prob,
+                           mode=gate.mode, combine_weight=gate.combine_weight, marginal=marginal,
+                           examples=gate.examples)
+
+
+def noise_scorer(config: GlobeConfig) -> "Scorer":
+    """What scores HOMER-Noise proposals: the embedded model (PMI), or uniform without an LLM."""
+    from globe.errors import ConfigError
+    from globe.noise.proposals import LLMScorer, UniformScorer
+
+    if config.llm.backend == "none":
+        return UniformScorer()
+    if config.llm.backend != "embedded":
+        raise ConfigError("the noise generator scores sentences: use llm.backend 'embedded' (or 'none' for uniform proposals)")
+    backend = llm_backend(config.llm)
+    assert backend is not None
+    return LLMScorer(backend)
+
+
+def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | None) -> "OnlineAssistant":
+    """The online assistant of one household: fitted models, the gate, the service settings."""
+    from globe.service.assistant import OnlineAssistant
+
+    fitted = fit_household(household, config)
+    chooser = object_chooser(fitted.objects, config.gate, backend, marginal=config.models.object_marginal)
+    s = config.service
+    return OnlineAssistant(household, fitted.activity, chooser, alignment=config.sequences.alignment,
+                           action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
+                           step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps)
