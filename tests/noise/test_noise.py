@@ -23,7 +23,7 @@ def small(households):
 
 @pytest.fixture(scope="module")
 def proposals(small, seed):
-    return {(small.name, t): propose(small, t, UniformScorer(), seed=seed, rate=1.0) for t in ("person", "pet", "toddler")}
+    return {(small.name, t): propose(small, t, UniformScorer(), seed=seed, rate=1.0, temperature=2.0) for t in ("person", "pet", "toddler")}
 
 
 @pytest.fixture(scope="module")
@@ -96,9 +96,9 @@ def test_output_loads_with_the_normal_loader_and_manifest_matches_the_difference
 
 
 def test_generation_is_deterministic(small, proposals, seed):
-    again = propose(small, "toddler", UniformScorer(), seed=seed, rate=1.0)
+    again = propose(small, "toddler", UniformScorer(), seed=seed, rate=1.0, temperature=2.0)
     assert again.injections == proposals[("A", "toddler")].injections
-    other = propose(small, "toddler", UniformScorer(), seed=seed + 1, rate=1.0)
+    other = propose(small, "toddler", UniformScorer(), seed=seed + 1, rate=1.0, temperature=2.0)
     assert other.injections != again.injections
 
 
@@ -114,10 +114,10 @@ def test_embedded_llm_proposals_are_plausible_and_cached(small, embedded_llm, tm
 
     one_day = replace(small, train=small.train[:1], test=())
     backend = EmbeddedBackend(model_path=embedded_llm.model_path, cache=AnswerCache(tmp_path / "c.sqlite3"))
-    first = propose(one_day, "toddler", LLMScorer(backend), rate=1.0)
+    first = propose(one_day, "toddler", LLMScorer(backend), seed=0, rate=1.0, temperature=2.0)
     assert first.injections and all(i.origin.startswith("llm:embedded") for i in first.injections)
     cached = EmbeddedBackend(model_path=embedded_llm.model_path, cache=AnswerCache(tmp_path / "c.sqlite3"))
-    assert propose(one_day, "toddler", LLMScorer(cached), rate=1.0).injections == first.injections
+    assert propose(one_day, "toddler", LLMScorer(cached), seed=0, rate=1.0, temperature=2.0).injections == first.injections
     assert cached.cache.hits > 0 and cached.cache.misses == 0
     # the scores see the activity: a toddler during breakfast carries food more than a razor
     from globe.noise.proposals import ProposalModel

@@ -1,10 +1,12 @@
-"""``globe evaluate`` and ``globe reproduce``: Table I rows, timing, records, plots."""
+"""``globe evaluate``, ``globe reproduce`` and ``globe robustness``: parse, call
+:mod:`globe.evaluation.main_job`, print the tables it returns."""
 
 from __future__ import annotations
 
-import time
+import logging
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Callable, Iterator
 
 import typer
 from rich.table import Table
@@ -16,21 +18,14 @@ from globe.cli.common import (
     console,
     households_from,
     out,
-    progress_bar,
     resolve,
 )
-from globe import assembly
-from globe.config import GlobeConfig
-from globe.errors import ConfigError
+from globe.evaluation import main_job
 from globe.evaluation.methods import METHODS
+from globe.evaluation.results import Table1Results
+from globe.evaluation.robustness import RobustnessResults
 
 OutOption = Annotated[Path, typer.Option("--out", help="results folder to write")]
-
-
-def _backend(cfg: GlobeConfig, methods: list[str]):
-    if not any(METHODS[m].needs_llm for m in methods):
-        return None
-    return assembly.llm_backend(cfg.llm)
 
 
 def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
@@ -66,22 +61,28 @@ def timing_table(rows: list[dict]) -> Table:
     return table
 
 
-def run_table1(cfg: GlobeConfig, data: Path | None, households: str | None, methods: list[str], out_dir: Path) -> None:
-    from globe.evaluation.experiments import run_methods
-    from globe.evaluation.results import write_table1_results
+@contextmanager
+def stage_display() -> Iterator[Callable[[str], None]]:
+    """Stage lines (``globe.stages``) always go to stderr, so redirected runs show progress; a
+    terminal also gets a spinner with the current step."""
+    logging.getLogger("globe.stages").setLevel(logging.INFO)
+    with console.status("starting") as status:
+        yield lambda message: status.update(message)
 
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        raise ConfigError(f"unknown method {unknown[0]!r}; expected one of {', '.join(METHODS)}")
-    hs = households_from(cfg, data, households)
-    backend = _backend(cfg, methods)
-    started = time.perf_counter()
-    with progress_bar(sum(len(h.test) for h in hs) * len(methods), "evaluating") as advance:
-        runs = run_methods(cfg, hs, methods, backend, progress=lambda m, n: advance(n, f"evaluating {m}"))
-    results = write_table1_results(out_dir, runs, cfg)
+
+def print_table1(results: Table1Results) -> None:
     out.print(table1_table(results.rows, results.labels))
     out.print(timing_table(results.timing))
-    console.print(f"results in {out_dir} ({time.perf_counter() - started:.1f} s)")
+
+
+def print_stages(stages: list[dict]) -> None:
+    table = Table(title="Where the time went (s)")
+    table.add_column("stage")
+    table.add_column("seconds", justify="right")
+    for row in stages:
+        table.add_row(row["stage"], f"{row['seconds']:.1f}")
+    table.add_row("total", f"{sum(r['seconds'] for r in stages):.1f}")
+    out.print(table)
 
 
 def evaluate(
@@ -95,7 +96,14 @@ def evaluate(
 ) -> None:
     """Evaluate chosen methods on the test days and write a results folder."""
     cfg = resolve(config, gate__threshold=threshold, llm__backend=backend)
-    run_table1(cfg, data, households, [m.strip() for m in methods.split(",") if m.strip()], out_dir)
+    names = main_job.check_methods([m.strip() for m in methods.split(",") if m.strip()])
+    hs = households_from(cfg, data, households)
+    stages = main_job.Stages(out_dir)
+    with stage_display() as show:
+        stages.progress = show
+        results = main_job.evaluate(cfg, hs, names, out_dir, main_job.backend_for(cfg, names), stages)
+    print_table1(results)
+    console.print(f"results in {out_dir} ({sum(s['seconds'] for s in stages.times):.1f} s)", markup=False)
 
 
 def reproduce(
@@ -107,8 +115,40 @@ def reproduce(
 ) -> None:
     """Run every experiment available on the shipped HOMER+ and write the results folder."""
     cfg = resolve(config, llm__backend=backend)
-    run_table1(cfg, data, None, list(cfg.evaluation.methods), out_dir)
-    if robustness:
-        from globe.cli.noise_cmd import run_robustness
+    hs = households_from(cfg, data, None)
+    with stage_display() as show:
+        results = main_job.reproduce(cfg, hs, out_dir, with_robustness=robustness, progress=show)
+    print_table1(results.table1)
+    if results.robustness is not None:
+        print_robustness(results.robustness)
+    print_stages(results.stages)
+    console.print(f"results in {out_dir}", markup=False)
 
-        run_robustness(cfg, households_from(cfg, data, None), out_dir / "homer_noise", out_dir / "robustness")
+
+def print_robustness(res: RobustnessResults) -> None:
+    table = Table(title="Robustness: object F1, all events / routine events only (mean of households)")
+    for col in ("dataset", "method", "activity F1", "object F1 all", "object F1 routine", "injected"):
+        table.add_column(col)
+    for r in res.robustness:
+        table.add_row(r["dataset"], r["method"], f"{r['activity_f1']:.3f}", f"{r['object_f1']:.3f}",
+                      f"{r['object_f1_routine']:.3f}", str(r["injected_events"]))
+    out.print(table)
+
+
+def robustness(
+    out_dir: Annotated[Path, typer.Option("--out", help="results folder")] = Path("results/robustness"),
+    noise_dir: Annotated[Path, typer.Option("--noise-dir", help="HOMER-Noise folder (generated there if missing)")] = Path(
+        "results/homer_noise"),
+    data: DataOption = None,
+    backend: Annotated[str | None, typer.Option("--backend", help="embedded or none")] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Robustness suite: noise types, behavioural consistency, ablations (generates noise if needed)."""
+    cfg = resolve(config, llm__backend=backend)
+    hs = households_from(cfg, data, None)
+    stages = main_job.Stages(out_dir)
+    with stage_display() as show:
+        stages.progress = show
+        _, res = main_job.robustness(cfg, hs, noise_dir, out_dir, main_job.backend_for(cfg), stages)
+    print_robustness(res)
+    console.print(f"results in {out_dir}", markup=False)

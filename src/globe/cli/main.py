@@ -22,7 +22,7 @@ app.command("predict")(model_cmd.predict)
 app.command("evaluate")(evaluate_cmd.evaluate)
 app.command("reproduce")(evaluate_cmd.reproduce)
 app.command("noise")(noise_cmd.noise)
-app.command("robustness")(noise_cmd.robustness)
+app.command("robustness")(evaluate_cmd.robustness)
 app.command("serve")(service_cmd.serve)
 app.command("robot")(service_cmd.robot)
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import logging
 import statistics
 from dataclasses import dataclass, field
-from typing import Callable, Iterable, Sequence
+from typing import Iterable, Sequence
 
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import AVERAGES, f1
+from globe.evaluation.metrics import AVERAGES, calibration, f1
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.reasoning.backends.base import LLMBackend
 
@@ -37,23 +37,25 @@ class MethodRun:
 
 def run_methods(
     config: GlobeConfig,
-    households: Sequence[Household],
+    households: Iterable[Household],
     methods: Iterable[str],
     backend: LLMBackend | None,
-    progress: Callable[[str, int], None] | None = None,
+    selection_cache: dict | None = None,
 ) -> list[MethodRun]:
-    """Evaluate each method on each household's test days (plus the true-activity oracle)."""
+    """Evaluate each method on each household's test days (plus the true-activity oracle).
+
+    ``selection_cache`` keeps cross-validation results between calls on the same households, so
+    methods of one family (``routine``, ``globe_routine``) share one search."""
     runs = []
-    selection_cache: dict = {}
+    cache = {} if selection_cache is None else selection_cache
     for name in methods:
         method = METHODS[name]
         if method.needs_llm and backend is None:
             log.warning("skipping %s: no LLM backend configured", name)
             continue
         for h in households:
-            prepared = method.prepare(h, config, backend, selection_cache)
-            tick = (lambda n, _name=name: progress(_name, n)) if progress else None
-            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, progress=tick)
+            prepared = method.prepare(h, config, backend, cache)
+            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, oracle=True)
             runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection))
     return runs
@@ -128,24 +130,6 @@ def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
                              "params": ";".join(f"{k}={v}" for k, v in params.items()),
                              "cv_weighted_f1": round(score, 4), "chosen": params == sel.best})
     return rows
-
-
-def calibration(confidences: Sequence[float], correct: Sequence[bool], bins: int = 10) -> tuple[float, tuple[list[float], list[float], list[int]]]:
-    """Expected calibration error and the reliability curve (mean confidence, accuracy, count per bin)."""
-    buckets: list[list[tuple[float, bool]]] = [[] for _ in range(bins)]
-    for c, ok in zip(confidences, correct):
-        buckets[min(int(c * bins), bins - 1)].append((c, ok))
-    conf, acc, counts, ece, n = [], [], [], 0.0, max(len(confidences), 1)
-    for b in buckets:
-        if not b:
-            continue
-        mc = sum(c for c, _ in b) / len(b)
-        ma = sum(ok for _, ok in b) / len(b)
-        conf.append(mc)
-        acc.append(ma)
-        counts.append(len(b))
-        ece += len(b) / n * abs(mc - ma)
-    return ece, (conf, acc, counts)
 
 
 def calibration_rows(runs: Sequence[MethodRun], bins: int = 10) -> tuple[list[dict], dict[str, dict]]:

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import statistics
+from collections import Counter
 from typing import Literal, Sequence
 
 from sklearn.metrics import f1_score
+
+from globe.data.records import Household
+from globe.sequences.runs import activity_runs
 
 Average = Literal["weighted", "micro", "macro"]
 AVERAGES: tuple[Average, ...] = ("weighted", "micro", "macro")
@@ -15,3 +20,63 @@ def f1(true: Sequence[str], predicted: Sequence[str], average: Average = "weight
     if not true:
         return float("nan")
     return float(f1_score(list(true), list(predicted), average=average, zero_division=0))
+
+
+def calibration(confidences: Sequence[float], correct: Sequence[bool], bins: int = 10) -> tuple[float, tuple[list[float], list[float], list[int]]]:
+    """Expected calibration error and the reliability curve (mean confidence, accuracy, count per bin)."""
+    buckets: list[list[tuple[float, bool]]] = [[] for _ in range(bins)]
+    for c, ok in zip(confidences, correct):
+        buckets[min(int(c * bins), bins - 1)].append((c, ok))
+    conf, acc, counts, ece, n = [], [], [], 0.0, max(len(confidences), 1)
+    for b in buckets:
+        if not b:
+            continue
+        mc = sum(c for c, _ in b) / len(b)
+        ma = sum(ok for _, ok in b) / len(b)
+        conf.append(mc)
+        acc.append(ma)
+        counts.append(len(b))
+        ece += len(b) / n * abs(mc - ma)
+    return ece, (conf, acc, counts)
+
+
+def _tertiles(spread: dict[str, float]) -> dict[str, str]:
+    """Lowest third of spread -> 'more' consistent, middle -> 'moderate', top -> 'less'."""
+    ordered = sorted(spread, key=lambda a: (spread[a], a))
+    n = len(ordered)
+    return {a: ("more" if i < n / 3 else "moderate" if i < 2 * n / 3 else "less") for i, a in enumerate(ordered)}
+
+
+def consistency_groups(households: Sequence[Household], definition: str = "start_time") -> dict[str, dict[str, str]]:
+    """Per household: activity -> 'more' / 'moderate' / 'less' consistent, from training days.
+
+    ``start_time``: standard deviation of the activity's first start step across the days it
+    occurs in. ``object_sequence``: 1 - the share of the activity's runs (with movements) whose
+    object sequence is its most common one.
+    """
+    groups: dict[str, dict[str, str]] = {}
+    for h in households:
+        spread: dict[str, float] = {}
+        if definition == "start_time":
+            starts: dict[str, list[int]] = {}
+            for day in h.train:
+                seen = set()
+                for t, a in enumerate(day.activities):
+                    if a not in seen:
+                        seen.add(a)
+                        starts.setdefault(a, []).append(t)
+            spread = {a: statistics.pstdev(s) for a, s in starts.items()}
+        elif definition == "object_sequence":
+            by_activity: dict[str, Counter[tuple[str, ...]]] = {}
+            for day in h.train:
+                for run in activity_runs(day, h.objects):
+                    if run.objects:
+                        by_activity.setdefault(run.activity, Counter())[run.objects] += 1
+            spread = {a: 1 - c.most_common(1)[0][1] / sum(c.values()) for a, c in by_activity.items()}
+        else:
+            raise ValueError(f"unknown consistency definition {definition!r}; expected start_time or object_sequence")
+        groups[h.name] = _tertiles(spread)
+    return groups
+
+
+CONSISTENCY_DEFINITIONS = ("start_time", "object_sequence")

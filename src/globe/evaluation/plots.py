@@ -54,7 +54,7 @@ def reliability_figure(curves: dict[str, tuple[list[float], list[float], list[in
     return fig
 
 
-def robustness_figure(rows: Sequence[dict], published_clean: dict[str, float] | None = None) -> Figure:
+def robustness_figure(rows: Sequence[dict], xlabel: str, published_clean: dict[str, float] | None = None) -> Figure:
     """Object F1 per dataset (clean, person, pet, toddler) and method: all events (solid) and
     routine events only (hatched)."""
     datasets = list(dict.fromkeys(r["dataset"] for r in rows))
@@ -74,7 +74,7 @@ def robustness_figure(rows: Sequence[dict], published_clean: dict[str, float] | 
             ax.text(len(datasets) - 0.5, value + 0.01, f"{name} clean (published) {value:.2f}", ha="right", fontsize=7)
     ax.set_xticks(range(len(datasets)), datasets)
     ax.set_ylabel("object F1 (weighted, mean of A, B, C)")
-    ax.set_xlabel("test data (noisy: trained at level 0.5, tested at 1.0)")
+    ax.set_xlabel(xlabel)
     ax.set_ylim(0, 1)
     ax.set_title("Robustness to person / pet / toddler disturbances")
     ax.legend(fontsize=7, ncols=2, loc="lower left")

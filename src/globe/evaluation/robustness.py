@@ -1,58 +1,36 @@
 """The robustness suite on HOMER-Noise (the paper's Figs. 4-6).
 
-- Robustness: train at noise level 0.5, test at 1.0, per noise type, beside clean HOMER+.
+- Robustness: train at ``noise.train_level``, test at ``noise.test_level``, per noise type,
+  beside clean HOMER+.
   Object F1 twice: on all movement events (as the paper) and on the routine ones only
   (injected movements excluded via the manifest).
 - Behavioural consistency: activities split into three equal groups by how regular they are
   across training days, by two definitions (see :func:`consistency_groups`); object F1 per group.
-- Ablations: training noise level 0.25 / 0.5 / 1.0 (test 1.0); threshold d 0.25 / 0.5 / 0.75.
+- Ablations: every training noise level of ``noise.levels`` (tested at ``noise.test_level``);
+  every threshold d of ``noise.thresholds``.
 """
 
 from __future__ import annotations
 
 import statistics
-from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
 from globe.config import GlobeConfig
-from globe.data.csv_logs import load_household
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import f1
+from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1
 from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
-from globe.noise.dataset import level_dir, read_manifest
+from globe.noise.dataset import CLEAN, Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
-from globe.sequences.runs import activity_runs
-
-CLEAN = "clean"
 
 
-@dataclass(frozen=True, slots=True)
-class Dataset:
-    """Households to train and test on, and the injected test movements."""
-
-    name: str
-    households: list[Household]
-    injected: set[tuple[str, str, int, str]]
-
-
-def clean_dataset(households: Sequence[Household]) -> Dataset:
-    return Dataset(CLEAN, list(households), set())
-
-
-def noisy_dataset(root: Path, noise_type: str, train_level: float, test_level: float, names: Sequence[str]) -> Dataset:
-    out = []
-    for name in names:
-        train = load_household(level_dir(root, noise_type, train_level), name)
-        test = load_household(level_dir(root, noise_type, test_level), name)
-        out.append(replace(train, test=test.test))
-    return Dataset(noise_type, out, read_manifest(level_dir(root, noise_type, test_level) / "manifest.csv"))
-
-
-def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMBackend | None) -> list[Evaluation]:
-    cache: dict = {}  # CV results are per dataset (households share names across datasets)
+def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMBackend | None,
+                     cache: dict | None = None) -> list[Evaluation]:
+    """Train on each household's training days and score its test days, marking injected events.
+    ``cache`` holds cross-validation results for *this* dataset (names repeat across datasets)."""
+    cache = {} if cache is None else cache
     out = []
     for h in data.households:
         prepared = METHODS[method].prepare(h, cfg, backend, cache)
@@ -76,46 +54,6 @@ def score_row(dataset: str, method: str, evals: Sequence[Evaluation], **extra: o
             "object_events": sum(len(e.objects) for e in evals), "injected_events": injected}
 
 
-def _tertiles(spread: dict[str, float]) -> dict[str, str]:
-    """Lowest third of spread -> 'more' consistent, middle -> 'moderate', top -> 'less'."""
-    ordered = sorted(spread, key=lambda a: (spread[a], a))
-    n = len(ordered)
-    return {a: ("more" if i < n / 3 else "moderate" if i < 2 * n / 3 else "less") for i, a in enumerate(ordered)}
-
-
-def consistency_groups(households: Sequence[Household], definition: str = "start_time") -> dict[str, dict[str, str]]:
-    """Per household: activity -> 'more' / 'moderate' / 'less' consistent, from training days.
-
-    ``start_time``: standard deviation of the activity's first start step across the days it
-    occurs in. ``object_sequence``: 1 - the share of the activity's runs (with movements) whose
-    object sequence is its most common one.
-    """
-    groups: dict[str, dict[str, str]] = {}
-    for h in households:
-        spread: dict[str, float] = {}
-        if definition == "start_time":
-            starts: dict[str, list[int]] = {}
-            for day in h.train:
-                seen = set()
-                for t, a in enumerate(day.activities):
-                    if a not in seen:
-                        seen.add(a)
-                        starts.setdefault(a, []).append(t)
-            spread = {a: statistics.pstdev(s) for a, s in starts.items()}
-        elif definition == "object_sequence":
-            by_activity: dict[str, Counter[tuple[str, ...]]] = {}
-            for day in h.train:
-                for run in activity_runs(day, h.objects):
-                    if run.objects:
-                        by_activity.setdefault(run.activity, Counter())[run.objects] += 1
-            spread = {a: 1 - c.most_common(1)[0][1] / sum(c.values()) for a, c in by_activity.items()}
-        else:
-            raise ValueError(f"unknown consistency definition {definition!r}; expected start_time or object_sequence")
-        groups[h.name] = _tertiles(spread)
-    return groups
-
-
-CONSISTENCY_DEFINITIONS = ("start_time", "object_sequence")
 
 
 def consistency_rows(dataset: str, method: str, evals: Sequence[Evaluation], groups: dict[str, dict[str, str]],
@@ -138,70 +76,43 @@ class RobustnessResults:
 
 def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, backend: LLMBackend | None,
               methods: Sequence[str] = ("ngram", "globe", "globe_personal", "routine"),
-              progress: Callable[[str], None] | None = None) -> RobustnessResults:
+              progress: Callable[[str], None] | None = None, clean_cache: dict | None = None) -> RobustnessResults:
+    """Robustness per noise type, consistency groups, and the two ablations (see the module doc).
+
+    Each (dataset, training level, method, threshold) is evaluated once and reused by every table
+    that needs it; ``clean_cache`` holds cross-validation results already computed on ``clean``."""
     names = [h.name for h in clean]
     n = cfg.noise
     methods = [m for m in methods if backend is not None or not METHODS[m].needs_llm]
     gate_method = "globe" if backend is not None else "ngram"
-    datasets = [clean_dataset(clean)] + [noisy_dataset(noise_root, t, n.train_level, n.test_level, names) for t in n.types]
     groups = {d: consistency_groups(clean, d) for d in CONSISTENCY_DEFINITIONS}
-    res = RobustnessResults([], [], [], [])
-    for data in datasets:
-        for method in methods:
+    caches: dict[tuple[str, float], dict] = {(CLEAN, 0.0): {} if clean_cache is None else clean_cache}
+    memo: dict[tuple[str, float, str, float], list[Evaluation]] = {}
+
+    def evaluated(data: Dataset, level: float, method: str, threshold: float) -> list[Evaluation]:
+        key = (data.name, level, method, threshold)
+        if key not in memo:
             if progress:
-                progress(f"{data.name}: {method}")
-            evals = evaluate_dataset(cfg, data, method, backend)
+                progress(f"{data.name} (train level {level:g}): {method}, d = {threshold:g}")
+            run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
+            memo[key] = evaluate_dataset(run_cfg, data, method, backend, caches.setdefault((data.name, level), {}))
+        return memo[key]
+
+    res = RobustnessResults([], [], [], [])
+    datasets = [(clean_dataset(clean), 0.0)] + [
+        (noisy_dataset(noise_root, t, n.train_level, n.test_level, names), n.train_level) for t in n.types]
+    for data, level in datasets:
+        for method in methods:
+            evals = evaluated(data, level, method, cfg.gate.threshold)
             res.robustness.append(score_row(data.name, method, evals))
             for definition, by_home in groups.items():
                 res.consistency.extend(consistency_rows(data.name, method, evals, by_home, definition))
-            if method == gate_method:
-                res.threshold.append(score_row(data.name, method, evals, threshold=cfg.gate.threshold))
-        for d in n.thresholds:
-            if d == cfg.gate.threshold or backend is None:
-                continue
-            if progress:
-                progress(f"{data.name}: threshold {d}")
-            evals = evaluate_dataset(cfg.with_overrides({"gate.threshold": d}), data, gate_method, backend)
-            res.threshold.append(score_row(data.name, gate_method, evals, threshold=d))
+        for d in dict.fromkeys((cfg.gate.threshold, *n.thresholds)) if backend is not None else (cfg.gate.threshold,):
+            res.threshold.append(score_row(data.name, gate_method, evaluated(data, level, gate_method, d), threshold=d))
     for t in n.types:
         for level in n.levels:
-            if progress:
-                progress(f"{t}: train level {level}")
             data = noisy_dataset(noise_root, t, level, n.test_level, names)
-            for method in ("ngram", gate_method) if gate_method != "ngram" else ("ngram",):
-                evals = evaluate_dataset(cfg, data, method, backend)
-                res.train_level.append(score_row(t, method, evals, train_level=level))
+            for method in dict.fromkeys(("ngram", gate_method)):
+                res.train_level.append(score_row(t, method, evaluated(data, level, method, cfg.gate.threshold), train_level=level))
     res.threshold.sort(key=lambda r: (r["dataset"], r["threshold"]))
     return res
-
-
-def write_robustness_results(out_dir: Path, res: RobustnessResults) -> None:
-    """CSV tables, Markdown and PNG plots of the robustness suite."""
-    from globe.evaluation import report
-    from globe.evaluation.plots import consistency_figure, grouped_line_figure, robustness_figure
-    from globe.evaluation.published import TABLE1
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    report.write_csv(out_dir / "robustness.csv", res.robustness)
-    report.write_csv(out_dir / "consistency.csv", res.consistency)
-    report.write_csv(out_dir / "ablation_train_level.csv", res.train_level)
-    report.write_csv(out_dir / "ablation_threshold.csv", res.threshold)
-    robustness_figure(res.robustness, {"SLaTe-PRO": TABLE1["slate_pro"][1]}).savefig(out_dir / "robustness.png", dpi=130)
-    for method in dict.fromkeys(r["method"] for r in res.consistency):
-        for definition in dict.fromkeys(r["definition"] for r in res.consistency):
-            consistency_figure(res.consistency, method, definition).savefig(
-                out_dir / f"consistency_{method}_{definition}.png", dpi=130)
-    if res.train_level:
-        grouped_line_figure([r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level], "train_level", "series",
-                            "object_f1", "Training noise level (tested at 1.0)", "training noise level",
-                            "object F1 (weighted)").savefig(out_dir / "ablation_train_level.png", dpi=130)
-    if res.threshold:
-        grouped_line_figure(res.threshold, "threshold", "dataset", "object_f1", "Gate threshold d",
-                            "threshold d", "object F1 (weighted)").savefig(out_dir / "ablation_threshold.png", dpi=130)
-    md = "\n".join(["# Robustness (train at noise 0.5, test at 1.0)", "", report.rows_markdown(res.robustness),
-                    f"Published SLaTe-PRO on clean HOMER+: object F1 {TABLE1['slate_pro'][1]:.2f} (its per-noise values are "
-                    "only shown graphically in the paper).", "",
-                    "# Behavioural consistency", "", report.rows_markdown(res.consistency),
-                    "# Ablation: training noise level", "", report.rows_markdown(res.train_level),
-                    "# Ablation: threshold d", "", report.rows_markdown(res.threshold)])
-    (out_dir / "robustness.md").write_text(md, encoding="utf-8")

@@ -1,4 +1,5 @@
-"""Write HOMER-Noise as ordinary household folders plus a manifest of every injected movement.
+"""HOMER-Noise on disk: generate it, write it as ordinary household folders plus a manifest of
+every injected movement, and read it back as datasets to train and test on.
 
 Layout: ``OUT/<type>/<level>/Household<X>/{nodes.csv,train/,test/}`` (read by the normal loader)
 and ``OUT/<type>/<level>/manifest.csv``; ``OUT/summary.json`` counts what was injected.
@@ -8,13 +9,17 @@ from __future__ import annotations
 
 import csv
 import json
+import time
 from collections import Counter
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Sequence
 
-from globe.data.csv_logs import write_day, write_nodes
+from globe.config import NoiseConfig
+from globe.data.csv_logs import load_household, write_day, write_nodes
 from globe.data.records import Household
-from globe.noise.generate import Injection, Proposals, apply
+from globe.noise.generate import Injection, Proposals, apply, propose
+from globe.noise.proposals import Scorer
 
 MANIFEST_COLUMNS = ("household", "split", "day", "step", "minute", "object", "from", "to", "noise_type", "source")
 
@@ -77,3 +82,56 @@ def summary(proposals: dict[tuple[str, str], Proposals], levels: Sequence[float]
 def write_summary(root: Path, data: dict) -> None:
     Path(root).mkdir(parents=True, exist_ok=True)
     (Path(root) / "summary.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+
+
+def generate_dataset(noise: NoiseConfig, households: Sequence[Household], noise_dir: Path, scorer: Scorer,
+                     progress: Callable[[str], None] | None = None) -> dict:
+    """Propose at level 1.0 once per (home, type), then write every level (nested subsets) and
+    ``summary.json``; returns the summary."""
+    proposals = {}
+    started = time.perf_counter()
+    for noise_type in noise.types:
+        for h in households:
+            if progress:
+                progress(f"proposing {noise_type} disturbances in {h.name}")
+            proposals[(h.name, noise_type)] = propose(h, noise_type, scorer, seed=noise.seed, rate=noise.rate,
+                                                      temperature=noise.temperature)
+    for noise_type in noise.types:
+        for level in noise.levels:
+            write_level(noise_dir, households, proposals, noise_type, level)
+    out = summary(proposals, noise.levels)
+    out |= {"seed": noise.seed, "rate": noise.rate, "temperature": noise.temperature, "scorer": scorer.name,
+            "seconds": round(time.perf_counter() - started, 2)}
+    write_summary(noise_dir, out)
+    return out
+
+
+def read_summary(root: Path) -> dict | None:
+    """The summary of a dataset generated earlier, or None if there is none."""
+    path = Path(root) / "summary.json"
+    return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
+
+
+CLEAN = "clean"
+
+
+@dataclass(frozen=True, slots=True)
+class Dataset:
+    """Households to train and test on, and the injected test movements."""
+
+    name: str
+    households: list[Household]
+    injected: set[tuple[str, str, int, str]]
+
+
+def clean_dataset(households: Sequence[Household]) -> Dataset:
+    return Dataset(CLEAN, list(households), set())
+
+
+def noisy_dataset(root: Path, noise_type: str, train_level: float, test_level: float, names: Sequence[str]) -> Dataset:
+    out = []
+    for name in names:
+        train = load_household(level_dir(root, noise_type, train_level), name)
+        test = load_household(level_dir(root, noise_type, test_level), name)
+        out.append(replace(train, test=test.test))
+    return Dataset(noise_type, out, read_manifest(level_dir(root, noise_type, test_level) / "manifest.csv"))

@@ -14,7 +14,7 @@ import math
 import random
 from collections import Counter
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from typing import Sequence
 
 from globe.data.records import Day, Household
 from globe.noise.proposals import ProposalModel, Scorer, destination_text, sample
@@ -56,8 +56,8 @@ def _poisson(rate: float, rng: random.Random) -> int:
     return k
 
 
-def propose(household: Household, noise_type: NoiseType, scorer: Scorer, *, seed: int = 0, rate: float = 0.35,
-            temperature: float = 1.0, progress: Callable[[int], None] | None = None) -> Proposals:
+def propose(household: Household, noise_type: NoiseType, scorer: Scorer, *, seed: int, rate: float,
+            temperature: float) -> Proposals:
     """Disturbances for every day (train and test) of a household, at noise level 1.0."""
     rules = HomeRules(household)
     rng = random.Random(f"{seed}:{household.name}:{noise_type}")
@@ -97,8 +97,6 @@ def propose(household: Household, noise_type: NoiseType, scorer: Scorer, *, seed
                 busy.setdefault(obj, []).append((t, end))
                 out.injections.append(Injection(household.name, day.name, t, day.minutes[t], obj, before[obj], target,
                                                 noise_type, u, scorer.name, end))
-        if progress:
-            progress(1)
     return out
 
 

@@ -1,0 +1,144 @@
+"""The main job (``globe reproduce``) and its parts (``globe evaluate``, ``globe robustness``).
+
+Every experiment runs as a named stage. A stage is timed, logged with its elapsed time when it
+ends (one line on the ``globe.stages`` logger, so progress shows in CI logs and under ``nohup``
+where no progress bar can), and writes its results as soon as it ends, so an interrupted run
+keeps every finished stage. The per-stage times go to ``stages.csv`` in the results folder.
+The data is loaded once by the caller; the LLM backend is built once and shared by all stages.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+from globe import assembly
+from globe.config import GlobeConfig
+from globe.data.records import Household
+from globe.errors import ConfigError
+from globe.evaluation import report
+from globe.evaluation.experiments import run_methods
+from globe.evaluation.methods import METHODS
+from globe.evaluation.results import Table1Results, write_table1_results
+from globe.evaluation.robustness import RobustnessResults, run_suite
+from globe.evaluation.robustness_results import write_robustness_results
+from globe.noise.dataset import generate_dataset, read_summary
+from globe.reasoning.backends.base import LLMBackend
+
+log = logging.getLogger("globe.stages")
+
+Progress = Callable[[str], None]
+
+
+@dataclass(slots=True)
+class Stages:
+    """Times named stages; each finished stage is logged and appended to ``stages.csv``."""
+
+    out_dir: Path | None = None
+    progress: Progress | None = None
+    times: list[dict] = field(default_factory=list)
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        log.info("%s: started", name)
+        if self.progress:
+            self.progress(name)
+        started = time.perf_counter()
+        yield
+        seconds = time.perf_counter() - started
+        self.times.append({"stage": name, "seconds": round(seconds, 2)})
+        log.info("%s: done in %.1f s", name, seconds)
+        if self.out_dir is not None:
+            rows = self.times + [{"stage": "total", "seconds": round(sum(t["seconds"] for t in self.times), 2)}]
+            report.write_csv(self.out_dir / "stages.csv", rows, ["stage", "seconds"])
+
+    def note(self, message: str) -> None:
+        """A progress message inside a stage (shown on a terminal; not logged)."""
+        if self.progress:
+            self.progress(message)
+
+
+def check_methods(methods: Sequence[str]) -> list[str]:
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise ConfigError(f"unknown method {unknown[0]!r}; expected one of {', '.join(METHODS)}")
+    if not methods:
+        raise ConfigError(f"no method given; expected some of {', '.join(METHODS)}")
+    return list(methods)
+
+
+def backend_for(config: GlobeConfig, methods: Sequence[str] = ()) -> LLMBackend | None:
+    """The configured LLM backend, or None when no listed method needs one."""
+    if methods and not any(METHODS[m].needs_llm for m in methods):
+        return None
+    return assembly.llm_backend(config.llm)
+
+
+def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequence[str], out_dir: Path,
+             backend: LLMBackend | None = None, stages: Stages | None = None,
+             selection_cache: dict | None = None) -> Table1Results:
+    """Table I rows for ``methods`` on each household's test days, written to ``out_dir``.
+    ``selection_cache`` (cross-validation results on these households) is filled and reused."""
+    methods = check_methods(methods)
+    stages = stages or Stages(out_dir)
+    runs = []
+    for method in methods:
+        with stages.stage(f"table1: {method}"):
+            runs += run_methods(config, households, [method], backend, selection_cache)
+    with stages.stage("table1: write results"):
+        return write_table1_results(out_dir, runs, config)
+
+
+def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: Path, out_dir: Path,
+               backend: LLMBackend | None = None, stages: Stages | None = None,
+               clean_cache: dict | None = None) -> tuple[dict, RobustnessResults]:
+    """HOMER-Noise (generated unless ``noise_dir`` already holds this configuration's) and the
+    robustness suite, written to ``out_dir``. Returns the noise summary and the suite's rows.
+    ``clean_cache`` holds cross-validation results already computed on the clean households."""
+    stages = stages or Stages(out_dir)
+    with stages.stage("homer-noise"):
+        summary = read_summary(noise_dir)
+        if not _same_noise(summary, config):
+            summary = generate_dataset(config.noise, households, noise_dir, assembly.noise_scorer(config), stages.note)
+    assert summary is not None
+    with stages.stage("robustness suite"):
+        res = run_suite(config, households, noise_dir, backend, progress=stages.note, clean_cache=clean_cache)
+        write_robustness_results(out_dir, res, config.noise)
+    return summary, res
+
+
+def _same_noise(summary: dict | None, config: GlobeConfig) -> bool:
+    """Whether a generated dataset was made with this configuration (else it is made again)."""
+    if summary is None:
+        return False
+    n = config.noise
+    return (summary.get("seed") == n.seed and summary.get("rate") == n.rate and summary.get("temperature") == n.temperature
+            and summary.get("levels") == list(n.levels) and set(summary.get("types", {})) == set(n.types)
+            and summary.get("scorer", "").startswith("uniform") == (config.llm.backend == "none"))
+
+
+@dataclass(slots=True)
+class MainJobResults:
+    table1: Table1Results
+    noise_summary: dict | None
+    robustness: RobustnessResults | None
+    stages: list[dict]
+
+
+def reproduce(config: GlobeConfig, households: Sequence[Household], out_dir: Path, *, with_robustness: bool = True,
+              progress: Progress | None = None) -> MainJobResults:
+    """Every experiment on the given households, into ``out_dir`` (see the module doc)."""
+    stages = Stages(out_dir, progress)
+    with stages.stage("load LLM"):
+        backend = backend_for(config, config.evaluation.methods)
+    selection_cache: dict = {}
+    table1 = evaluate(config, households, config.evaluation.methods, out_dir, backend, stages, selection_cache)
+    summary, res = None, None
+    if with_robustness:
+        summary, res = robustness(config, households, out_dir / "homer_noise", out_dir / "robustness", backend, stages,
+                                  selection_cache)
+    return MainJobResults(table1, summary, res, stages.times)
