@@ -11,8 +11,8 @@ import statistics
 import time
 
 from common import setup
-from globe.evaluation.protocol import evaluate_days
 from globe.assembly import fit_household
+from globe.evaluation.protocol import evaluate_days
 from globe.reasoning.choice import ObjectChooser
 
 PAPER_TRAIN_S, PAPER_INFER_S, TARGET_S = 8.33, 0.86, 0.05

@@ -28,7 +28,7 @@ def main() -> None:
         cache_path = Path(tmp) / "answers.sqlite3"
         warm = EmbeddedBackend(n_threads=cfg.llm.n_threads)
         t = time.perf_counter()
-        warm._model()
+        warm.load()
         print(f"model load: {time.perf_counter() - t:.2f} s (once per process and shared by every backend; not counted below)")
         print(f"{'prompt':9s} {'household':9s} {'ngram s':>8s} {'globe cold s':>12s} {'calls':>6s} {'s/call':>7s} "
               f"{'globe cached s':>14s} {'cached/ngram':>12s} {'paper/cold':>10s}")

@@ -23,7 +23,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "scores.sqlite3"
         shared = EmbeddedBackend(n_threads=cfg.llm.n_threads)
-        shared._model()
+        shared.load()
         results = []
         for label in ("cold", "cached"):
             backend = EmbeddedBackend(n_threads=cfg.llm.n_threads, cache=AnswerCache(cache))

@@ -12,10 +12,10 @@ import time
 
 import pytest
 
+from globe.assembly import fit_household
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
-from globe.assembly import fit_household
 from tests.helpers import free_port
 
 

@@ -23,6 +23,8 @@ from globe.sequences.runs import training_sequences
 
 if TYPE_CHECKING:
     from globe.noise.proposals import Scorer
+    from globe.reasoning.backends.embedded import EmbeddedBackend
+    from globe.reasoning.cache import AnswerCache
     from globe.service.assistant import OnlineAssistant
 
 
@@ -60,21 +62,30 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
     return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0)
 
 
+def _answer_cache(llm: LLMConfig) -> "AnswerCache | None":
+    from globe.reasoning.cache import AnswerCache
+
+    return AnswerCache(llm.cache_dir / "llm-answers.sqlite3") if llm.cache_dir else None
+
+
+def embedded_backend(llm: LLMConfig) -> "EmbeddedBackend":
+    """The embedded llama.cpp backend with the ``llm`` settings (whatever ``llm.backend`` says)."""
+    from globe.reasoning.backends.embedded import EmbeddedBackend
+
+    return EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx, cache=_answer_cache(llm))
+
+
 def llm_backend(llm: LLMConfig) -> LLMBackend | None:
     """The configured LLM backend (``none`` -> None); heavy imports happen only here."""
     if llm.backend == "none":
         return None
-    from globe.reasoning.cache import AnswerCache
-
-    cache = AnswerCache(llm.cache_dir / "llm-answers.sqlite3") if llm.cache_dir else None
     if llm.backend == "embedded":
-        from globe.reasoning.backends.embedded import EmbeddedBackend
-
-        return EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx, cache=cache)
+        return embedded_backend(llm)
     from globe.reasoning.backends.remote import RemoteBackend
 
     return RemoteBackend(model=llm.remote_model, base_url=llm.base_url, temperature=llm.temperature,
-                         max_tokens=llm.max_tokens, timeout_s=llm.timeout_s, max_retries=llm.max_retries, cache=cache)
+                         max_tokens=llm.max_tokens, timeout_s=llm.timeout_s, max_retries=llm.max_retries,
+                         cache=_answer_cache(llm))
 
 
 def object_chooser(objects: ObjectModel, gate: GateConfig, backend: LLMBackend | None, *, marginal: bool) -> ObjectChooser:
@@ -95,9 +106,7 @@ def noise_scorer(config: GlobeConfig) -> "Scorer":
         return UniformScorer()
     if config.llm.backend != "embedded":
         raise ConfigError("the noise generator scores sentences: use llm.backend 'embedded' (or 'none' for uniform proposals)")
-    backend = llm_backend(config.llm)
-    assert backend is not None
-    return LLMScorer(backend)
+    return LLMScorer(embedded_backend(config.llm))
 
 
 def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | None) -> "OnlineAssistant":

@@ -4,10 +4,10 @@ import math
 
 import pytest
 
+from globe.evaluation.tuning import folds, grid, select
 from globe.models.backoff import witten_bell_distribution
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
-from globe.evaluation.tuning import folds, grid, select
 from globe.models.suffix_index import SuffixIndex
 from globe.reasoning.choice import object_distribution
 

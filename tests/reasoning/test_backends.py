@@ -54,14 +54,27 @@ def test_cache_survives_a_killed_process(tmp_path):
 
 
 def test_remote_backend_round_trip_against_a_real_server(llm_server):
-    backend = RemoteBackend(model="gemma", base_url=llm_server, api_key="unused", timeout_s=60, max_retries=0)
+    """Greedy decoding makes the server's reply reproducible: ask it directly with the paper's
+    prompt, then check that the backend turns the same reply into exactly the expected outcome."""
+    import openai
+
+    from globe.reasoning.backends.remote import SYSTEM
+    from globe.reasoning.prompts import remote_prompt
+
+    backend = RemoteBackend(model="gemma", base_url=llm_server, api_key="unused", temperature=0.0, timeout_s=60, max_retries=0)
     context, candidates, _ = UNAMBIGUOUS[0]
-    try:
-        choice = backend.choose(context, candidates)
-    except LLMAnswerError as err:  # a base model often answers off the list: must be reported, with the reply
-        assert err.raw is not None and err.raw.strip()
+    direct = openai.OpenAI(base_url=llm_server, api_key="unused").chat.completions.create(
+        model="gemma", temperature=0.0, max_tokens=backend.max_tokens,
+        messages=[{"role": "system", "content": SYSTEM}, {"role": "user", "content": remote_prompt(context, candidates)}])
+    reply = direct.choices[0].message.content or ""
+    expected = match_candidate(reply, candidates) if reply.strip() else None
+    if expected is None:  # a base model often answers off the list: reported, with the reply
+        with pytest.raises(LLMAnswerError) as err:
+            backend.choose(context, candidates)
+        assert err.value.raw == reply
     else:
-        assert choice.answer in candidates and choice.raw
+        choice = backend.choose(context, candidates)
+        assert choice.answer == expected and choice.raw == reply
 
 
 def test_gate_over_the_real_server_never_loses_the_prediction(llm_server):

@@ -1,6 +1,5 @@
 """The gate's logic with scripted backends (test doubles: the real backends are tested beside)."""
 
-import math
 
 import pytest
 
@@ -81,8 +80,7 @@ def test_fewer_than_two_candidates_does_not_ask(model):
 def test_failures_fall_back_to_the_ngram_choice_and_are_counted(model, backend, reason):
     g = gate(model, backend)
     choice = g.choose("eat", ("teapot",))
-    assert choice.obj == "bowl" and choice.asked and choice.fallback == reason
-    assert sum(v for k, v in g.stats.items() if k.startswith("fallback:")) == 1
+    assert choice.obj == "bowl" and choice.asked and choice.fallback == reason and choice.ngram_choice == "bowl"
 
 
 def test_combine_mode_adds_ngram_log_probability(model):
@@ -90,7 +88,6 @@ def test_combine_mode_adds_ngram_log_probability(model):
     scores = {"milk": 0.0, "cereal": 0.5, "spoon": -5.0}
     g = gate(model, Scripted(answer="cereal", scores=scores), threshold=0.9, mode="combine", combine_weight=1.0)
     assert g.choose("eat", ("bowl",)).obj == "cereal"  # 0.5 + log(1/3) > 0 + log(1/2)
-    assert 0.5 + math.log(1 / 3) > math.log(1 / 2)
     g2 = gate(model, Scripted(answer="cereal", scores=scores), threshold=0.9, mode="combine", combine_weight=2.0)
     assert g2.choose("eat", ("bowl",)).obj == "milk"  # 0.5 + 2 log(1/3) < 2 log(1/2)
 

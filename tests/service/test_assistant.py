@@ -4,8 +4,8 @@ import datetime as dt
 
 import pytest
 
-from globe.errors import DataError
 from globe.assembly import fit_household
+from globe.errors import DataError
 from globe.reasoning.choice import ObjectChooser
 from globe.service.assistant import Observation, OnlineAssistant
 

@@ -104,8 +104,9 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
             "object_events": len(ev.objects),
             "gate_opened": len(asked),
             "gate_rate": round(len(asked) / len(ev.objects), 4) if ev.objects else 0.0,
-            "llm_fallbacks": sum(r.fallback is not None for r in asked),
-            "llm_changed_choice": sum(r.predicted != r.ngram_choice for r in asked if r.fallback is None and r.ngram_choice),
+            "llm_fallbacks": sum(r.choice.fallback is not None for r in asked),
+            "llm_changed_choice": sum(r.predicted != r.choice.ngram_choice for r in asked
+                                      if r.choice.fallback is None and r.choice.ngram_choice),
         })
     return rows
 

@@ -26,7 +26,7 @@ class ActivityPredictor(Protocol):
     def ranked(self, distribution: dict[str, float]) -> list[str]: ...
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class ActivityRecord:
     household: str
     day: str
@@ -41,9 +41,15 @@ class ActivityRecord:
         """The activity changes at this step: the moments a robot must anticipate."""
         return self.true != self.previous
 
+    def as_row(self) -> dict[str, object]:
+        return {"household": self.household, "day": self.day, "step": self.step, "previous": self.previous,
+                "true": self.true, "predicted": self.predicted, "confidence": self.confidence}
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class ObjectRecord:
+    """One movement event: what was true, and the chooser's whole :class:`ObjectChoice`."""
+
     household: str
     day: str
     step: int
@@ -51,15 +57,32 @@ class ObjectRecord:
     predicted_activity: str
     context: tuple[str, ...]
     true: str
-    predicted: str
-    confidence: float
-    ngram_choice: str | None
-    asked: bool
-    candidates: tuple[str, ...]
-    answer: str | None
-    latency_s: float
-    fallback: str | None
+    choice: ObjectChoice
     injected: bool = False
+
+    @property
+    def predicted(self) -> str:
+        return self.choice.obj or NO_PREDICTION
+
+    @property
+    def confidence(self) -> float:
+        return self.choice.confidence
+
+    @property
+    def asked(self) -> bool:
+        return self.choice.asked
+
+    @property
+    def latency_s(self) -> float:
+        return self.choice.latency_s
+
+    def as_row(self) -> dict[str, object]:
+        c = self.choice
+        return {"household": self.household, "day": self.day, "step": self.step, "true_activity": self.true_activity,
+                "predicted_activity": self.predicted_activity, "context": "|".join(self.context), "true": self.true,
+                "predicted": self.predicted, "confidence": c.confidence, "ngram_choice": c.ngram_choice, "asked": c.asked,
+                "candidates": "|".join(c.candidates), "answer": c.answer, "latency_s": c.latency_s, "fallback": c.fallback,
+                "injected": self.injected}
 
 
 @dataclass(slots=True)
@@ -93,19 +116,18 @@ def evaluate_days(
         dists = activity_model.scan_proba(acts)
         predicted = [_top(activity_model.ranked(d)) for d in dists]
         for t in range(1, len(acts)):
-            act_records.append(ActivityRecord(household.name, day.name, t, acts[t - 1], acts[t], predicted[t], dists[t].get(predicted[t], 0.0)))
+            act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1], true=acts[t],
+                                              predicted=predicted[t], confidence=dists[t].get(predicted[t], 0.0)))
         for run in activity_runs(day, household.objects, alignment):
             for i, ev in enumerate(run.events):
                 a_hat = run.activity if oracle else predicted[ev.activity_step]
                 belief = {run.activity: 1.0} if oracle else dists[ev.activity_step]
                 context_for = run_context(run.activity, run.objects[:i])
-                context = context_for(a_hat)
-                choice: ObjectChoice = chooser.choose_given(a_hat, belief, context_for)
                 obj_records.append(ObjectRecord(
-                    household.name, day.name, ev.step, run.activity, a_hat, context, ev.obj,
-                    choice.obj or NO_PREDICTION, choice.confidence, choice.ngram_choice, choice.asked,
-                    choice.candidates, choice.answer, choice.latency_s, choice.fallback,
-                    injected(day.name, ev.step, ev.obj) if injected else False,
+                    household=household.name, day=day.name, step=ev.step, true_activity=run.activity,
+                    predicted_activity=a_hat, context=context_for(a_hat), true=ev.obj,
+                    choice=chooser.choose_given(a_hat, belief, context_for),
+                    injected=injected(day.name, ev.step, ev.obj) if injected else False,
                 ))
         if progress:
             progress(1)

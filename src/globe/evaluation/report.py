@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Protocol, Sequence
 
 from globe.evaluation.published import TABLE1, TABLE2
 
@@ -22,17 +21,13 @@ def write_csv(path: Path, rows: Sequence[dict], fieldnames: Sequence[str] | None
     tmp.replace(path)
 
 
-def read_csv(path: Path) -> list[dict]:
-    with Path(path).open(newline="", encoding="utf-8") as fh:
-        return list(csv.DictReader(fh))
+class Record(Protocol):
+    def as_row(self) -> dict[str, object]: ...
 
 
-def write_records(folder: Path, name: str, records: Iterable) -> None:
-    """One CSV row per prediction; tuples are joined with ``|``."""
-    rows = []
-    for rec in records:
-        row = dataclasses.asdict(rec)
-        rows.append({k: "|".join(v) if isinstance(v, tuple) else v for k, v in row.items()})
+def write_records(folder: Path, name: str, records: Iterable[Record]) -> None:
+    """One CSV row per prediction (``as_row``: lists joined with ``|``)."""
+    rows = [rec.as_row() for rec in records]
     if rows:
         write_csv(folder / f"{name}.csv", rows)
 

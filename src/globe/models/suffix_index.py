@@ -18,7 +18,7 @@ END = "</s>"  # closes every training sequence; never predicted
 class SuffixIndex:
     """Generalised suffix automaton with occurrence counts, built incrementally."""
 
-    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_n_sequences", "_skip")
+    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_skip")
 
     def __init__(self, never_predicted: Iterable[Hashable] = ()) -> None:
         self._skip = frozenset(never_predicted) | {END}
@@ -29,7 +29,6 @@ class SuffixIndex:
         self._last = 0
         self._counts: list[int] | None = None
         self._dist: dict[int, dict[Hashable, int]] = {}
-        self._n_sequences = 0
 
     # -- building ---------------------------------------------------------------------------
     def add(self, sequence: Iterable[Hashable]) -> None:
@@ -63,7 +62,6 @@ class SuffixIndex:
                     link[cur] = clone
             last = cur
         self._last = last
-        self._n_sequences += 1
         self._counts = None
         self._dist.clear()
 
@@ -79,11 +77,6 @@ class SuffixIndex:
         return self._counts
 
     # -- querying ---------------------------------------------------------------------------
-    @property
-    def n_sequences(self) -> int:
-        return self._n_sequences
-
-
     def successors(self, state: int) -> dict[Hashable, int]:
         """How often each label followed the contexts of ``state`` (END, start labels excluded)."""
         dist = self._dist.get(state)

@@ -16,6 +16,7 @@ import random
 from typing import Protocol, Sequence
 
 from globe.noise.rules import NoiseType
+from globe.reasoning.backends.base import ScoringBackend
 from globe.reasoning.context import humanise
 
 OBJECT_PROMPTS: dict[str, str] = {
@@ -48,9 +49,9 @@ class UniformScorer:
 
 
 class LLMScorer:
-    """PMI scores from a backend that exposes ``generate_scores`` (the embedded model, cached)."""
+    """Scores from a backend that scores continuations (the embedded model, cached)."""
 
-    def __init__(self, backend) -> None:
+    def __init__(self, backend: ScoringBackend) -> None:
         self.backend = backend
         self.name = f"llm:{backend.name}:{backend.model_name}"
 

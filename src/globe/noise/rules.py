@@ -12,7 +12,6 @@ from typing import Literal
 from globe.data.records import Household
 
 NoiseType = Literal["person", "pet", "toddler"]
-NOISE_TYPES: tuple[NoiseType, ...] = ("person", "pet", "toddler")
 
 CLOSED = frozenset({"fridge", "kitchen_cabinet", "cupboard", "bathroom_cabinet", "dresser", "filing_cabinet",
                     "microwave", "closet", "dishwasher", "washing_machine", "coffe_maker", "oven"})
@@ -95,19 +94,3 @@ class HomeRules:
         if target not in self.destinations(noise_type, obj, support):
             return "destination not allowed"
         return None
-
-
-FLOOR_WORDS = ("floor", "ground", "carpet", "rug")
-
-
-def resolve_destination(text: str, rules: HomeRules, obj_room: str | None) -> str | None:
-    """Map free text from an LLM ("the floor", "Kitchen counter") to a node of this home:
-    floor-like words mean the room the object is in; class names prefer that room."""
-    words = text.strip().lower().replace("_", " ")
-    if any(w in words for w in FLOOR_WORDS):
-        return obj_room
-    matches = [n for n in rules.static if rules.cls[n].replace("_", " ") in words]
-    if not matches:
-        return None
-    matches.sort(key=lambda n: (rules.room_of(n) != obj_room, -len(rules.cls[n]), n))
-    return matches[0]

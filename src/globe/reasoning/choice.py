@@ -3,7 +3,19 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Protocol, Sequence
+
+
+class NextObjectModel(Protocol):
+    """What choosers need of an object model (:class:`globe.models.objects.ObjectModel`)."""
+
+    def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]: ...
+
+    def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]: ...
+
+    def candidates(self, activity: str) -> tuple[str, ...]: ...
+
+    def recent_runs(self, activity: str, k: int) -> tuple[tuple[str, ...], ...]: ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,7 +48,7 @@ def run_context(run_activity: str | None, objects: tuple[str, ...]) -> ContextFo
 MIN_BELIEF = 1e-3  # activities less likely than this cannot change the mixed object ranking much
 
 
-def object_distribution(model, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
+def object_distribution(model: NextObjectModel, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
                         marginal: bool) -> dict[str, float]:
     """The next-object distribution for the predicted ``activity``, or, with ``marginal``, mixed
     over every activity the activity model finds possible: sum_a P(a) P(o | a, context(a))."""
@@ -63,7 +75,7 @@ class ObjectChooser:
 
     name = "ngram"
 
-    def __init__(self, model, *, marginal: bool = False) -> None:  # model: ObjectModel
+    def __init__(self, model: NextObjectModel, *, marginal: bool = False) -> None:
         self.model = model
         self.marginal = marginal
 

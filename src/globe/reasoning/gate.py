@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import math
 import time
-from collections import Counter
 from typing import Literal, Mapping
 
 from globe.errors import LLMError
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ContextFor, ObjectChoice, ObjectChooser
+from globe.reasoning.choice import ContextFor, NextObjectModel, ObjectChoice, ObjectChooser
 from globe.reasoning.context import ChoiceContext
 
 GateMode = Literal["replace", "combine"]
@@ -28,7 +27,7 @@ class UncertaintyGate(ObjectChooser):
 
     name = "globe"
 
-    def __init__(self, model, backend: LLMBackend | None, *, threshold: float = 0.5, top_k: int = 5,
+    def __init__(self, model: NextObjectModel, backend: LLMBackend | None, *, threshold: float = 0.5, top_k: int = 5,
                  min_prob: float = 0.1, mode: GateMode = "replace", combine_weight: float = 1.0,
                  marginal: bool = False, examples: int = 0) -> None:
         super().__init__(model, marginal=marginal)
@@ -39,7 +38,6 @@ class UncertaintyGate(ObjectChooser):
         self.mode = mode
         self.combine_weight = combine_weight
         self.examples = examples
-        self.stats: Counter[str] = Counter()
 
     def candidates_for(self, ranked: list[str], dist: dict[str, float]) -> tuple[str, ...]:
         return tuple(o for o in ranked[: self.top_k] if dist[o] > self.min_prob)
@@ -50,26 +48,21 @@ class UncertaintyGate(ObjectChooser):
             return ObjectChoice(None, 0.0)
         top = ranked[0]
         confidence = dist[top]
-        self.stats["predictions"] += 1
         if confidence >= self.threshold or self.backend is None:
             return ObjectChoice(top, confidence, ngram_choice=top)
         candidates = self.candidates_for(ranked, dist)
         if len(candidates) < 2:
-            self.stats["too_few_candidates"] += 1
             return ObjectChoice(top, confidence, ngram_choice=top, candidates=candidates)
-        self.stats["asked"] += 1
         started = time.perf_counter()
         try:
             examples = self.model.recent_runs(activity, self.examples) if self.examples else ()
             answer = self.backend.choose(ChoiceContext(activity, context_for(activity), examples), candidates)
         except LLMError as err:
             reason = type(err).__name__
-            self.stats[f"fallback:{reason}"] += 1
             return ObjectChoice(top, confidence, top, True, candidates, getattr(err, "raw", None),
                                 time.perf_counter() - started, reason)
         latency = time.perf_counter() - started
         if answer.answer not in candidates:
-            self.stats["fallback:off_list"] += 1
             return ObjectChoice(top, confidence, top, True, candidates, answer.raw or answer.answer, latency, "off_list")
         chosen = answer.answer
         if self.mode == "combine" and answer.scores:
@@ -82,10 +75,9 @@ class LLMOnlyChooser(ObjectChooser):
 
     name = "llm_only"
 
-    def __init__(self, model, backend: LLMBackend) -> None:
+    def __init__(self, model: NextObjectModel, backend: LLMBackend) -> None:
         super().__init__(model)
         self.backend = backend
-        self.stats: Counter[str] = Counter()
 
     def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
         candidates = tuple(sorted(self.model.candidates(activity)))
@@ -97,10 +89,8 @@ class LLMOnlyChooser(ObjectChooser):
         try:
             answer = self.backend.choose(ChoiceContext(activity, context_for(activity)), candidates)
         except LLMError as err:
-            self.stats[f"fallback:{type(err).__name__}"] += 1
             return ObjectChoice(None, 0.0, None, True, candidates, None, time.perf_counter() - started, type(err).__name__)
         latency = time.perf_counter() - started
         if answer.answer not in candidates:
-            self.stats["fallback:off_list"] += 1
             return ObjectChoice(None, 0.0, None, True, candidates, answer.raw, latency, "off_list")
         return ObjectChoice(answer.answer, 1.0 / len(candidates), None, True, candidates, answer.answer, latency, None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import Protocol
 
 from globe.reasoning.context import ChoiceContext
 
@@ -27,3 +28,15 @@ class LLMBackend(ABC):
 
     @abstractmethod
     def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice: ...
+
+
+class ScoringBackend(Protocol):
+    """A model that scores continuations of a text (log-probabilities, higher is better): what
+    the HOMER-Noise generator needs (the embedded backend provides it, cached)."""
+
+    name: str
+
+    @property
+    def model_name(self) -> str: ...
+
+    def generate_scores(self, prefix: str, continuations: list[str]) -> list[float]: ...

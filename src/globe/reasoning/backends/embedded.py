@@ -122,8 +122,9 @@ class EmbeddedBackend(LLMBackend):
             self._loaded = _load(str(path), self.n_threads, self.n_ctx)
         return self._loaded
 
-    def _model(self):
-        return self._shared().llm
+    def load(self) -> None:
+        """Load the model now (it is otherwise loaded by the first question)."""
+        self._shared()
 
     def continuation_logprobs(self, prefix: str, continuations: list[str], memo: bool = False) -> list[float]:
         """Sum of token log-probabilities of each continuation after ``prefix``.
