@@ -1,0 +1,29 @@
+# Two commands on a fresh machine: `make reproduce` (the main job) and `make test` (the checks).
+# Both create .venv and install the project with every extra on first use (and again when
+# pyproject.toml changes); the plain pip route is in the README.
+
+PYTHON ?= python3
+VENV ?= .venv
+OUT ?= results/reproduce
+STAMP := $(VENV)/.installed
+
+.PHONY: setup reproduce test lint typecheck
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install -e ".[all,dev]"
+	touch $(STAMP)
+
+reproduce: $(STAMP)
+	$(VENV)/bin/globe reproduce --out $(OUT)
+
+typecheck: $(STAMP)
+	$(VENV)/bin/mypy
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+
+test: $(STAMP) typecheck lint
+	$(VENV)/bin/python -m pytest
