@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Sequence
 from globe.config import GateConfig, GlobeConfig, LLMConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.models.activity import ActivityModel
+from globe.models.base import ActivityModelBase
+from globe.models.baselines import PersistenceModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
@@ -28,8 +30,10 @@ if TYPE_CHECKING:
     from globe.service.assistant import OnlineAssistant
 
 
-def activity_model(models: ModelConfig) -> ActivityModel | RoutineModel:
+def activity_model(models: ModelConfig) -> ActivityModelBase:
     """An unfitted next-activity model for the ``models`` section."""
+    if models.activity_estimator == "persistence":
+        return PersistenceModel()
     if models.activity_estimator == "routine":
         return RoutineModel(order=models.routine_order, time_weight=models.routine_time_weight,
                             time_window=models.routine_time_window, shrinkage=models.routine_shrinkage)
@@ -45,7 +49,7 @@ def object_model(models: ModelConfig) -> ObjectModel:
 
 @dataclass(frozen=True, slots=True)
 class FittedHousehold:
-    activity: ActivityModel | RoutineModel
+    activity: ActivityModelBase
     objects: ObjectModel
     train_s: float  # model fitting only (preprocessing excluded)
     preprocess_s: float

@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from globe.errors import ConfigError
 
 Alignment = Literal["previous", "current", "hybrid"]
-ActivityEstimator = Literal["longest", "witten_bell", "routine"]
+ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine"]
 ObjectEstimator = Literal["longest", "witten_bell"]
 
 
@@ -38,7 +38,7 @@ class SequenceConfig(_Section):
 
 class ModelConfig(_Section):
     activity_estimator: ActivityEstimator = Field(
-        "longest", description="'longest' = the paper's longest-context backoff"
+        "longest", description="'longest' = the paper's longest-context backoff; 'persistence' = the activity stays the same"
     )
     activity_max_order: int = Field(109, ge=1, le=10_000, description="maximum n of the activity n-gram")
     object_estimator: ObjectEstimator = Field("longest", description="object n-gram estimator")

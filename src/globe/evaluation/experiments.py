@@ -10,7 +10,7 @@ from typing import Iterable, Sequence
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import AVERAGES, calibration, f1
+from globe.evaluation.metrics import AVERAGES, calibration, f1, log_loss
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.reasoning.backends.base import LLMBackend
 
@@ -98,6 +98,7 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
             "method": run.method, "household": run.household,
             "activity_f1": round(_f1s(ev, "weighted")[0], 4),
             "activity_f1_change_steps": round(f1([r.true for r in changes], [r.predicted for r in changes]), 4),
+            "activity_log_loss": _round(log_loss([r.p_true for r in ev.activity])),
             "change_steps": len(changes),
             "object_f1": round(_f1s(ev, "weighted")[1], 4),
             "object_f1_oracle_activity": round(_f1s(run.oracle, "weighted")[1], 4),
@@ -109,6 +110,10 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
                                       if r.choice.fallback is None and r.choice.ngram_choice),
         })
     return rows
+
+
+def _round(x: float | None, digits: int = 4) -> float | None:
+    return None if x is None else round(x, digits)
 
 
 def timing_rows(runs: Sequence[MethodRun]) -> list[dict]:

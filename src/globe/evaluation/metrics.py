@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import statistics
 from collections import Counter
 from typing import Literal, Sequence
@@ -80,3 +81,15 @@ def consistency_groups(households: Sequence[Household], definition: str = "start
 
 
 CONSISTENCY_DEFINITIONS = ("start_time", "object_sequence")
+
+
+LOG_LOSS_FLOOR = 1e-6  # a probability of 0 for what happened costs -log(1e-6) = 13.8 nats, not infinity
+
+
+def log_loss(p_true: Sequence[float]) -> float | None:
+    """Mean negative log-probability of what happened (nats), probabilities floored at
+    :data:`LOG_LOSS_FLOOR`; None when there is nothing to score. Unlike F1 it rewards honest
+    uncertainty, which is what a robot's decision needs."""
+    if not p_true:
+        return None
+    return statistics.fmean(-math.log(max(p, LOG_LOSS_FLOOR)) for p in p_true)

@@ -9,12 +9,14 @@ context is reset when the predicted activity differs from the true one. Candidat
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass
 from typing import Callable, Protocol, Sequence
 
 from globe.data.records import Day, Household
-from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
+from globe.reasoning.backends.base import LLMBackend, QuestionRecorder
+from globe.reasoning.choice import ContextFor, ObjectChoice, ObjectChooser, run_context
 from globe.sequences.movements import Alignment
 from globe.sequences.runs import activity_runs
 
@@ -35,6 +37,7 @@ class ActivityRecord:
     true: str
     predicted: str
     confidence: float
+    p_true: float  # the probability the model gave the true activity (for log loss)
 
     @property
     def is_change(self) -> bool:
@@ -43,7 +46,7 @@ class ActivityRecord:
 
     def as_row(self) -> dict[str, object]:
         return {"household": self.household, "day": self.day, "step": self.step, "previous": self.previous,
-                "true": self.true, "predicted": self.predicted, "confidence": self.confidence}
+                "true": self.true, "predicted": self.predicted, "confidence": self.confidence, "p_true": self.p_true}
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -96,6 +99,20 @@ def _top(ranked: list[str]) -> str:
     return ranked[0] if ranked else NO_PREDICTION
 
 
+@dataclass(frozen=True, slots=True)
+class _Query:
+    """One movement event to predict: the true event, the predicted activity and its context."""
+
+    day: str
+    step: int
+    true_activity: str
+    true: str
+    activity: str
+    belief: dict[str, float]
+    context_for: ContextFor
+    injected: bool
+
+
 def evaluate_days(
     household: Household,
     days: Sequence[Day],
@@ -107,9 +124,13 @@ def evaluate_days(
     injected: Callable[[str, int, str], bool] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> Evaluation:
-    """Run the protocol over ``days``; ``injected(day, step, obj)`` marks noise movements."""
+    """Run the protocol over ``days``; ``injected(day, step, obj)`` marks noise movements.
+
+    The object questions do not depend on each other's answers, so when the chooser asks a
+    cached LLM they are first collected and answered in the backend's preferred order
+    (:meth:`~globe.reasoning.backends.base.LLMBackend.prefetch`), then read from the cache."""
     act_records: list[ActivityRecord] = []
-    obj_records: list[ObjectRecord] = []
+    queries: list[_Query] = []
     started = time.perf_counter()
     for day in days:
         acts = day.activities
@@ -117,18 +138,28 @@ def evaluate_days(
         predicted = [_top(activity_model.ranked(d)) for d in dists]
         for t in range(1, len(acts)):
             act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1], true=acts[t],
-                                              predicted=predicted[t], confidence=dists[t].get(predicted[t], 0.0)))
+                                              predicted=predicted[t], confidence=dists[t].get(predicted[t], 0.0),
+                                              p_true=dists[t].get(acts[t], 0.0)))
         for run in activity_runs(day, household.objects, alignment):
             for i, ev in enumerate(run.events):
-                a_hat = run.activity if oracle else predicted[ev.activity_step]
-                belief = {run.activity: 1.0} if oracle else dists[ev.activity_step]
-                context_for = run_context(run.activity, run.objects[:i])
-                obj_records.append(ObjectRecord(
-                    household=household.name, day=day.name, step=ev.step, true_activity=run.activity,
-                    predicted_activity=a_hat, context=context_for(a_hat), true=ev.obj,
-                    choice=chooser.choose_given(a_hat, belief, context_for),
-                    injected=injected(day.name, ev.step, ev.obj) if injected else False,
-                ))
+                queries.append(_Query(
+                    day.name, ev.step, run.activity, ev.obj,
+                    run.activity if oracle else predicted[ev.activity_step],
+                    {run.activity: 1.0} if oracle else dists[ev.activity_step],
+                    run_context(run.activity, run.objects[:i]),
+                    injected(day.name, ev.step, ev.obj) if injected else False))
         if progress:
             progress(1)
+    backend = getattr(chooser, "backend", None)
+    if isinstance(backend, LLMBackend) and backend.prefetches:
+        recorder = QuestionRecorder(backend)
+        dry = copy.copy(chooser)
+        dry.backend = recorder  # type: ignore[attr-defined]
+        for q in queries:
+            dry.choose_given(q.activity, q.belief, q.context_for)
+        backend.prefetch(recorder.questions)
+    obj_records = [ObjectRecord(household=household.name, day=q.day, step=q.step, true_activity=q.true_activity,
+                                predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
+                                choice=chooser.choose_given(q.activity, q.belief, q.context_for), injected=q.injected)
+                   for q in queries]
     return Evaluation(act_records, obj_records, time.perf_counter() - started)

@@ -74,7 +74,7 @@ def timing_markdown(rows: Sequence[dict]) -> str:
 
 
 def details_markdown(rows: Sequence[dict]) -> str:
-    cols = ["method", "household", "activity_f1", "activity_f1_change_steps", "object_f1",
+    cols = ["method", "household", "activity_f1", "activity_f1_change_steps", "activity_log_loss", "object_f1",
             "object_f1_oracle_activity", "gate_rate", "llm_fallbacks", "llm_changed_choice"]
     lines = ["Details (weighted F1): change steps, true-activity oracle, LLM gate", "",
              "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]

@@ -85,19 +85,45 @@ def activity_fold(model: ActivityModelBase, days: Sequence[Sequence[str]]) -> tu
     return true, pred
 
 
+class _MemoScan:
+    """An activity model whose scans are memoised: every object and gate candidate of a fold
+    scans the same held-out days with the same activity model."""
+
+    def __init__(self, model: ActivityModelBase) -> None:
+        self.model = model
+        self._scans: dict[tuple[str, ...], list[dict[str, float]]] = {}
+
+    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
+        key = tuple(day)
+        if key not in self._scans:
+            self._scans[key] = self.model.scan_proba(day)
+        return self._scans[key]
+
+    def ranked(self, distribution: dict[str, float]) -> list[str]:
+        return self.model.ranked(distribution)
+
+
 class _FoldModels:
-    """Both models of one configuration, fitted on a fold of training days. Fits are memoised
-    per (configuration, fold) in ``memo``, so candidates that share them (every gate setting)
-    fit once."""
+    """Both models of one configuration, fitted on a fold of training days. Fits (and activity
+    scans) are memoised per fold in ``memo`` by the built models' parameters, so candidates that
+    differ only in the object model or the gate share one activity model."""
 
     def __init__(self, household: Household, config: GlobeConfig, memo: dict) -> None:
         self.household, self.config, self.memo = household, config, memo
 
     def fit(self, days: Sequence[Day]) -> "_FoldModels":
-        key = (self.config.models, tuple(d.name for d in days))
-        if key not in self.memo:
-            self.memo[key] = assembly.fit_household(self.household, self.config, days)
-        self.fitted = self.memo[key]
+        fold = tuple(d.name for d in days)
+        if ("sequences", fold) not in self.memo:
+            self.memo[("sequences", fold)] = training_sequences(self.household, days, self.config.sequences.alignment)
+        seqs = self.memo[("sequences", fold)]
+        activity, objects = assembly.activity_model(self.config.models), assembly.object_model(self.config.models)
+        act_key = ("activity", type(activity).__name__, tuple(sorted(activity.get_params().items())), fold)
+        obj_key = ("objects", tuple(sorted(objects.get_params().items())), fold)
+        if act_key not in self.memo:
+            self.memo[act_key] = _MemoScan(activity.fit(seqs.activities))
+        if obj_key not in self.memo:
+            self.memo[obj_key] = objects.fit(seqs.runs)
+        self.activity, self.objects = self.memo[act_key], self.memo[obj_key]
         return self
 
 
@@ -106,8 +132,8 @@ def _object_fold(gate: GateConfig, backend: LLMBackend | None) -> Callable[[_Fol
 
     def predict(model: _FoldModels, days: Sequence[Day]) -> tuple[list[str], list[str]]:
         cfg = model.config
-        chooser = assembly.object_chooser(model.fitted.objects, gate, backend, marginal=cfg.models.object_marginal)
-        ev = evaluate_days(model.household, days, model.fitted.activity, chooser, alignment=cfg.sequences.alignment)
+        chooser = assembly.object_chooser(model.objects, gate, backend, marginal=cfg.models.object_marginal)
+        ev = evaluate_days(model.household, days, model.activity, chooser, alignment=cfg.sequences.alignment)
         return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
 
     return predict
@@ -122,15 +148,20 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tu
     sel = cfg.selection
     seqs = training_sequences(h, h.train, cfg.sequences.alignment)
     if family == "routine":
-        space = grid({"routine_order": sel.routine_orders, "routine_time_weight": sel.time_weights})
-        base = {"activity_estimator": "routine", "object_marginal": True}
+        space = grid({"activity_estimator": ["routine"], "routine_order": sel.routine_orders,
+                      "routine_time_weight": sel.time_weights})
+        base: dict[str, Any] = {"object_marginal": True}
     elif family == "witten_bell":
-        space = grid({"activity_max_order": sel.activity_orders, "time_weight": sel.time_weights})
-        base = {"activity_estimator": "witten_bell"}
+        space = grid({"activity_estimator": ["witten_bell"], "activity_max_order": sel.activity_orders,
+                      "time_weight": sel.time_weights})
+        base = {}
     else:
         raise ValueError(f"unknown model family {family!r}; expected 'routine' or 'witten_bell'")
-    act = select(seqs.activities, space, lambda p: assembly.activity_model(cfg.models.model_copy(update=base | p)),
-                 activity_fold, sel.folds)
+    # The simpler models are candidates too, listed first so that they win ties: a home whose
+    # routine is "the activity stays the same" gets persistence, not a model that overfits.
+    simpler: list[dict[str, Any]] = [{"activity_estimator": "persistence"}, {"activity_estimator": "longest"}]
+    act = select(seqs.activities, simpler + space,
+                 lambda p: assembly.activity_model(cfg.models.model_copy(update=base | p)), activity_fold, sel.folds)
     models = cfg.models.model_copy(update=base | act.best)
     ospace = grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token})
     memo: dict = {}
@@ -157,13 +188,17 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
         {"threshold": d, **style} for d in sel.gate_thresholds for style in styles]
     fold_cfg = cfg.model_copy(update={"models": models})
     memo: dict = {}
-    scored = []
+    score: dict[int, float] = {}
     started = time.perf_counter()
-    for params in space:
-        gate = g.model_copy(update=params | {"examples": examples})
-        one = select(list(h.train), [params], lambda p: _FoldModels(h, fold_cfg, memo), _object_fold(gate, backend), sel.folds)
-        scored.extend(one.scores)
-    best = max(scored, key=lambda ps: ps[1])[0]
+    # The highest threshold asks every question a lower one asks: evaluating it first answers
+    # each fold's questions in one batch, and the rest come from the answer cache.
+    for i in sorted(range(len(space)), key=lambda i: -space[i]["threshold"]):
+        gate = g.model_copy(update=space[i] | {"examples": examples})
+        one = select(list(h.train), [space[i]], lambda p: _FoldModels(h, fold_cfg, memo), _object_fold(gate, backend),
+                     sel.folds)
+        score[i] = one.scores[0][1]
+    scored = [(space[i], score[i]) for i in range(len(space))]
+    best = max(scored, key=lambda ps: ps[1])[0]  # ties: listed first, so "never ask" wins them
     chosen = Selection(dict(best), scored, time.perf_counter() - started)
     cache[key] = (g.model_copy(update=chosen.best | {"examples": examples}), chosen)
     return cache[key]

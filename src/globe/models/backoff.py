@@ -42,6 +42,12 @@ def witten_bell_distribution(
     if not vocabulary:
         return {}
     state, matched = index.truncate(state, matched, max_context)
+    vocabulary = tuple(vocabulary)
+    return index.derived(("witten_bell", state, matched, vocabulary),
+                         lambda: _witten_bell(index, state, matched, vocabulary))
+
+
+def _witten_bell(index: SuffixIndex, state: int, matched: int, vocabulary: tuple[Hashable, ...]) -> dict[Hashable, float]:
     layers = list(index.chain(state, matched))
     prob = {w: 1.0 / len(vocabulary) for w in vocabulary}
     for st, hi, lo in reversed(layers):

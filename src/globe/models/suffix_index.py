@@ -10,7 +10,7 @@ day yields the longest seen context at every step in linear time. Training is ap
 
 from __future__ import annotations
 
-from typing import Hashable, Iterable, Iterator, Sequence
+from typing import Callable, Hashable, Iterable, Iterator, Sequence
 
 END = "</s>"  # closes every training sequence; never predicted
 
@@ -18,7 +18,7 @@ END = "</s>"  # closes every training sequence; never predicted
 class SuffixIndex:
     """Generalised suffix automaton with occurrence counts, built incrementally."""
 
-    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_skip")
+    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_derived", "_skip")
 
     def __init__(self, never_predicted: Iterable[Hashable] = ()) -> None:
         self._skip = frozenset(never_predicted) | {END}
@@ -29,6 +29,7 @@ class SuffixIndex:
         self._last = 0
         self._counts: list[int] | None = None
         self._dist: dict[int, dict[Hashable, int]] = {}
+        self._derived: dict[Hashable, dict[Hashable, float]] = {}  # estimators' results, see :meth:`derived`
 
     # -- building ---------------------------------------------------------------------------
     def add(self, sequence: Iterable[Hashable]) -> None:
@@ -64,6 +65,7 @@ class SuffixIndex:
         self._last = last
         self._counts = None
         self._dist.clear()
+        self._derived.clear()
 
     def _occurrences(self) -> list[int]:
         """Number of end positions of each state (= occurrences of its contexts)."""
@@ -85,6 +87,14 @@ class SuffixIndex:
             dist = {c: counts[t] for c, t in self._next[state].items() if c not in self._skip}
             self._dist[state] = dist
         return dist
+
+    def derived(self, key: Hashable, compute: Callable[[], dict[Hashable, float]]) -> dict[Hashable, float]:
+        """A distribution computed from this index's counts, memoised under ``key`` until the next
+        :meth:`add` (estimators are pure functions of the counts; a copy is returned)."""
+        value = self._derived.get(key)
+        if value is None:
+            value = self._derived[key] = compute()
+        return dict(value)
 
     def link(self, state: int) -> int:
         return self._link[state]
