@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from globe.config import GateConfig, GlobeConfig, LLMConfig, ModelConfig
 from globe.data.records import Day, Household
@@ -123,3 +123,18 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     return OnlineAssistant(household, fitted.activity, chooser, alignment=config.sequences.alignment,
                            action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
                            step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps)
+
+
+def describe(activity: ActivityModelBase, chooser: ObjectChooser) -> dict[str, dict[str, Any]]:
+    """The effective settings of built objects, read from the objects themselves (not from the
+    configuration), so results folders and the service show what really ran."""
+    out: dict[str, dict[str, Any]] = {
+        "activity": {"kind": type(activity).__name__, **activity.get_params()},
+        "objects": {"kind": type(chooser.model).__name__, **getattr(chooser.model, "get_params", dict)()},
+        "chooser": {"kind": chooser.name, "marginal": chooser.marginal},
+    }
+    if isinstance(chooser, UncertaintyGate):
+        out["chooser"] |= {"threshold": chooser.threshold, "top_k": chooser.top_k, "min_prob": chooser.min_prob,
+                           "mode": chooser.mode, "combine_weight": chooser.combine_weight, "examples": chooser.examples,
+                           "backend": None if chooser.backend is None else chooser.backend.name}
+    return out

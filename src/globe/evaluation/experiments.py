@@ -7,6 +7,7 @@ import statistics
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
+from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
@@ -25,6 +26,7 @@ class MethodRun:
     oracle: Evaluation
     train_s: float
     selection: dict = field(default_factory=dict)
+    built: dict = field(default_factory=dict)  # what really ran: :func:`globe.assembly.describe`
 
     @property
     def llm_calls(self) -> int:
@@ -57,7 +59,8 @@ def run_methods(
             prepared = method.prepare(h, config, backend, cache)
             ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, oracle=True)
-            runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection))
+            runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection,
+                                  assembly.describe(prepared.activity, prepared.chooser)))
     return runs
 
 

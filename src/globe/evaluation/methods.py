@@ -15,8 +15,8 @@ from globe import assembly
 from globe.assembly import FittedHousehold
 from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
-from globe.evaluation.protocol import ActivityPredictor
 from globe.evaluation.tuning import Selection, tuned_gate, tuned_models
+from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
@@ -27,7 +27,7 @@ from globe.reasoning.gate import LLMOnlyChooser
 class Prepared:
     """A method ready to run on one household."""
 
-    activity: ActivityPredictor
+    activity: ActivityModelBase
     chooser: ObjectChooser
     train_s: float
     selection: dict[str, Selection] = field(default_factory=dict)

@@ -24,6 +24,10 @@ def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: Globe
     """Everything a reader needs to trace each number back to the predictions behind it."""
     out_dir.mkdir(parents=True, exist_ok=True)
     report.write_json(out_dir / "config.json", config.model_dump(mode="json"))
+    built: dict[str, dict] = {}
+    for run in runs:
+        built.setdefault(run.method, {})[run.household] = run.built
+    report.write_json(out_dir / "built.json", built)
     labels = {name: m.label for name, m in METHODS.items()}
     rows = experiments.table1_rows(runs)
     report.write_csv(out_dir / "table1.csv", rows)

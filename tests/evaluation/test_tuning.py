@@ -1,0 +1,64 @@
+"""Cross-validation on training days: folds, selection, and that simpler models can win."""
+
+import random
+from dataclasses import replace
+
+from globe.config import GlobeConfig
+from globe.evaluation.tuning import folds, tuned_gate, tuned_models
+from globe.reasoning.backends.base import Choice, LLMBackend
+
+
+def test_folds_are_contiguous_and_cover_every_item_once():
+    splits = folds(13, 5)
+    assert [v for _, v in splits] == [[0, 1, 2], [3, 4], [5, 6, 7], [8, 9], [10, 11, 12]]  # bounds round(i * 13 / 5)
+    for train, val in splits:
+        assert sorted(train + val) == list(range(13))
+
+
+def _patternless(household, seed: int):
+    """Days of long runs whose next activity is random: nothing beats "the activity stays"."""
+    rng = random.Random(seed)
+    acts = sorted({a for d in household.train for a in d.activities})
+    days = []
+    for i, template in enumerate(household.train[:20]):
+        seq: list[str] = []
+        while len(seq) < len(template):
+            seq += [rng.choice(acts)] * rng.randint(6, 14)
+        days.append(replace(template, name=f"train/{i:03d}", activities=tuple(seq[: len(template)])))
+    return replace(household, train=tuple(days), test=())
+
+
+def test_cv_picks_persistence_when_the_routine_has_no_pattern(households, seed):
+    h = _patternless(households["C"], seed)
+    models, selection = tuned_models(h, GlobeConfig(), "routine", {})
+    assert models.activity_estimator == "persistence", selection["activity"].scores[:3]
+    assert {p["activity_estimator"] for p, _ in selection["activity"].scores} == {"persistence", "longest", "routine"}
+
+
+def test_cv_keeps_the_routine_model_on_a_real_routine(households):
+    h = replace(households["B"], train=households["B"].train[:30])
+    models, selection = tuned_models(h, GlobeConfig(), "routine", {})
+    assert models.activity_estimator == "routine"
+    best = max(s for _, s in selection["activity"].scores)
+    persistence = next(s for p, s in selection["activity"].scores if p["activity_estimator"] == "persistence")
+    assert best > persistence
+
+
+class EchoNgram(LLMBackend):
+    """Answers the first listed candidate in the gate's own ranking order (the n-gram's choice)."""
+
+    name = "echo"
+
+    def choose(self, context, candidates):
+        return Choice(candidates[0], {c: -float(i) for i, c in enumerate(candidates)})
+
+
+def test_gate_cv_prefers_never_asking_when_the_llm_adds_nothing(households):
+    h = replace(households["C"], train=households["C"].train[:15])
+    cfg = GlobeConfig()
+    models, _ = tuned_models(h, cfg, "routine", {})
+    gate, selection = tuned_gate(h, cfg, models, EchoNgram(), {}, examples=2)
+    scores = [s for _, s in selection.scores]
+    assert max(scores) == scores[0]  # asking only repeats the n-gram: no candidate beats never asking
+    assert gate.threshold == 0.0 and gate.examples == 2
+    assert len(selection.scores) == 1 + len(cfg.selection.gate_thresholds) * (1 + len(cfg.selection.combine_weights))

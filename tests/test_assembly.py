@@ -1,0 +1,71 @@
+"""Every gate and model setting reaches the objects that run, through the real command line.
+
+For each field of the ``gate`` and ``models`` sections a non-default value is set in the
+environment (as a user would: ``GLOBE_GATE__THRESHOLD=...``), ``globe evaluate`` runs with the
+real embedded LLM, and ``built.json`` (read from the built objects, not from the config) must
+show it. The service side of the same check lives in ``tests/service``.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from globe.config import GateConfig, ModelConfig
+
+# config field -> (non-default value as the environment spells it, part of built.json, key, expected value)
+GATE = {
+    "threshold": ("0.35", "chooser", "threshold", 0.35),
+    "top_k": ("3", "chooser", "top_k", 3),
+    "min_prob": ("0.05", "chooser", "min_prob", 0.05),
+    "mode": ("combine", "chooser", "mode", "combine"),
+    "combine_weight": ("2.5", "chooser", "combine_weight", 2.5),
+    "examples": ("3", "chooser", "examples", 3),
+}
+NGRAM_MODELS = {
+    "activity_estimator": ("witten_bell", "activity", "estimator", "witten_bell"),
+    "activity_max_order": ("5", "activity", "max_order", 5),
+    "time_weight": ("1.5", "activity", "time_weight", 1.5),
+    "time_window": ("4", "activity", "time_window", 4),
+    "object_estimator": ("witten_bell", "objects", "estimator", "witten_bell"),
+    "object_max_order": ("7", "objects", "max_order", 7),
+    "run_start_token": ("true", "objects", "run_start_token", True),
+    "object_marginal": ("true", "chooser", "marginal", True),
+}
+ROUTINE_MODELS = {
+    "activity_estimator": ("routine", "activity", "kind", "RoutineModel"),
+    "routine_order": ("2", "activity", "order", 2),
+    "routine_time_weight": ("0.5", "activity", "time_weight", 0.5),
+    "routine_time_window": ("5", "activity", "time_window", 5),
+    "routine_shrinkage": ("3.0", "activity", "shrinkage", 3.0),
+}
+
+
+def test_every_field_is_covered():
+    assert set(GATE) == set(GateConfig.model_fields)
+    assert set(NGRAM_MODELS) | set(ROUTINE_MODELS) == set(ModelConfig.model_fields)
+    for table, section in ((GATE, GateConfig()), (NGRAM_MODELS, ModelConfig()), (ROUTINE_MODELS, ModelConfig())):
+        for field, (_, _, _, expected) in table.items():
+            if field != "activity_estimator":
+                assert getattr(section, field) != expected, f"{field}: the test value must differ from the default"
+
+
+def _built(tmp_path, section: str, table: dict, extra_env: dict) -> dict:
+    env = dict(os.environ, **extra_env, **{f"GLOBE_{section.upper()}__{k.upper()}": v for k, (v, *_) in table.items()})
+    res = subprocess.run([sys.executable, "-m", "globe", "evaluate", "--methods", "globe", "--households", "B",
+                          "--out", str(tmp_path)], capture_output=True, text=True, env=env, timeout=900)
+    assert res.returncode == 0, res.stderr
+    return json.loads((tmp_path / "built.json").read_text())["globe"]["B"]
+
+
+@pytest.mark.llm
+@pytest.mark.slow
+@pytest.mark.parametrize("section, table", [("gate", GATE), ("models", NGRAM_MODELS), ("models", ROUTINE_MODELS)],
+                         ids=["gate", "ngram-models", "routine-models"])
+def test_settings_reach_the_built_objects_through_globe_evaluate(tmp_path, section, table):
+    built = _built(tmp_path, section, table, {"GLOBE_LLM__BACKEND": "embedded"})
+    assert built["chooser"]["kind"] == "globe" and built["chooser"]["backend"] == "embedded"
+    for field, (_, part, key, expected) in table.items():
+        assert built[part][key] == expected, f"{section}.{field} did not reach {part}.{key}: {built[part]}"
