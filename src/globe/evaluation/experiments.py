@@ -143,7 +143,8 @@ def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
 
 def calibration_rows(runs: Sequence[MethodRun], bins: int = 10) -> tuple[list[dict], dict[str, dict]]:
     """ECE of the activity and object probabilities per method (pooled over households)."""
-    rows, curves = [], {"activity": {}, "object": {}}
+    rows: list[dict] = []
+    curves: dict[str, dict] = {"activity": {}, "object": {}}
     for method in dict.fromkeys(r.method for r in runs):
         mine = [r for r in runs if r.method == method]
         acts = [x for r in mine for x in r.evaluation.activity]

@@ -37,7 +37,7 @@ def write_json(path: Path, payload: object) -> None:
     path.write_text(json.dumps(payload, indent=2, default=str) + "\n", encoding="utf-8")
 
 
-def _fmt(x: object) -> str:
+def _fmt(x: float | str | None) -> str:
     return f"{float(x):.3f}" if x not in (None, "") else "–"
 
 

@@ -34,8 +34,12 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
     out = []
     for h in data.households:
         prepared = METHODS[method].prepare(h, cfg, backend, cache)
+
+        def injected(day: str, step: int, obj: str, household: str = h.name) -> bool:
+            return (household, day, step, obj) in data.injected
+
         out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=cfg.sequences.alignment,
-                                 injected=lambda day, step, obj, _h=h.name: (_h, day, step, obj) in data.injected))
+                                 injected=injected))
     return out
 
 

@@ -184,7 +184,7 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
     sel, g = cfg.selection, cfg.gate
     styles = [{"mode": "replace", "combine_weight": g.combine_weight}] + [
         {"mode": "combine", "combine_weight": w} for w in sel.combine_weights]
-    space = [{"threshold": 0.0, "mode": "replace", "combine_weight": g.combine_weight}] + [
+    space: list[dict[str, Any]] = [{"threshold": 0.0, "mode": "replace", "combine_weight": g.combine_weight}] + [
         {"threshold": d, **style} for d in sel.gate_thresholds for style in styles]
     fold_cfg = cfg.model_copy(update={"models": models})
     memo: dict = {}
@@ -192,7 +192,7 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
     started = time.perf_counter()
     # The highest threshold asks every question a lower one asks: evaluating it first answers
     # each fold's questions in one batch, and the rest come from the answer cache.
-    for i in sorted(range(len(space)), key=lambda i: -space[i]["threshold"]):
+    for i in sorted(range(len(space)), key=lambda i: -float(space[i]["threshold"])):
         gate = g.model_copy(update=space[i] | {"examples": examples})
         one = select(list(h.train), [space[i]], lambda p: _FoldModels(h, fold_cfg, memo), _object_fold(gate, backend),
                      sel.folds)

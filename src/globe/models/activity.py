@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import Counter
-from typing import Hashable, Sequence
+from typing import Sequence
 
 from globe.models.backoff import (
     ESTIMATORS,
@@ -63,13 +63,13 @@ class ActivityModel(ActivityModelBase):
             dist = witten_bell_distribution(self.index_, state, matched, max_context, self.classes_)
         if self.time_weight > 0 and dist:
             dist = self._with_time(dist, step)
-        return dist  # type: ignore[return-value]
+        return dist
 
-    def _with_time(self, dist: dict[Hashable, float], step: int) -> dict[str, float]:
+    def _with_time(self, dist: dict[str, float], step: int) -> dict[str, float]:
         prior = windowed_prior(self.by_step_, step, self.time_window, self.classes_)
         mixed = {a: p * prior.get(a, 1e-9) ** self.time_weight for a, p in dist.items()}
         total = sum(mixed.values())
-        return {a: p / total for a, p in mixed.items()} if total > 0 else dict(dist)  # type: ignore[misc]
+        return {a: p / total for a, p in mixed.items()} if total > 0 else dict(dist)
 
     def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
         """Distribution of the next activity after ``history`` (the day so far, from 06:00)."""

@@ -7,7 +7,7 @@ maximum likelihood there. ``witten_bell`` interpolates every context length (Wit
 
 from __future__ import annotations
 
-from typing import Hashable, Literal, Sequence
+from typing import Literal, Mapping, Sequence
 
 from globe.models.suffix_index import SuffixIndex
 
@@ -15,12 +15,12 @@ Estimator = Literal["longest", "witten_bell"]
 ESTIMATORS: tuple[Estimator, ...] = ("longest", "witten_bell")
 
 
-def normalise(counts: dict[Hashable, float]) -> dict[Hashable, float]:
+def normalise(counts: Mapping[str, float]) -> dict[str, float]:
     total = sum(counts.values())
     return {k: v / total for k, v in counts.items()} if total > 0 else {}
 
 
-def longest_distribution(index: SuffixIndex, state: int, matched: int, max_context: int) -> dict[Hashable, float]:
+def longest_distribution(index: SuffixIndex, state: int, matched: int, max_context: int) -> dict[str, float]:
     """ML distribution after the longest matched context that was ever continued."""
     state, matched = index.truncate(state, matched, max_context)
     while state != -1:
@@ -32,8 +32,8 @@ def longest_distribution(index: SuffixIndex, state: int, matched: int, max_conte
 
 
 def witten_bell_distribution(
-    index: SuffixIndex, state: int, matched: int, max_context: int, vocabulary: Sequence[Hashable]
-) -> dict[Hashable, float]:
+    index: SuffixIndex, state: int, matched: int, max_context: int, vocabulary: Sequence[str]
+) -> dict[str, float]:
     """Interpolated Witten-Bell over all context lengths up to ``max_context``.
 
     Contexts inside one automaton state share counts, so the m lengths of a state are applied
@@ -47,7 +47,7 @@ def witten_bell_distribution(
                          lambda: _witten_bell(index, state, matched, vocabulary))
 
 
-def _witten_bell(index: SuffixIndex, state: int, matched: int, vocabulary: tuple[Hashable, ...]) -> dict[Hashable, float]:
+def _witten_bell(index: SuffixIndex, state: int, matched: int, vocabulary: tuple[str, ...]) -> dict[str, float]:
     layers = list(index.chain(state, matched))
     prob = {w: 1.0 / len(vocabulary) for w in vocabulary}
     for st, hi, lo in reversed(layers):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any, ClassVar, Hashable, Mapping, Sequence
+from typing import Any, ClassVar, Mapping, Sequence
 
 from globe.errors import ConfigError, NotFittedError
 
@@ -56,7 +56,7 @@ def windowed_prior(by_step: Sequence[Mapping[str, int]], step: int, window: int,
     return {a: (counts.get(a, 0) + 1) / total for a in classes}
 
 
-def rank(distribution: Mapping[Hashable, float], frequency: Mapping[Hashable, int]) -> list[Hashable]:
+def rank(distribution: Mapping[str, float], frequency: Mapping[str, int]) -> list[str]:
     """Labels by probability; ties by training frequency, then by label (deterministic)."""
     return sorted(distribution, key=lambda w: (-distribution[w], -frequency.get(w, 0), str(w)))
 
@@ -83,7 +83,7 @@ class ActivityModelBase(CountingModel):
         return [self.predict_proba(day[:t]) for t in range(len(day))]
 
     def ranked(self, distribution: Mapping[str, float]) -> list[str]:
-        return rank(distribution, self.frequency_)  # type: ignore[return-value]
+        return rank(distribution, self.frequency_)
 
     def predict(self, history: Sequence[str]) -> str | None:
         """Most probable next activity (ties: training frequency, then name)."""

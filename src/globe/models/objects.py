@@ -81,11 +81,11 @@ class ObjectModel(CountingModel):
             return {}
         state, matched = index.match(self._prefixed(history))
         if self.estimator == "longest":
-            return longest_distribution(index, state, matched, self.max_order - 1)  # type: ignore[return-value]
-        return witten_bell_distribution(index, state, matched, self.max_order - 1, self.candidates(activity))  # type: ignore[return-value]
+            return longest_distribution(index, state, matched, self.max_order - 1)
+        return witten_bell_distribution(index, state, matched, self.max_order - 1, self.candidates(activity))
 
     def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]:
-        return rank(distribution, self.frequency_.get(activity, {}))  # type: ignore[return-value]
+        return rank(distribution, self.frequency_.get(activity, {}))
 
     def predict(self, activity: str, history: Sequence[str] = ()) -> str | None:
         ranked = self.ranked(activity, self.predict_proba(activity, history))

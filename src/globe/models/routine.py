@@ -108,7 +108,7 @@ class RoutineModel(ActivityModelBase):
         z = sum(nxt.values())
         dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}
         dist[current] = stay if z > 0 else 1.0
-        return dist  # type: ignore[return-value]
+        return dist
 
     def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
         self._check_fitted()
@@ -117,7 +117,8 @@ class RoutineModel(ActivityModelBase):
     def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
         """``[predict_proba(day[:t]) for t in range(len(day))]``, tracking runs incrementally."""
         self._check_fitted()
-        out, runs = [], []
+        out: list[dict[str, float]] = []
+        runs: list[tuple[str, int, int]] = []
         for t in range(len(day)):
             out.append(self._distribution(runs, t))
             if runs and runs[-1][0] == day[t]:

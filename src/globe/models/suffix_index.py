@@ -20,19 +20,19 @@ class SuffixIndex:
 
     __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_derived", "_skip")
 
-    def __init__(self, never_predicted: Iterable[Hashable] = ()) -> None:
+    def __init__(self, never_predicted: Iterable[str] = ()) -> None:
         self._skip = frozenset(never_predicted) | {END}
-        self._next: list[dict[Hashable, int]] = [{}]
+        self._next: list[dict[str, int]] = [{}]
         self._link: list[int] = [-1]
         self._len: list[int] = [0]
         self._own: list[int] = [0]  # 1 for states created as a new end position
         self._last = 0
         self._counts: list[int] | None = None
-        self._dist: dict[int, dict[Hashable, int]] = {}
-        self._derived: dict[Hashable, dict[Hashable, float]] = {}  # estimators' results, see :meth:`derived`
+        self._dist: dict[int, dict[str, int]] = {}
+        self._derived: dict[Hashable, dict[str, float]] = {}  # estimators' results, see :meth:`derived`
 
     # -- building ---------------------------------------------------------------------------
-    def add(self, sequence: Iterable[Hashable]) -> None:
+    def add(self, sequence: Iterable[str]) -> None:
         """Append one training sequence (an :data:`END` label is added after it)."""
         nxt, link, length, own = self._next, self._link, self._len, self._own
         last = self._last
@@ -79,7 +79,7 @@ class SuffixIndex:
         return self._counts
 
     # -- querying ---------------------------------------------------------------------------
-    def successors(self, state: int) -> dict[Hashable, int]:
+    def successors(self, state: int) -> dict[str, int]:
         """How often each label followed the contexts of ``state`` (END, start labels excluded)."""
         dist = self._dist.get(state)
         if dist is None:
@@ -88,7 +88,7 @@ class SuffixIndex:
             self._dist[state] = dist
         return dist
 
-    def derived(self, key: Hashable, compute: Callable[[], dict[Hashable, float]]) -> dict[Hashable, float]:
+    def derived(self, key: Hashable, compute: Callable[[], dict[str, float]]) -> dict[str, float]:
         """A distribution computed from this index's counts, memoised under ``key`` until the next
         :meth:`add` (estimators are pure functions of the counts; a copy is returned)."""
         value = self._derived.get(key)
@@ -102,7 +102,7 @@ class SuffixIndex:
     def length(self, state: int) -> int:
         return self._len[state]
 
-    def step(self, state: int, matched: int, label: Hashable) -> tuple[int, int]:
+    def step(self, state: int, matched: int, label: str) -> tuple[int, int]:
         """Extend a match (state, matched length) by one label; unknown labels reset to root."""
         nxt, link = self._next, self._link
         while state != -1 and label not in nxt[state]:
@@ -113,14 +113,14 @@ class SuffixIndex:
             matched = self._len[state]
         return nxt[state][label], matched + 1
 
-    def match(self, history: Sequence[Hashable]) -> tuple[int, int]:
+    def match(self, history: Sequence[str]) -> tuple[int, int]:
         """State and length of the longest suffix of ``history`` seen in training."""
         state, matched = 0, 0
         for label in history:
             state, matched = self.step(state, matched, label)
         return state, matched
 
-    def scan(self, sequence: Iterable[Hashable]) -> Iterator[tuple[int, int]]:
+    def scan(self, sequence: Iterable[str]) -> Iterator[tuple[int, int]]:
         """(state, matched) after each label of ``sequence``: every prefix in one pass."""
         state, matched = 0, 0
         for label in sequence:

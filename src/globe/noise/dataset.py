@@ -88,7 +88,7 @@ def generate_dataset(noise: NoiseConfig, households: Sequence[Household], noise_
                      progress: Callable[[str], None] | None = None) -> dict:
     """Propose at level 1.0 once per (home, type), then write every level (nested subsets) and
     ``summary.json``; returns the summary."""
-    proposals = {}
+    proposals: dict[tuple[str, str], Proposals] = {}
     started = time.perf_counter()
     for noise_type in noise.types:
         for h in households:

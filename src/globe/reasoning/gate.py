@@ -65,8 +65,9 @@ class UncertaintyGate(ObjectChooser):
         if answer.answer not in candidates:
             return ObjectChoice(top, confidence, top, True, candidates, answer.raw or answer.answer, latency, "off_list")
         chosen = answer.answer
-        if self.mode == "combine" and answer.scores:
-            chosen = max(candidates, key=lambda c: (answer.scores.get(c, -math.inf) + self.combine_weight * math.log(dist[c]), dist[c]))
+        scores = answer.scores
+        if self.mode == "combine" and scores:
+            chosen = max(candidates, key=lambda c: (scores.get(c, -math.inf) + self.combine_weight * math.log(dist[c]), dist[c]))
         return ObjectChoice(chosen, dist[chosen], top, True, candidates, answer.answer, latency, None)
 
 

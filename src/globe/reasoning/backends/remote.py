@@ -86,7 +86,7 @@ class RemoteBackend(LLMBackend):
         except openai.APIError as err:
             raise LLMUnavailableError(f"remote LLM error: {err}") from err
         reply = (response.choices[0].message.content or "") if response.choices else ""
-        if key is not None:
+        if key is not None and self.cache is not None:
             self.cache.put(key, reply)
         return self._validated(reply, candidates)
 
