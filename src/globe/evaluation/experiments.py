@@ -11,7 +11,7 @@ from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import AVERAGES, calibration, f1, log_loss
+from globe.evaluation.metrics import AVERAGES, Average, calibration, f1, log_loss
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.reasoning.backends.base import LLMBackend
 
@@ -64,9 +64,9 @@ def run_methods(
     return runs
 
 
-def _f1s(ev: Evaluation, average: str) -> tuple[float, float]:
-    a = f1([r.true for r in ev.activity], [r.predicted for r in ev.activity], average)  # type: ignore[arg-type]
-    o = f1([r.true for r in ev.objects], [r.predicted for r in ev.objects], average)  # type: ignore[arg-type]
+def _f1s(ev: Evaluation, average: Average) -> tuple[float, float]:
+    a = f1([r.true for r in ev.activity], [r.predicted for r in ev.activity], average)
+    o = f1([r.true for r in ev.objects], [r.predicted for r in ev.objects], average)
     return a, o
 
 
