@@ -82,3 +82,49 @@ def test_noise_command_writes_loadable_levels_and_a_summary(tmp_path):
     assert summary["types"]["pet"]["per_level"]["0.5"] <= summary["types"]["pet"]["per_level"]["1"]
     check = globe("data", "validate", "--data", str(tmp_path / "pet" / "1"), "--households", "C")
     assert check.returncode == 0, check.stderr
+
+
+@pytest.mark.parametrize("args, message", [
+    (["train", "--model-dir", "m"], "usage error: Missing option '--household'. (see 'globe train --help')"),
+    (["predict", "--model-dir", "m", "--top", "0"],
+     "usage error: Invalid value for '--top': Input should be greater than or equal to 1 (see 'globe predict --help')"),
+    (["evaluate", "--households"], "usage error: Option '--households' requires an argument."),
+])
+def test_usage_errors_are_one_line_with_exit_2(args, message, tmp_path):
+    res = globe(*args)
+    assert res.returncode == 2 and res.stderr.splitlines() == [message], res.stderr
+    assert res.stdout == ""
+
+
+def test_verbose_shows_the_traceback_of_a_usage_error():
+    res = globe("-v", "train", "--bogus")
+    assert res.returncode == 2 and "Traceback (most recent call last)" in res.stderr
+    assert res.stderr.splitlines()[-1] == "usage error: No such option: --bogus (see 'globe train --help')"
+
+
+def test_error_boundary_works_without_a_separate_click():
+    """The core install: typer bundles its own click, so none may be importable."""
+    code = ("import sys; sys.modules['click'] = None\n"
+            "from globe.cli.main import main\n"
+            "main(['train', '--household', 'A', '--model-dir', 'm', '--bogus'])")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.splitlines() == ["usage error: No such option: --bogus (see 'globe train --help')"]
+
+
+def test_messages_are_plain_text(tmp_path):
+    res = globe("data", "validate", "--data", str(tmp_path / "root:x:0 [bold]b[/bold]"))
+    assert res.returncode == 1
+    assert res.stderr.splitlines() == [
+        f"error: {tmp_path}/root:x:0 [bold]b[/bold]: data folder not found (from --data); pass --data DIR or set GLOBE_DATA"]
+
+
+def test_predict_checks_the_household_and_the_objects(tmp_path):
+    assert globe("train", "--household", "B", "--model-dir", str(tmp_path)).returncode == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]
+    wrong = globe("predict", "--model-dir", str(tmp_path), "--household", "A", "--history", "wake_up")
+    assert wrong.returncode == 1
+    assert wrong.stderr.strip() == f"error: {tmp_path}/model.json: trained for household 'HouseholdB', not 'HouseholdA'"
+    unknown = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up", "--objects", "bowl,unicorn")
+    assert unknown.returncode == 1 and unknown.stderr.startswith("error: --objects: unknown object 'unicorn'; known: book, bowl")
+    assert len(unknown.stderr.splitlines()) == 1

@@ -7,10 +7,11 @@ experiments, the service) read a :class:`GlobeConfig`; everything below takes pl
 
 from __future__ import annotations
 
+import datetime as dt
 import os
 import tomllib
 from pathlib import Path
-from typing import Any, Literal, Mapping
+from typing import Annotated, Any, Literal, Mapping
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -28,6 +29,12 @@ class _Section(BaseModel):
 class DataConfig(_Section):
     root: Path | None = Field(None, description="HOMER+-style data folder; None = locate it")
     households: tuple[str, ...] = Field(("A", "B", "C"), description="households to use")
+    step_minutes: int | None = Field(
+        None, ge=1, le=1440, description="minutes between a day's rows; None = the household's most common gap"
+    )
+    resample: Literal["none", "locf"] = Field(
+        "none", description="rows off the step: 'none' = an error; 'locf' = resample to the step grid, last observation carried forward"
+    )
 
 
 class SequenceConfig(_Section):
@@ -97,7 +104,9 @@ class LLMConfig(_Section):
 
 class NoiseConfig(_Section):
     seed: int = Field(0, description="random seed of the generator")
-    levels: tuple[float, ...] = Field((0.25, 0.5, 1.0), description="noise levels")
+    levels: tuple[Annotated[float, Field(gt=0.0, le=1.0)], ...] = Field(
+        (0.25, 0.5, 1.0), description="noise levels: fractions in (0, 1] of the generated noise"
+    )
     rate: float = Field(0.35, ge=0.0, le=5.0, description="proposed disturbances per activity run")
     temperature: float = Field(2.0, gt=0.0, le=10.0, description="sampling temperature over LLM scores")
     types: tuple[Literal["person", "pet", "toddler"], ...] = Field(("person", "pet", "toddler"), description="noise types")
@@ -114,6 +123,28 @@ class ServiceConfig(_Section):
     day_start_minute: int = Field(360, ge=0, lt=1440, description="minute at which a new day begins")
     step_minutes: int = Field(10, ge=1, le=1440, description="minutes between observations (one step)")
     max_gap_steps: int = Field(36, ge=0, le=1000, description="longer gaps restart the day's history")
+    max_clock_skew: dt.timedelta = Field(
+        dt.timedelta(days=1), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
+        description="ISO 8601 duration (P1D, PT6H): times this far ahead of the server clock or before creation minus this are refused",
+    )
+    timezone: str | None = Field(None, description="default IANA time zone of new households; None = the server's")
+    allowed_hosts: tuple[str, ...] = Field(
+        ("127.0.0.1", "localhost", "::1"), description="Host header names accepted (DNS-rebinding guard); '*' = any"
+    )
+    cors_origins: tuple[str, ...] = Field((), description="browser origins allowed by CORS (none by default)")
+    max_body_bytes: int = Field(1 << 20, ge=1024, le=1 << 30, description="request body limit (413 above it)")
+    max_household_bytes: int = Field(
+        32 << 20, ge=1024, le=1 << 31, description="body limit of POST /households (a map plus its training logs)"
+    )
+    max_label_length: int = Field(128, ge=8, le=4096, description="longest activity, object, location or id label")
+    max_locations: int = Field(512, ge=1, le=100_000, description="most object locations in one observation")
+    max_nodes: int = Field(5000, ge=1, le=1_000_000, description="most nodes in a household's map")
+    max_days: int = Field(1000, ge=0, le=100_000, description="most training days uploaded with a household")
+    max_households: int = Field(1000, ge=1, le=1_000_000, description="most households one service holds")
+    preload: bool = Field(True, description="build stored households in the background after start-up (else on first use)")
+    max_built_households: int = Field(
+        64, ge=1, le=1_000_000, description="households kept built in memory; the least recently used are rebuilt from the database on demand"
+    )
 
 
 class EvaluationConfig(_Section):
@@ -128,6 +159,86 @@ class EvaluationConfig(_Section):
     )
 
 
+class LookaheadConfig(_Section):
+    horizons: int = Field(6, ge=1, le=36, description="lookahead horizons s = 0..horizons-1 (10 to 60 minutes)")
+    first_reference: int = Field(1, ge=1, le=10_000, description="first reference step r of the lookahead evaluation")
+    last_reference: int = Field(102, ge=1, le=10_000, description="last reference step r (r + horizons must stay in the day)")
+    min_path_probability: float = Field(
+        3e-3, ge=0.0, lt=1.0, description="activity paths less likely than this are pruned from the forward pass"
+    )
+    max_paths: int = Field(24, ge=1, le=10_000, description="most activity paths kept per step of the forward pass")
+    hazard_shrinkage: float = Field(
+        2.0, gt=0.0, le=1000.0, description="pseudo-count shrinking each movement-hazard level towards the coarser one"
+    )
+    duration_cap: int = Field(4, ge=1, le=200, description="steps into an activity run told apart by the movement hazard")
+    destination_shrinkage: float = Field(
+        1.0, gt=0.0, le=1000.0, description="pseudo-count shrinking P(target | activity, object, source) to coarser levels"
+    )
+    thresholds: tuple[float, ...] = Field(
+        (0.5, 0.4, 0.3, 0.25, 0.2, 0.15),
+        description="change thresholds tried by cross-validation on training days, per horizon (first wins ties)"
+    )
+    methods: tuple[str, ...] = Field(("persistence", "ngram", "routine"), description="activity models forecast with")
+    run_end: tuple[bool, ...] = Field(
+        (False, True), description="condition movement hazards on the activity ending there: settings tried by CV (first wins ties)"
+    )
+    run_memory: tuple[bool, ...] = Field(
+        (False, True), description="also on the object having moved earlier in the run (with run_end only): tried by CV"
+    )
+    cv_stride: int = Field(3, ge=1, le=100, description="cross-validation scores every n-th reference step (it only sets a threshold)")
+
+
+class PolicyConfig(_Section):
+    cost_useless: float = Field(3.0, ge=0.0, le=1e6, description="cost of fetching an object that is not used in the window")
+    cost_missed: float = Field(1.0, ge=0.0, le=1e6, description="cost of a need the robot did not anticipate")
+    min_lead_minutes: int = Field(10, ge=0, le=1440, description="a fetch must come at least this long before the use")
+    lead_window_minutes: int = Field(60, ge=10, le=1440, description="a fetch counts for uses within this long after it")
+    max_fetches_per_step: int = Field(2, ge=1, le=100, description="most fetches the robot starts in one step")
+    method: Literal["persistence", "ngram", "routine"] = Field(
+        "routine", description="activity model the policy forecasts with ('routine': chosen by CV on training days)"
+    )
+    curve_ratios: tuple[float, ...] = Field(
+        (0.1, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0, 19.0),
+        description="cost ratios useless/missed of the precision-recall curve",
+    )
+
+
+Share = Annotated[float, Field(ge=0.0, le=1.0)]
+
+
+class FilterConfig(_Section):
+    fractions: tuple[Share, ...] = Field(
+        (0.0, 0.25, 0.5, 0.75, 1.0), description="shares of history steps whose activity label is visible (missing-label runs)"
+    )
+    seed: int = Field(0, description="seed of which steps hide their label (combined with the household and day names)")
+    max_hypotheses: int = Field(16, ge=1, le=10_000, description="most activity histories the filter keeps per step")
+    min_weight: float = Field(1e-4, ge=0.0, lt=1.0, description="histories below this share of the belief are dropped")
+    emission_smoothing: float = Field(
+        1.0, gt=0.0, le=1e6, description="pseudo-count shrinking P(object moves | activity) towards its overall rate"
+    )
+    emission_weights: tuple[Annotated[float, Field(ge=0.0, le=10.0)], ...] = Field(
+        (0.5, 1.0), description="exponents of the movement likelihood tried by cross-validation on training days"
+    )
+    emission_previous_shares: tuple[Share, ...] = Field(
+        (0.5, 0.0), description="share of a movement's likelihood credited to the activity at t-1 (the rest: at t), tried by CV"
+    )
+    emission_boundaries: tuple[bool, ...] = Field(
+        (False, True), description="whether move rates also depend on the activity changing at the step, tried by CV"
+    )
+    emission_weight: float = Field(
+        0.5, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service)"
+    )
+    emission_previous_share: float = Field(
+        0.5, ge=0.0, le=1.0, description="share of a movement credited to the activity at t-1 where no cross-validation runs"
+    )
+    emission_boundary: bool = Field(
+        True, description="move rates depend on the activity changing, where no cross-validation runs"
+    )
+    forecast_hypotheses: int = Field(
+        4, ge=1, le=1000, description="most probable filtered histories mixed in a lookahead forecast with missing labels"
+    )
+
+
 class GlobeConfig(_Section):
     data: DataConfig = DataConfig()
     sequences: SequenceConfig = SequenceConfig()
@@ -138,6 +249,9 @@ class GlobeConfig(_Section):
     noise: NoiseConfig = NoiseConfig()
     service: ServiceConfig = ServiceConfig()
     evaluation: EvaluationConfig = EvaluationConfig()
+    lookahead: LookaheadConfig = LookaheadConfig()
+    policy: PolicyConfig = PolicyConfig()
+    filter: FilterConfig = FilterConfig()
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> "GlobeConfig":
         """Return a copy with dotted-key overrides (``{"gate.threshold": 0.25}``) applied."""

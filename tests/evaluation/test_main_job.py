@@ -19,7 +19,7 @@ def small(households):
 def test_reproduce_logs_and_records_every_stage(small, tmp_path, caplog):
     cfg = GlobeConfig().with_overrides({"evaluation.methods": ("persistence", "ngram"), "llm.backend": "none"})
     with caplog.at_level(logging.INFO, logger="globe.stages"):
-        res = main_job.reproduce(cfg, small, tmp_path, with_robustness=False)
+        res = main_job.reproduce(cfg, small, tmp_path, with_robustness=False, with_anticipation=False)
     names = [s["stage"] for s in res.stages]
     assert names == ["load LLM", "table1: persistence", "table1: ngram", "table1: write results"]
     done = [r.getMessage() for r in caplog.records if "done in" in r.getMessage()]

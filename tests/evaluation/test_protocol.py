@@ -83,7 +83,8 @@ def test_table1_rows_have_the_documented_columns(homer_runs, tmp_path):
     write_csv(tmp_path / "table1.csv", rows)
     with (tmp_path / "table1.csv").open() as fh:
         reader = csv.DictReader(fh)
-        assert reader.fieldnames == ["method", "household", "average", "activity_f1", "object_f1", "mean_f1"]
+        assert reader.fieldnames == ["method", "household", "average", "activity_f1", "object_f1", "mean_f1",
+                                     "n_households", "n_households_object"]
         got = list(reader)
     assert {(r["method"], r["household"], r["average"]) for r in got} == {
         (m, h, a) for m in ("persistence", "ngram") for h in ("A", "B", "C", "mean") for a in ("weighted", "micro", "macro")}

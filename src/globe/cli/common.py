@@ -15,14 +15,17 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
+from rich.text import Text
 
 from globe.config import GlobeConfig, load_config
-from globe.data.csv_logs import load_household
+from globe.data.csv_logs import load_household, read_household_map
 from globe.data.locate import resolve_data_root
-from globe.data.records import Household
+from globe.data.records import Household, map_fingerprint
+from globe.errors import DataError
 
-console = Console(stderr=True)
-out = Console()
+# Messages carry user text (labels, paths): never read as rich markup or emoji codes (root:x:0).
+console = Console(stderr=True, markup=False, emoji=False, highlight=False)
+out = Console(emoji=False)
 
 DataOption = Annotated[Path | None, typer.Option("--data", help="HOMER+-style data folder (else $GLOBE_DATA, else ../shared/data/homer_plus)")]
 ConfigOption = Annotated[Path | None, typer.Option("--config", help="TOML configuration file")]
@@ -34,9 +37,23 @@ def resolve(config: Path | None, **overrides: Any) -> GlobeConfig:
 
 
 def households_from(cfg: GlobeConfig, data: Path | None, households: str | None) -> list[Household]:
+    """Load the named households (else ``data.households``) by the ``data`` section's rules."""
     root = resolve_data_root(data if data is not None else cfg.data.root)
     names = [h.strip() for h in households.split(",")] if households else list(cfg.data.households)
-    return [load_household(root, n) for n in names]
+    if not names or any(not n for n in names):
+        raise typer.BadParameter(f"{households!r} names no household", param_hint="'--households'")
+    return [load_household(root, n, step_minutes=cfg.data.step_minutes, resample=cfg.data.resample) for n in names]
+
+
+def household_map(cfg: GlobeConfig, data: Path | None, name: str) -> tuple[str, str]:
+    """``(folder name, map fingerprint)`` of a household, from its ``nodes.csv`` alone."""
+    folder, nodes = read_household_map(resolve_data_root(data if data is not None else cfg.data.root), name)
+    return folder.name, map_fingerprint(nodes, tuple(n.cls for n in nodes if n.movable))
+
+
+def plain(text: object) -> Text:
+    """User text for a rich table cell or print, shown exactly as written."""
+    return Text(str(text))
 
 
 @contextmanager
@@ -47,6 +64,19 @@ def progress_bar(total: int, description: str) -> Iterator[Any]:
         task = progress.add_task(description, total=total)
 
         def advance(n: int = 1, description: str | None = None) -> None:
-            progress.update(task, advance=n, **({"description": description} if description else {}))
+            if description:
+                progress.update(task, advance=n, description=description)
+            else:
+                progress.update(task, advance=n)
 
         yield advance
+
+
+def require_test_days(households: list[Household]) -> None:
+    """``globe evaluate`` scores test days: a household without any is a one-line error (it can
+    still be trained, validated and served)."""
+    empty = [h for h in households if not h.test]
+    if empty:
+        h = empty[0]
+        raise DataError(f"household {h.name} has no test days (test/*.csv): nothing to score; evaluate households with test "
+                        "days (it can still be trained and served)", source=h.source)

@@ -14,8 +14,10 @@ from globe.cli.common import (
     HouseholdsOption,
     households_from,
     out,
+    plain,
     resolve,
 )
+from globe.data.csv_logs import household_step
 from globe.sequences.runs import activity_runs
 
 app = typer.Typer(help="Validate and import household observation logs.", no_args_is_help=True)
@@ -26,15 +28,17 @@ def validate(data: DataOption = None, households: HouseholdsOption = None, confi
     """Load every day file, check it, and summarise each household."""
     cfg = resolve(config)
     table = Table(title="Households")
-    for col in ("household", "train days", "test days", "objects", "activities", "movements"):
+    for col in ("household", "train days", "test days", "step (min)", "objects", "activities", "movements"):
         table.add_column(col)
     for h in households_from(cfg, data, households):
         days = h.train + h.test
         moves = sum(len(r.events) for d in days for r in activity_runs(d, h.objects, cfg.sequences.alignment))
         acts = {a for d in days for a in d.activities}
-        table.add_row(h.name, str(len(h.train)), str(len(h.test)), str(len(h.objects)), str(len(acts)), str(moves))
+        step = cfg.data.step_minutes or household_step(days)
+        table.add_row(plain(h.name), str(len(h.train)), str(len(h.test)), str(step or "-"), str(len(h.objects)), str(len(acts)),
+                      str(moves))
     out.print(table)
-    out.print("[green]all files valid[/green]")
+    out.print("all files valid", style="green", markup=False)
 
 
 @app.command("import-pt")
@@ -46,4 +50,4 @@ def import_pt(
     from globe.data.homer_pt import import_household
 
     written = import_household(source, dest)
-    out.print(f"wrote {len(written)} day files and nodes.csv to {dest}")
+    out.print(f"wrote {len(written)} day files and nodes.csv to {dest}", markup=False, highlight=False)

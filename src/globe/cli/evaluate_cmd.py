@@ -18,6 +18,7 @@ from globe.cli.common import (
     console,
     households_from,
     out,
+    require_test_days,
     resolve,
 )
 from globe.evaluation import main_job
@@ -26,6 +27,11 @@ from globe.evaluation.results import Table1Results
 from globe.evaluation.robustness import RobustnessResults
 
 OutOption = Annotated[Path, typer.Option("--out", help="results folder to write")]
+
+
+def _num(x: float | None) -> str:
+    """Three decimals, or "–" for an absent value (nothing to score)."""
+    return "–" if x is None else f"{x:.3f}"
 
 
 def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
@@ -40,8 +46,8 @@ def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
     for method in dict.fromkeys(r["method"] for r in weighted):
         get = {r["household"]: r for r in weighted if r["method"] == method}
         m = get["mean"]
-        table.add_row(labels.get(method, method), f"{m['activity_f1']:.3f}", f"{m['object_f1']:.3f}", f"{m['mean_f1']:.3f}",
-                      *[f"{get[h]['activity_f1']:.3f} / {get[h]['object_f1']:.3f}" for h in households])
+        table.add_row(labels.get(method, method), _num(m["activity_f1"]), _num(m["object_f1"]), _num(m["mean_f1"]),
+                      *[f"{_num(get[h]['activity_f1'])} / {_num(get[h]['object_f1'])}" for h in households])
     for method, (a, o, mean) in TABLE1.items():
         table.add_row(f"[dim]{method} (published)[/dim]", f"{a:.2f}", f"{o:.2f}", f"{mean:.2f}", *["" for _ in households])
     return table
@@ -98,6 +104,7 @@ def evaluate(
     cfg = resolve(config, gate__threshold=threshold, llm__backend=backend)
     names = main_job.check_methods([m.strip() for m in methods.split(",") if m.strip()])
     hs = households_from(cfg, data, households)
+    require_test_days(hs)
     stages = main_job.Stages(out_dir)
     with stage_display() as show:
         stages.progress = show
@@ -130,8 +137,8 @@ def print_robustness(res: RobustnessResults) -> None:
     for col in ("dataset", "method", "activity F1", "object F1 all", "object F1 routine", "injected"):
         table.add_column(col)
     for r in res.robustness:
-        table.add_row(r["dataset"], r["method"], f"{r['activity_f1']:.3f}", f"{r['object_f1']:.3f}",
-                      f"{r['object_f1_routine']:.3f}", str(r["injected_events"]))
+        table.add_row(r["dataset"], r["method"], _num(r["activity_f1"]), _num(r["object_f1"]),
+                      _num(r["object_f1_routine"]), str(r["injected_events"]))
     out.print(table)
 
 

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import logging
 import sys
+import traceback
 from typing import Annotated
 
 import typer
-from rich.markup import escape
+from rich.text import Text
 
 from globe import __version__
-from globe.cli import data_cmd, evaluate_cmd, model_cmd, noise_cmd, service_cmd
-from globe.cli.common import console
+from globe.cli import admin_cmd, data_cmd, evaluate_cmd, model_cmd, noise_cmd, service_cmd
+from globe.cli.common import console, out
 from globe.errors import GlobeError
 
 app = typer.Typer(help="GLOBE: predict a person's next activity and object so a robot can help.",
@@ -25,6 +26,7 @@ app.command("noise")(noise_cmd.noise)
 app.command("robustness")(evaluate_cmd.robustness)
 app.command("serve")(service_cmd.serve)
 app.command("robot")(service_cmd.robot)
+admin_cmd.register(app)
 
 _state = {"verbose": False}
 
@@ -44,23 +46,93 @@ def _main(
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
 
-def main() -> None:
-    try:
-        app(standalone_mode=False)
-    except GlobeError as err:
-        if _state["verbose"]:
-            console.print_exception()
-        console.print("[red]error:[/red]", escape(str(err)), highlight=False, soft_wrap=True)
-        sys.exit(1)
-    except typer.Exit as exit_:
-        sys.exit(exit_.exit_code)
-    except typer.Abort:
-        console.print("aborted")
-        sys.exit(130)
-    except Exception as err:  # click usage errors arrive here in non-standalone mode
-        import click
+def _usage_errors() -> tuple[type[BaseException], ...]:
+    """Typer raises the click exceptions it bundles; a standalone click, if installed, is caught too."""
+    import typer.exceptions
 
-        if isinstance(err, click.ClickException):
-            err.show()
-            sys.exit(err.exit_code)
-        raise
+    kinds: list[type[BaseException]] = []
+    bundled = getattr(typer.exceptions, "TyperException", None)  # typer >= 0.2x bundles click
+    if bundled is not None:
+        kinds.append(bundled)
+    try:
+        from click.exceptions import ClickException
+    except ImportError:  # the core install: typer needs no separate click
+        pass
+    else:
+        kinds.append(ClickException)
+    return tuple(kinds)
+
+
+def one_line(message: str) -> str:
+    """A message as one line: continuation lines are joined, indentation dropped."""
+    parts = [p.strip() for p in str(message).splitlines() if p.strip()]
+    text = ""
+    for part in parts:
+        text += part if not text else (" " if text.endswith(":") else "; ") + part
+    return text
+
+
+def _say(label: str, message: str) -> None:
+    """Printed as plain text: a label like root:x:0 or [red] stays literal."""
+    line = Text(f"{label}:", style="red")
+    line.append(" " + one_line(message))
+    console.print(line, soft_wrap=True)
+
+
+def _verbose(argv: list[str]) -> bool:
+    if _state["verbose"]:
+        return True
+    for arg in argv:  # global options come before the command
+        if not arg.startswith("-"):
+            return False
+        if arg in ("-v", "--verbose"):
+            return True
+    return False
+
+
+def _usage(err: BaseException) -> int:
+    ctx = getattr(err, "ctx", None)
+    if type(err).__name__ == "NoArgsIsHelpError" and ctx is not None:
+        out.print(ctx.get_help(), markup=False, highlight=False)
+        return 2
+    message = err.format_message() if hasattr(err, "format_message") else str(err)
+    where = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+    _say("usage error" if getattr(err, "exit_code", 2) == 2 else "error", one_line(message) + where)
+    return int(getattr(err, "exit_code", 2))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """The one error boundary: a result, or one line on stderr. Exit 1 for bad data (a GlobeError or
+    a file the system refuses), 2 for bad usage, 70 for a bug (``-v`` shows the traceback)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    _state["verbose"] = False
+    code = 0
+    try:
+        rv = app(args=args, prog_name="globe", standalone_mode=False)
+        code = rv if isinstance(rv, int) else 0
+    except GlobeError as err:
+        if _verbose(args):
+            traceback.print_exc()
+        _say("error", str(err))
+        code = 1
+    except _usage_errors() as err:
+        if _verbose(args):
+            traceback.print_exc()
+        code = _usage(err)
+    except typer.Exit as exit_:
+        code = exit_.exit_code
+    except (typer.Abort, KeyboardInterrupt):
+        _say("error", "aborted")
+        code = 130
+    except OSError as err:
+        if _verbose(args):
+            traceback.print_exc()
+        where = f": {err.filename}" if err.filename else ""
+        _say("error", f"{err.strerror or err}{where}")
+        code = 1
+    except Exception as err:  # a bug: still one line unless -v
+        if _verbose(args):
+            traceback.print_exc()
+        _say("internal error", f"{type(err).__name__}: {err} (a bug in GLOBE; run with -v for the traceback)")
+        code = 70
+    sys.exit(code)

@@ -2,16 +2,20 @@
 
 A household folder holds ``nodes.csv`` and ``train/NNN.csv``, ``test/NNN.csv`` day files. A day
 file has the columns ``minute``, ``activity``, then one column per movable node (named by its
-class) whose value is the ``class#id`` of the node it is on or in. Every problem is reported
-with file, line and column; nothing is guessed.
+class) whose value is the ``class#id`` of the node it is on or in. The rules are strict and
+listed in the README ("Data format"); every violation is a :class:`DataError` naming file, line
+and column. Nothing is guessed: the only transformation, resampling irregular minutes to the
+household's step, happens when the configuration asks for it.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import re
+from collections import Counter
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Literal, Sequence
 
 from globe.data.locate import household_dir
 from globe.data.records import Day, Household, Node, Split
@@ -19,28 +23,77 @@ from globe.errors import DataError
 
 NODE_COLUMNS = ("node", "class", "category", "movable", "start_location")
 FIXED_COLUMNS = ("minute", "activity")
+DAY_MINUTES = 1440  # minutes are 0..1440 (1440 = midnight at the end of the day)
+ROOM_CATEGORIES = frozenset({"rooms", "room"})
+HOME_CATEGORIES = frozenset({"home"})
+Resample = Literal["none", "locf"]
+
+_MINUTE = re.compile(r"[0-9]{1,5}")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+_BLANKS = " \t"
 
 
-def _read_rows(path: Path) -> list[list[str]]:
+def _clean(cell: str) -> str:
+    """Cells lose surrounding spaces and tabs, nothing else."""
+    return cell.strip(_BLANKS)
+
+
+def _short(text: str, limit: int = 64) -> str:
+    return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+# -- reading text -------------------------------------------------------------------------------
+
+
+def _read_text(path: Path) -> str:
+    """The file as text: UTF-8, with or without a byte-order mark (Excel writes one)."""
+    path = Path(path)
+    if path.is_dir():
+        raise DataError("is a folder, not a CSV file", source=str(path))
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except FileNotFoundError as err:
         raise DataError("file not found", source=str(path)) from err
+    except OSError as err:
+        raise DataError(f"cannot read file: {err.strerror or err}", source=str(path)) from err
+    try:
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
-        raise DataError(f"not UTF-8 text ({err.reason})", source=str(path)) from err
-    rows = [row for row in csv.reader(io.StringIO(text))]
-    if not rows or not any(cell.strip() for cell in rows[0]):
-        raise DataError("empty file (expected a header line)", source=str(path), line=1)
+        line = data.count(b"\n", 0, err.start) + 1
+        raise DataError(f"not UTF-8 text (byte {err.start}: {err.reason}); save the file as UTF-8",
+                        source=str(path), line=line) from err
+
+
+def _csv_rows(text: str, source: str) -> list[tuple[int, list[str]]]:
+    """``(line, cells)`` per record; blank lines are skipped. ``line`` is where the record starts."""
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    rows: list[tuple[int, list[str]]] = []
+    start = 1
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            break
+        except csv.Error as err:
+            raise DataError(f"not valid CSV: {err}", source=source, line=reader.line_num or 1) from None
+        if row:
+            rows.append((start, row))
+        start = reader.line_num + 1
+    if not rows or not any(_clean(c) for c in rows[0][1]):
+        raise DataError("empty file (expected a header line)", source=source, line=1)
     return rows
 
 
-def _check_header(path: Path, header: list[str], required: Iterable[str]) -> None:
+def _read_rows(path: Path) -> list[list[str]]:
+    """Kept for callers that want cells only (line numbers are lost)."""
+    return [row for _, row in _csv_rows(_read_text(path), str(path))]
+
+
+def _check_header(path: Path | str, header: list[str], required: Iterable[str]) -> None:
     for name in required:
         if name not in header:
-            raise DataError(
-                f"missing column (header has {', '.join(header[:6])}{', ...' if len(header) > 6 else ''})",
-                source=str(path), line=1, field=name,
-            )
+            shown = ", ".join(_short(h, 24) for h in header[:6]) + (", ..." if len(header) > 6 else "")
+            raise DataError(f"missing column (header has {shown})", source=str(path), line=1, field=name)
     seen: set[str] = set()
     for name in header:
         if name in seen:
@@ -48,95 +101,303 @@ def _check_header(path: Path, header: list[str], required: Iterable[str]) -> Non
         seen.add(name)
 
 
-def _ragged(path: Path, lineno: int, row: list[str], header: list[str]) -> DataError:
+def _ragged(path: Path | str, lineno: int, row: list[str], header: list[str]) -> DataError:
     """A row with too few fields names the first column it lacks."""
     field = header[len(row)] if len(row) < len(header) else None
     return DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno, field=field)
 
 
-def read_nodes(path: Path) -> tuple[Node, ...]:
-    """Read ``nodes.csv``: every node of the home and where each starts the day."""
-    rows = _read_rows(path)
-    header = rows[0]
-    _check_header(path, header, NODE_COLUMNS)
+def _label(value: str, source: str, line: int, field: str, what: str = "label") -> str:
+    if not value:
+        raise DataError(f"empty {what}", source=source, line=line, field=field)
+    if _CONTROL.search(value):
+        raise DataError(f"{what} {_short(value)} contains a control character", source=source, line=line, field=field)
+    return value
+
+
+# -- nodes.csv ------------------------------------------------------------------------------------
+
+
+def _is_room(n: Node) -> bool:
+    return n.category.lower() in ROOM_CATEGORIES
+
+
+def _is_top(n: Node) -> bool:
+    return n.start_location == n.node
+
+
+def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[int] | None = None) -> None:
+    """The rules of a map, however it arrived (``nodes.csv`` or the service): unique labels,
+    known start locations, an acyclic containment graph whose chains all pass through a room,
+    unique classes of movable nodes. ``lines[i]`` is node ``i``'s line for the message."""
+    def where(i: int) -> dict:
+        return {"source": source, "line": lines[i] if lines is not None else None}
+
+    index: dict[str, int] = {}
+    for i, n in enumerate(nodes):
+        if n.node in index:
+            raise DataError(f"duplicate node {n.node!r} (first at line {lines[index[n.node]] if lines else index[n.node]})",
+                            **where(i), field="node")
+        index[n.node] = i
+    for i, n in enumerate(nodes):
+        if n.start_location not in index:
+            raise DataError(f"unknown location {_short(n.start_location)}", **where(i), field="start_location")
+    classes: dict[str, int] = {}
+    for i, n in enumerate(nodes):
+        if n.movable:
+            if n.cls in FIXED_COLUMNS:
+                raise DataError(f"a movable node may not be of class {n.cls!r} (a day file's fixed column)", **where(i), field="class")
+            if n.cls in classes:
+                raise DataError(f"class {n.cls!r} of movable nodes must be unique (also {nodes[classes[n.cls]].node!r})",
+                                **where(i), field="class")
+            classes[n.cls] = i
+    # in_room[label]: the chain label -> start_location -> ... (label included) passes a room.
+    in_room: dict[str, bool] = {}
+    for n in nodes:
+        path: list[str] = []
+        on_path: set[str] = set()
+        cur = n.node
+        while cur not in in_room:
+            node = nodes[index[cur]]
+            if _is_top(node):
+                if node.movable or not (_is_room(node) or node.category.lower() in HOME_CATEGORIES):
+                    raise DataError(f"{cur!r} is inside itself (only the home or a room may be the top of the map)",
+                                    **where(index[cur]), field="start_location")
+                in_room[cur] = _is_room(node)
+                break
+            if cur in on_path:
+                cycle = path[path.index(cur):] + [cur]
+                raise DataError("containment cycle: " + " is in ".join(cycle), **where(index[cur]), field="start_location")
+            on_path.add(cur)
+            path.append(cur)
+            cur = node.start_location
+        result = in_room[cur]
+        for label in reversed(path):
+            result = result or _is_room(nodes[index[label]])
+            in_room[label] = result
+    for i, n in enumerate(nodes):
+        if not _is_room(n) and not _is_top(n) and not in_room[n.start_location]:
+            raise DataError(f"{n.node!r} is not in a room (its start_location chain reaches the top without a node of category Rooms)",
+                            **where(i), field="start_location")
+
+
+def parse_nodes_text(text: str, source: str) -> tuple[Node, ...]:
+    """The nodes of a ``nodes.csv`` text, checked by :func:`check_map`."""
+    rows = _csv_rows(text, source)
+    header = [_clean(h) for h in rows[0][1]]
+    _check_header(source, header, NODE_COLUMNS)
     col = {name: header.index(name) for name in NODE_COLUMNS}
     nodes: list[Node] = []
-    for lineno, row in enumerate(rows[1:], start=2):
-        if not row:
-            continue
+    lines: list[int] = []
+    for lineno, row in rows[1:]:
         if len(row) != len(header):
-            raise _ragged(path, lineno, row, header)
-        movable = row[col["movable"]].strip()
-        if movable not in ("0", "1"):
-            raise DataError(f"{movable!r} is not 0 or 1", source=str(path), line=lineno, field="movable")
-        label = row[col["node"]].strip()
-        if "#" not in label:
-            raise DataError(f"{label!r} is not of the form class#id", source=str(path), line=lineno, field="node")
-        nodes.append(Node(label, row[col["class"]].strip(), row[col["category"]].strip(),
-                          movable == "1", row[col["start_location"]].strip()))
-    labels = {n.node for n in nodes}
-    for lineno, n in enumerate(nodes, start=2):
-        if n.start_location not in labels:
-            raise DataError(f"unknown location {n.start_location!r}", source=str(path), line=lineno, field="start_location")
-    if not any(n.movable for n in nodes):
-        raise DataError("no movable node (column 'movable' is 0 everywhere)", source=str(path))
+            raise _ragged(source, lineno, row, header)
+        cell = {name: _clean(row[col[name]]) for name in NODE_COLUMNS}
+        if cell["movable"] not in ("0", "1"):
+            raise DataError(f"{_short(cell['movable'])} is not 0 or 1", source=source, line=lineno, field="movable")
+        label = _label(cell["node"], source, lineno, "node", "node label")
+        cls = _label(cell["class"], source, lineno, "class", "class")
+        prefix, sep, ident = label.rpartition("#")
+        if not sep or not prefix or not ident:
+            raise DataError(f"{_short(label)} is not of the form class#id", source=source, line=lineno, field="node")
+        if prefix != cls:
+            raise DataError(f"label {_short(label)} does not start with its class {_short(cls)} (labels are class#id)",
+                            source=source, line=lineno, field="node")
+        if _CONTROL.search(cell["category"]):
+            raise DataError("category contains a control character", source=source, line=lineno, field="category")
+        location = _label(cell["start_location"], source, lineno, "start_location", "location")
+        nodes.append(Node(label, cls, cell["category"], cell["movable"] == "1", location))
+        lines.append(lineno)
+    if not nodes:
+        raise DataError("no nodes after the header", source=source, line=2)
+    check_map(nodes, source, lines)
     return tuple(nodes)
+
+
+def read_nodes(path: Path) -> tuple[Node, ...]:
+    """Read ``nodes.csv``: every node of the home and where each starts the day."""
+    return parse_nodes_text(_read_text(path), str(path))
+
+
+# -- day files ------------------------------------------------------------------------------------
+
+
+def _parse_minute(raw: str, source: str, line: int) -> int:
+    if not _MINUTE.fullmatch(raw) or int(raw) > DAY_MINUTES:
+        raise DataError(f"{_short(raw, 32)} is not a whole number of minutes in 0..{DAY_MINUTES} (ASCII digits only)",
+                        source=source, line=line, field="minute")
+    return int(raw)
+
+
+def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str], name: str, source: str,
+                   owners: dict[str, str] | None = None) -> tuple[Day, tuple[int, ...]]:
+    """One day from its text, and the line of each row. ``owners`` maps each object column to its
+    node label (an object cannot be inside itself or inside an object that is inside it)."""
+    rows = _csv_rows(text, source)
+    header = [_clean(h) for h in rows[0][1]]
+    _check_header(source, header, FIXED_COLUMNS + objects)
+    extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects]
+    if extra:
+        raise DataError("not a movable node of this home (see nodes.csv)", source=source, line=1, field=extra[0])
+    i_min, i_act = header.index("minute"), header.index("activity")
+    obj_idx = [header.index(o) for o in objects]
+    shared = {loc: loc for loc in locations}  # one string object per label, shared by every step
+    owners = owners or {}
+    column_of = {label: k for k, label in enumerate(owners.get(o, "") for o in objects) if label}
+    minutes: list[int] = []
+    activities: list[str] = []
+    states: list[tuple[str, ...]] = []
+    lines: list[int] = []
+    for lineno, row in rows[1:]:
+        if len(row) != len(header):
+            raise _ragged(source, lineno, row, header)
+        minute = _parse_minute(_clean(row[i_min]), source, lineno)
+        if minutes and minute <= minutes[-1]:
+            raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source, line=lineno, field="minute")
+        activity = _label(_clean(row[i_act]), source, lineno, "activity", "activity")
+        found = [shared.get(row[i].strip(_BLANKS)) for i in obj_idx]
+        if None in found:
+            k = found.index(None)
+            raise DataError(f"unknown location {_short(_clean(row[obj_idx[k]]))} (not in nodes.csv)",
+                            source=source, line=lineno, field=objects[k])
+        state = tuple(loc for loc in found if loc is not None)
+        if column_of and (not states or state != states[-1]) and not column_of.keys().isdisjoint(state):
+            _check_nesting(state, objects, owners, column_of, source, lineno)
+        minutes.append(minute)
+        activities.append(activity)
+        states.append(state)
+        lines.append(lineno)
+    if not minutes:
+        raise DataError("no observation rows after the header", source=source, line=2)
+    return Day(name, tuple(minutes), tuple(activities), tuple(states), source), tuple(lines)
+
+
+def _check_nesting(state: Sequence[str], objects: tuple[str, ...], owners: dict[str, str], column_of: dict[str, int],
+                   source: str, line: int) -> None:
+    """No object inside itself, directly or through other objects, at any step."""
+    for k, loc in enumerate(state):
+        if loc not in column_of:
+            continue
+        seen = {owners.get(objects[k])}
+        cur = loc
+        while cur in column_of:
+            if cur in seen:
+                raise DataError(f"{owners[objects[k]]!r} is inside itself (via {cur!r})", source=source, line=line, field=objects[k])
+            seen.add(cur)
+            cur = state[column_of[cur]]
 
 
 def read_day(path: Path, objects: tuple[str, ...], locations: frozenset[str], name: str | None = None) -> Day:
     """Read and validate one day file against the home's object columns and locations."""
-    rows = _read_rows(path)
-    header = rows[0]
-    _check_header(path, header, FIXED_COLUMNS + objects)
-    extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects]
-    if extra:
-        raise DataError("not a movable node of this home (see nodes.csv)", source=str(path), line=1, field=extra[0])
-    i_min, i_act = header.index("minute"), header.index("activity")
-    obj_idx = [header.index(o) for o in objects]
-    minutes: list[int] = []
-    activities: list[str] = []
-    states: list[tuple[str, ...]] = []
-    for lineno, row in enumerate(rows[1:], start=2):
-        if not row:
+    path = Path(path)
+    day, _ = parse_day_text(_read_text(path), objects, locations, name or path.stem, str(path))
+    return day
+
+
+# -- the household's step -----------------------------------------------------------------------------
+
+
+def household_step(days: Iterable[Day]) -> int | None:
+    """The most common gap between consecutive rows over all days (ties: the smallest); None
+    when no day has two rows."""
+    gaps = Counter(b - a for d in days for a, b in zip(d.minutes, d.minutes[1:]))
+    if not gaps:
+        return None
+    top = max(gaps.values())
+    return min(g for g, c in gaps.items() if c == top)
+
+
+def check_step(day: Day, lines: Sequence[int], step: int, resample: Resample = "none") -> Day:
+    """Every row ``step`` minutes after the previous one. Otherwise, with ``resample="locf"``,
+    the day is resampled to the grid ``first minute + k * step`` (up to the last row's minute),
+    each grid point taking the last observation at or before it; without it, an error."""
+    irregular = next((t for t in range(1, len(day)) if day.minutes[t] - day.minutes[t - 1] != step), None)
+    if irregular is None:
+        return day
+    if resample != "locf":
+        gap = day.minutes[irregular] - day.minutes[irregular - 1]
+        raise DataError(f"{day.minutes[irregular]} is {gap} minutes after {day.minutes[irregular - 1]}; this household's step is "
+                        f"{step} minutes (fix the log, or set data.resample = \"locf\" to resample to the step)",
+                        source=day.source, line=lines[irregular], field="minute")
+    minutes, activities, states = [], [], []
+    t = 0
+    for grid in range(day.minutes[0], day.minutes[-1] + 1, step):
+        while t + 1 < len(day) and day.minutes[t + 1] <= grid:
+            t += 1
+        minutes.append(grid)
+        activities.append(day.activities[t])
+        states.append(day.locations[t])
+    return Day(day.name, tuple(minutes), tuple(activities), tuple(states), day.source)
+
+
+# -- a household folder ----------------------------------------------------------------------------
+
+
+def _child(folder: Path, name: str, want_dir: bool) -> Path | None:
+    """``folder/name`` matched case-insensitively; two matches are an error, not a choice."""
+    try:
+        found = [p for p in folder.iterdir() if p.name.lower() == name.lower()]
+    except OSError as err:
+        raise DataError(f"cannot list folder: {err.strerror or err}", source=str(folder)) from err
+    if len(found) > 1:
+        raise DataError(f"both {found[0].name} and {found[1].name} exist; keep one", source=str(folder))
+    if not found:
+        return None
+    if found[0].is_dir() != want_dir:
+        raise DataError("is a file, expected a folder" if want_dir else "is a folder, expected a file", source=str(found[0]))
+    return found[0]
+
+
+def _natural(stem: str) -> tuple:
+    return tuple((0, int(p), "") if p.isdigit() and p.isascii() else (1, 0, p) for p in re.split(r"(\d+)", stem))
+
+
+def day_files(folder: Path) -> list[Path]:
+    """The day files of ``train/`` or ``test/``: every ``*.csv`` (any case), ordered by name with
+    numbers compared as numbers. Hidden files are ignored; any other entry is an error."""
+    by_key: dict[str, Path] = {}
+    for p in folder.iterdir():
+        if p.name.startswith("."):
             continue
-        if len(row) != len(header):
-            raise _ragged(path, lineno, row, header)
-        raw_minute = row[i_min].strip()
-        try:
-            minute = int(raw_minute)
-        except ValueError:
-            raise DataError(f"{raw_minute!r} is not a whole number of minutes", source=str(path), line=lineno, field="minute") from None
-        if minutes and minute <= minutes[-1]:
-            raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=str(path), line=lineno, field="minute")
-        activity = row[i_act].strip()
-        if not activity:
-            raise DataError("empty activity", source=str(path), line=lineno, field="activity")
-        state = tuple(row[i].strip() for i in obj_idx)
-        for obj, loc in zip(objects, state):
-            if loc not in locations:
-                raise DataError(f"unknown location {loc!r} (not in nodes.csv)", source=str(path), line=lineno, field=obj)
-        minutes.append(minute)
-        activities.append(activity)
-        states.append(state)
-    if not minutes:
-        raise DataError("no observation rows after the header", source=str(path), line=2)
-    return Day(name or path.stem, tuple(minutes), tuple(activities), tuple(states), str(path))
+        if not p.name.lower().endswith(".csv") or p.name.lower() == ".csv":
+            raise DataError("not a day file (day files end in .csv; remove or rename it)", source=str(p))
+        if p.is_dir():
+            raise DataError("is a folder, not a day file", source=str(p))
+        key = p.name.lower()
+        if key in by_key:
+            raise DataError(f"{by_key[key].name} and {p.name} are the same day (names differ only in case)", source=str(folder))
+        by_key[key] = p
+    return sorted(by_key.values(), key=lambda p: (_natural(p.stem.lower()), p.name))
 
 
-def load_household(root: Path, name: str) -> Household:
-    """Load ``root/Household<name>`` (or ``root/<name>``): nodes and every train/test day."""
+def read_household_map(root: Path, name: str) -> tuple[Path, tuple[Node, ...]]:
+    """The folder of household ``name`` and its checked ``nodes.csv`` (no day is read)."""
     folder = household_dir(Path(root), name)
-    nodes = read_nodes(folder / "nodes.csv")
+    nodes_file = _child(folder, "nodes.csv", want_dir=False)
+    if nodes_file is None:
+        raise DataError("file not found", source=str(folder / "nodes.csv"))
+    return folder, read_nodes(nodes_file)
+
+
+def load_household(root: Path, name: str, *, step_minutes: int | None = None, resample: Resample = "none") -> Household:
+    """Load household ``name`` under ``root`` (see :func:`household_dir`): nodes and every
+    train/test day, each checked against the household's step (``step_minutes``, else the most
+    common gap between rows)."""
+    folder, nodes = read_household_map(root, name)
     objects = tuple(n.cls for n in nodes if n.movable)
-    if len(set(objects)) != len(objects):
-        raise DataError("class names of movable nodes must be unique", source=str(folder / "nodes.csv"), field="class")
+    owners = {n.cls: n.node for n in nodes if n.movable}
     locations = frozenset(n.node for n in nodes)
-    splits: dict[Split, tuple[Day, ...]] = {}
+    parsed: dict[Split, list[tuple[Day, tuple[int, ...]]]] = {"train": [], "test": []}
     for split in ("train", "test"):
-        files = sorted((folder / split).glob("*.csv")) if (folder / split).is_dir() else []
-        splits[split] = tuple(read_day(f, objects, locations, f"{split}/{f.stem}") for f in files)
-    if not splits["train"]:
+        sub = _child(folder, split, want_dir=True)
+        for f in day_files(sub) if sub is not None else []:
+            parsed[split].append(parse_day_text(_read_text(f), objects, locations, f"{split}/{f.stem}", str(f), owners))
+    if not parsed["train"]:
         raise DataError("no training days (expected train/*.csv)", source=str(folder))
+    step = step_minutes or household_step(d for days in parsed.values() for d, _ in days)
+    splits: dict[Split, tuple[Day, ...]] = {
+        split: tuple(check_step(d, lines, step, resample) if step else d for d, lines in days) for split, days in parsed.items()
+    }
     return Household(name, nodes, objects, splits["train"], splits["test"], str(folder))
 
 
@@ -150,19 +411,32 @@ def format_day(day: Day, objects: tuple[str, ...]) -> str:
     return out.getvalue()
 
 
-def write_day(path: Path, day: Day, objects: tuple[str, ...]) -> None:
-    """Write a day file atomically (a crash never leaves half a file)."""
+def _write_atomic(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(format_day(day, objects), encoding="utf-8")
+    tmp.write_text(text, encoding="utf-8")
     tmp.replace(path)
 
 
-def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
+def write_day(path: Path, day: Day, objects: tuple[str, ...]) -> None:
+    """Write a day file atomically (a crash never leaves half a file)."""
+    _write_atomic(path, format_day(day, objects))
+
+
+def format_nodes(nodes: Iterable[Node]) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(NODE_COLUMNS)
     for n in nodes:
         writer.writerow((n.node, n.cls, n.category, int(n.movable), n.start_location))
-    path.write_text(out.getvalue(), encoding="utf-8")
+    return out.getvalue()
+
+
+def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
+    _write_atomic(path, format_nodes(nodes))
+
+
+__all__: list[str] = [
+    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "check_map", "parse_nodes_text", "read_nodes", "parse_day_text", "read_day",
+    "household_step", "check_step", "day_files", "read_household_map", "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
+]

@@ -60,15 +60,24 @@ def convert_day(raw: dict, activities: list[str], name: str, source: str = "") -
 def import_household(source: Path, dest: Path) -> list[Path]:
     """Convert every ``.pt`` under ``source`` into ``dest/{train,test}/NNN.csv`` plus ``nodes.csv``."""
     root = _find_root(source)
-    common = json.loads((root / "common_data.json").read_text(encoding="utf-8"))
-    activities = list(common["activities"])
-    categories = dict(zip((f"{c}#{i}" for c, i in zip(common["node_classes"], common["node_ids"])), common["node_categories"]))
+    common_path = root / "common_data.json"
+    try:
+        common = json.loads(common_path.read_text(encoding="utf-8"))
+        activities = [str(a) for a in common["activities"]]
+        categories = dict(zip((f"{c}#{i}" for c, i in zip(common["node_classes"], common["node_ids"])), common["node_categories"]))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise DataError(f"cannot read: {err}", source=str(common_path)) from err
+    except (KeyError, TypeError) as err:
+        raise DataError(f"not HOMER+'s common_data.json (missing or malformed {err})", source=str(common_path)) from err
     written: list[Path] = []
     nodes_written = False
     for split in ("train", "test"):
         for pt in sorted((root / split).glob("*.pt")):
             raw = _load_pt(pt)
-            day, labels, movable = convert_day(raw, activities, f"{split}/{pt.stem}", str(pt))
+            try:
+                day, labels, movable = convert_day(raw, activities, f"{split}/{pt.stem}", str(pt))
+            except (KeyError, IndexError, TypeError, ValueError, AttributeError) as err:
+                raise DataError(f"not a native HOMER+ day ({type(err).__name__}: {err})", source=str(pt)) from err
             objects = tuple(labels[i].split("#")[0] for i in movable)
             target = Path(dest) / split / f"{pt.stem}.csv"
             write_day(target, day, objects)

@@ -1,4 +1,7 @@
-"""Where the data lives: ``--data`` option > ``GLOBE_DATA`` > ``../shared/data/homer_plus``."""
+"""Where the data lives: ``--data`` option > ``GLOBE_DATA`` > ``../shared/data/homer_plus``.
+
+A household is one folder of the data folder, named exactly; nothing is searched for.
+"""
 
 from __future__ import annotations
 
@@ -40,15 +43,31 @@ def resolve_data_root(option: str | Path | None = None) -> Path:
     return root
 
 
+def _is_folder_name(name: str) -> bool:
+    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\x00" not in name \
+        and name == name.strip()
+
+
 def household_dir(root: Path, name: str) -> Path:
-    """``A`` -> ``root/HouseholdA``; a path-like name is taken as the folder itself."""
-    candidate = root / HOUSEHOLD_DIR.format(name=name)
-    if candidate.is_dir():
-        return candidate
-    if (root / name).is_dir():
-        return root / name
-    available = sorted(p.name for p in root.iterdir() if (p / "nodes.csv").is_file())
+    """The folder of household ``name``: ``root/<name>``, or ``root/Household<name>`` (HOMER+'s
+    short names ``A``, ``B``, ``C``) when no folder ``<name>`` exists. Both existing is an error
+    rather than a guess; a name with a path separator is refused (the data folder is ``--data``)."""
+    root = Path(root)
+    if not _is_folder_name(name):
+        raise DataError(f"household name {name!r} is not a folder name (set the data folder with --data)", source=str(root))
+    exact = root / name
+    short = root / HOUSEHOLD_DIR.format(name=name)
+    if exact.is_dir() and short.is_dir():
+        raise DataError(f"household {name!r} is ambiguous: both {exact.name}/ and {short.name}/ exist; "
+                        f"name the folder ({short.name!r})", source=str(root))
+    for folder in (exact, short):
+        if folder.is_dir():
+            return folder
+    try:
+        available = sorted(p.name for p in root.iterdir() if p.is_dir() and any(c.name.lower() == "nodes.csv" for c in p.iterdir()))
+    except OSError:
+        available = []
     raise DataError(
-        f"household {name!r} not found; available: {', '.join(available) or 'none'}",
+        f"household {name!r} not found (no folder {exact.name}/ or {short.name}/); available: {', '.join(available) or 'none'}",
         source=str(root),
     )

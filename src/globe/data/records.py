@@ -58,3 +58,14 @@ class Household:
 
     def days(self, split: Split) -> tuple[Day, ...]:
         return self.train if split == "train" else self.test
+
+
+def map_fingerprint(nodes: tuple[Node, ...] | list[Node], objects: tuple[str, ...]) -> str:
+    """A stable hash of a home's map (every node and the object columns, in order): a saved model
+    records it so that it is never loaded for another home's map."""
+    import hashlib
+    import json
+
+    payload = json.dumps([[list((n.node, n.cls, n.category, n.movable, n.start_location)) for n in nodes], list(objects)],
+                         ensure_ascii=True, separators=(",", ":"))
+    return "sha256:" + hashlib.sha256(payload.encode("ascii")).hexdigest()

@@ -64,30 +64,42 @@ def run_methods(
     return runs
 
 
-def _f1s(ev: Evaluation, average: Average) -> tuple[float, float]:
+def _f1s(ev: Evaluation, average: Average) -> tuple[float | None, float | None]:
     a = f1([r.true for r in ev.activity], [r.predicted for r in ev.activity], average)
     o = f1([r.true for r in ev.objects], [r.predicted for r in ev.objects], average)
     return a, o
 
 
 def table1_rows(runs: Sequence[MethodRun]) -> list[dict]:
-    """Rows of ``table1.csv``: method, household (A, B, C, mean), average, the three F1s."""
+    """Rows of ``table1.csv``: method, household (A, B, C, mean), average, the three F1s. An absent
+    F1 (nothing to score) is None; the mean row averages the households where each value is
+    present and says how many (``n_households``: activity and mean F1, ``n_households_object``)."""
     rows = []
     for method in dict.fromkeys(r.method for r in runs):
         mine = [r for r in runs if r.method == method]
         for average in AVERAGES:
-            per = []
+            per: list[tuple[float | None, float | None]] = []
             for run in mine:
                 a, o = _f1s(run.evaluation, average)
                 per.append((a, o))
                 rows.append(_row(method, run.household, average, a, o))
-            rows.append(_row(method, "mean", average, statistics.fmean(p[0] for p in per), statistics.fmean(p[1] for p in per)))
+            acts = [a for a, _ in per if a is not None]
+            objs = [o for _, o in per if o is not None]
+            both = [(a + o) / 2 for a, o in per if a is not None and o is not None]
+            rows.append({"method": method, "household": "mean", "average": average,
+                         "activity_f1": round(statistics.fmean(acts), 4) if acts else None,
+                         "object_f1": round(statistics.fmean(objs), 4) if objs else None,
+                         "mean_f1": round(statistics.fmean(both), 4) if both else None,
+                         "n_households": len(acts), "n_households_object": len(objs)})
     return rows
 
 
-def _row(method: str, household: str, average: str, a: float, o: float) -> dict:
+def _row(method: str, household: str, average: str, a: float | None, o: float | None) -> dict:
+    """One household's row; the mean F1 needs both parts (an activity-only home has none)."""
     return {"method": method, "household": household, "average": average,
-            "activity_f1": round(a, 4), "object_f1": round(o, 4), "mean_f1": round((a + o) / 2, 4)}
+            "activity_f1": None if a is None else round(a, 4), "object_f1": None if o is None else round(o, 4),
+            "mean_f1": None if a is None or o is None else round((a + o) / 2, 4),
+            "n_households": int(a is not None), "n_households_object": int(o is not None)}
 
 
 def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
@@ -99,12 +111,12 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
         asked = [r for r in ev.objects if r.asked]
         rows.append({
             "method": run.method, "household": run.household,
-            "activity_f1": round(_f1s(ev, "weighted")[0], 4),
-            "activity_f1_change_steps": round(f1([r.true for r in changes], [r.predicted for r in changes]), 4),
+            "activity_f1": _round(_f1s(ev, "weighted")[0]),
+            "activity_f1_change_steps": _round(f1([r.true for r in changes], [r.predicted for r in changes])),
             "activity_log_loss": _round(log_loss([r.p_true for r in ev.activity])),
             "change_steps": len(changes),
-            "object_f1": round(_f1s(ev, "weighted")[1], 4),
-            "object_f1_oracle_activity": round(_f1s(run.oracle, "weighted")[1], 4),
+            "object_f1": _round(_f1s(ev, "weighted")[1]),
+            "object_f1_oracle_activity": _round(_f1s(run.oracle, "weighted")[1]),
             "object_events": len(ev.objects),
             "gate_opened": len(asked),
             "gate_rate": round(len(asked) / len(ev.objects), 4) if ev.objects else 0.0,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import Counter
-from typing import Literal, Sequence
+from typing import Iterable, Literal, Sequence
 
 from sklearn.metrics import f1_score
 
@@ -16,10 +16,12 @@ Average = Literal["weighted", "micro", "macro"]
 AVERAGES: tuple[Average, ...] = ("weighted", "micro", "macro")
 
 
-def f1(true: Sequence[str], predicted: Sequence[str], average: Average = "weighted") -> float:
-    """``sklearn.metrics.f1_score`` with its default labels (union of true and predicted)."""
+def f1(true: Sequence[str], predicted: Sequence[str], average: Average = "weighted") -> float | None:
+    """``sklearn.metrics.f1_score`` with its default labels (union of true and predicted); None
+    (absent, shown as "–") when there is nothing to score — no test step, or no object ever
+    moved — rather than a NaN that would spread into every mean."""
     if not true:
-        return float("nan")
+        return None
     return float(f1_score(list(true), list(predicted), average=average, zero_division=0))
 
 
@@ -93,3 +95,9 @@ def log_loss(p_true: Sequence[float]) -> float | None:
     if not p_true:
         return None
     return statistics.fmean(-math.log(max(p, LOG_LOSS_FLOOR)) for p in p_true)
+
+
+def mean_present(values: Iterable[float | None]) -> float | None:
+    """The mean of the values that are present (None = nothing was scored there), or None."""
+    present = [v for v in values if v is not None]
+    return statistics.fmean(present) if present else None

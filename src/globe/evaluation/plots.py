@@ -22,9 +22,10 @@ def table1_figure(rows: Sequence[dict], labels: dict[str, str]) -> Figure:
     metrics = [("activity_f1", "activity F1", 0), ("object_f1", "object F1", 1), ("mean_f1", "mean F1", 2)]
     for key, name, k in metrics:
         xs = [i + (k - 1) * width for i in range(len(methods))]
-        ax.bar(xs, [float(r[key]) for r in mine], width, label=f"ours: {name}")
-        for x, r in zip(xs, mine):
-            ax.text(x, float(r[key]) + 0.01, f"{float(r[key]):.2f}", ha="center", fontsize=7)
+        values = [float("nan") if r[key] is None else float(r[key]) for r in mine]  # absent: no bar
+        ax.bar(xs, values, width, label=f"ours: {name}")
+        for x, v in zip(xs, values):
+            ax.text(x, (0.0 if v != v else v) + 0.01, "–" if v != v else f"{v:.2f}", ha="center", fontsize=7)
         pub = [(x, TABLE1[m][k]) for x, m in zip(xs, methods) if m in TABLE1]
         if pub:
             ax.scatter([p[0] for p in pub], [p[1] for p in pub], marker="_", s=300, color="black", zorder=3,

@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import statistics
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -20,7 +19,7 @@ from typing import Callable, Sequence
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1
+from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1, mean_present
 from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
 from globe.noise.dataset import CLEAN, Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
@@ -43,18 +42,23 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
     return out
 
 
-def _obj_f1(records: Sequence[ObjectRecord]) -> float:
+def _obj_f1(records: Sequence[ObjectRecord]) -> float | None:
     return f1([r.true for r in records], [r.predicted for r in records])
 
 
+def _round(x: float | None) -> float | None:
+    return None if x is None else round(x, 4)
+
+
 def score_row(dataset: str, method: str, evals: Sequence[Evaluation], **extra: object) -> dict:
-    """Mean over households of activity F1, object F1 (all events), object F1 (routine events)."""
-    act = statistics.fmean(f1([r.true for r in e.activity], [r.predicted for r in e.activity]) for e in evals)
-    obj = statistics.fmean(_obj_f1(e.objects) for e in evals)
-    routine = statistics.fmean(_obj_f1([r for r in e.objects if not r.injected]) for e in evals)
+    """Mean over households (those with something to score) of activity F1, object F1 (all
+    events) and object F1 (routine events); absent values stay None."""
+    act = mean_present(f1([r.true for r in e.activity], [r.predicted for r in e.activity]) for e in evals)
+    obj = mean_present(_obj_f1(e.objects) for e in evals)
+    routine = mean_present(_obj_f1([r for r in e.objects if not r.injected]) for e in evals)
     injected = sum(r.injected for e in evals for r in e.objects)
-    return {"dataset": dataset, "method": method, **extra, "activity_f1": round(act, 4), "object_f1": round(obj, 4),
-            "object_f1_routine": round(routine, 4), "mean_f1": round((act + obj) / 2, 4),
+    return {"dataset": dataset, "method": method, **extra, "activity_f1": _round(act), "object_f1": _round(obj),
+            "object_f1_routine": _round(routine), "mean_f1": None if act is None or obj is None else _round((act + obj) / 2),
             "object_events": sum(len(e.objects) for e in evals), "injected_events": injected}
 
 
@@ -66,7 +70,7 @@ def consistency_rows(dataset: str, method: str, evals: Sequence[Evaluation], gro
     for group in ("more", "moderate", "less"):
         recs = [r for e in evals for r in e.objects if groups.get(r.household, {}).get(r.true_activity) == group]
         rows.append({"dataset": dataset, "method": method, "definition": definition, "consistency": group,
-                     "object_f1": round(_obj_f1(recs), 4) if recs else None, "object_events": len(recs)})
+                     "object_f1": _round(_obj_f1(recs)), "object_events": len(recs)})
     return rows
 
 

@@ -2,16 +2,24 @@
 
 Training is counting and takes milliseconds, so the file keeps what was observed (readable,
 diffable, independent of internal data structures) and loading re-counts it.
+
+A household's model (activity and object model together) is ONE file, ``model.json``, written
+beside and renamed into place: a killed save leaves the previous model or none, never a mixed
+pair. It records the household, a fingerprint of the map it was trained on and a checksum of its
+content, so a model for another map, an edited or truncated file, or anything malformed is a
+one-line :class:`ModelFileError`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from globe.errors import ModelFileError
+from globe.errors import GlobeError, ModelFileError
 from globe.models.activity import ActivityModel
 from globe.models.baselines import PersistenceModel
 from globe.models.objects import ObjectModel
@@ -19,7 +27,13 @@ from globe.models.routine import RoutineModel
 
 FORMAT = "globe-model"
 FORMAT_VERSION = 1
+BUNDLE_FORMAT = "globe-household-model"
+BUNDLE_VERSION = 1
+MODEL_FILE = "model.json"
+LEGACY_FILES = ("activity.json", "objects.json")
+MAX_MODEL_BYTES = 256 << 20
 _KINDS = {cls.kind: cls for cls in (ActivityModel, ObjectModel, PersistenceModel, RoutineModel)}
+_ACTIVITY_KINDS = frozenset(k for k in _KINDS if k != "object")
 
 
 def model_to_dict(model: Any) -> dict[str, Any]:
@@ -32,37 +46,182 @@ def model_to_dict(model: Any) -> dict[str, Any]:
     return {"format": FORMAT, "version": FORMAT_VERSION, "kind": model.kind, "params": model.get_params(), "data": data}
 
 
-def model_from_dict(payload: dict[str, Any], source: str = "<dict>") -> Any:
+def _is_labels(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(x, str) and x for x in value)
+
+
+def _check_data(kind: str, data: Any, source: str) -> None:
+    """The observed sequences, shape and types, before anything is counted."""
+    if not isinstance(data, list):
+        raise ModelFileError(f"{source}: malformed model file: 'data' is {type(data).__name__}, expected a list")
+    for i, item in enumerate(data):
+        ok = (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and item[0] and _is_labels(item[1])) \
+            if kind == "object" else (_is_labels(item) and len(item) > 0)
+        if not ok:
+            expected = "[activity, [objects...]]" if kind == "object" else "a non-empty list of activity labels"
+            raise ModelFileError(f"{source}: malformed model file: data[{i}] is not {expected}")
+
+
+def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
+    """A fitted model from :func:`model_to_dict`'s output; anything else is a ModelFileError."""
+    if not isinstance(payload, dict):
+        raise ModelFileError(f"{source}: not a GLOBE model file (a JSON {type(payload).__name__}, expected an object)")
     if payload.get("format") != FORMAT:
         raise ModelFileError(f"{source}: not a GLOBE model file (format {payload.get('format')!r})")
     if payload.get("version") != FORMAT_VERSION:
         raise ModelFileError(f"{source}: format version {payload.get('version')!r}, this GLOBE reads {FORMAT_VERSION}")
-    cls = _KINDS.get(payload.get("kind", ""))
+    kind = payload.get("kind")
+    cls = _KINDS.get(kind) if isinstance(kind, str) else None
     if cls is None:
-        raise ModelFileError(f"{source}: unknown model kind {payload.get('kind')!r}; expected one of {', '.join(_KINDS)}")
+        raise ModelFileError(f"{source}: unknown model kind {kind!r}; expected one of {', '.join(_KINDS)}")
+    params = payload.get("params", {})
+    if not isinstance(params, dict) or not all(isinstance(k, str) for k in params):
+        raise ModelFileError(f"{source}: malformed model file: 'params' is not an object")
+    if "data" not in payload:
+        raise ModelFileError(f"{source}: malformed model file: no 'data'")
+    _check_data(cls.kind, payload["data"], source)
     try:
-        model = cls(**payload.get("params", {}))
+        model: Any = cls(**params)
         data = payload["data"]
-        return model.fit([(a, tuple(o)) for a, o in data] if cls.kind == "object" else [tuple(d) for d in data])
-    except (KeyError, TypeError, ValueError) as err:
-        raise ModelFileError(f"{source}: malformed model file: {err}") from err
+        if cls.kind == "object":
+            return model.fit([(a, tuple(o)) for a, o in data])
+        return model.fit([tuple(d) for d in data])
+    except (GlobeError, TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as err:
+        raise ModelFileError(f"{source}: malformed model file: {' '.join(str(err).split())}") from err
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Written beside, flushed to disk, renamed into place: readers see the old file or the new."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    try:
+        fd = os.open(path.parent, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def save_model(model: Any, path: Path) -> None:
-    """Write atomically: a crash leaves the previous file intact."""
+    """Write one model atomically: a crash leaves the previous file intact."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(model_to_dict(model)), encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        _write_atomic(path, json.dumps(model_to_dict(model)))
+    except OSError as err:
+        raise ModelFileError(f"{path}: cannot write the model: {err.strerror or err}") from err
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        if path.is_dir():
+            raise ModelFileError(f"{path}: is a folder, not a model file")
+        if path.stat().st_size > MAX_MODEL_BYTES:
+            raise ModelFileError(f"{path}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
+        raw = path.read_bytes()
+    except FileNotFoundError as err:
+        raise ModelFileError(f"{path}: model file not found") from err
+    except OSError as err:
+        raise ModelFileError(f"{path}: cannot read the model: {err.strerror or err}") from err
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ModelFileError(f"{path}: not a GLOBE model file (not UTF-8 text at byte {err.start})") from err
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise ModelFileError(f"{path}: not JSON (line {err.lineno}, column {err.colno}: {err.msg}); the file is damaged or "
+                             "truncated") from err
+    except RecursionError as err:
+        raise ModelFileError(f"{path}: not a GLOBE model file (nested too deeply)") from err
 
 
 def load_model(path: Path) -> Any:
     path = Path(path)
+    return model_from_dict(_read_json(path), str(path))
+
+
+# -- a household's model: both models, one file ------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HouseholdModel:
+    """What ``globe train`` saves and ``globe predict`` loads."""
+
+    household: str
+    fingerprint: str
+    activity: Any
+    objects: Any
+    objects_columns: tuple[str, ...]
+
+
+def _checksum(body: dict[str, Any]) -> str:
+    canonical = json.dumps(body, sort_keys=True, ensure_ascii=True, separators=(",", ":"))
+    return "sha256:" + hashlib.sha256(canonical.encode("ascii")).hexdigest()
+
+
+def save_household_model(model_dir: Path, activity: Any, objects: Any, *, household: str, fingerprint: str,
+                         objects_columns: tuple[str, ...] = ()) -> Path:
+    """Save both models as one file ``model_dir/model.json`` in one atomic step; returns its path."""
+    body = {
+        "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "household": household, "map_fingerprint": fingerprint,
+        "objects_columns": list(objects_columns), "activity": model_to_dict(activity), "objects": model_to_dict(objects),
+    }
+    path = Path(model_dir) / MODEL_FILE
     try:
-        payload = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError as err:
-        raise ModelFileError(f"{path}: model file not found") from err
-    except json.JSONDecodeError as err:
-        raise ModelFileError(f"{path}: not JSON: {err}") from err
-    return model_from_dict(payload, str(path))
+        if Path(model_dir).exists() and not Path(model_dir).is_dir():
+            raise ModelFileError(f"{model_dir}: is a file; --model-dir must be a folder")
+        _write_atomic(path, json.dumps({**body, "checksum": _checksum(body)}))
+    except OSError as err:
+        raise ModelFileError(f"{model_dir}: cannot write the model: {err.strerror or err}") from err
+    return path
+
+
+def load_household_model(model_dir: Path, *, fingerprint: str | None = None, household: str | None = None) -> HouseholdModel:
+    """Load ``model_dir/model.json``, checking its format, checksum and parts, and, when given, that
+    it was trained for this map (``fingerprint``) and household."""
+    model_dir = Path(model_dir)
+    path = model_dir / MODEL_FILE
+    if not model_dir.is_dir():
+        raise ModelFileError(f"{model_dir}: no such model folder (create one with: globe train --household NAME --model-dir DIR)")
+    if not path.exists():
+        legacy = [n for n in LEGACY_FILES if (model_dir / n).exists()]
+        hint = (f"{' and '.join(legacy)} are from an older GLOBE that saved the models separately; retrain with globe train"
+                if legacy else "train one with: globe train --household NAME --model-dir DIR")
+        raise ModelFileError(f"{path}: model file not found ({hint})")
+    payload = _read_json(path)
+    src = str(path)
+    if not isinstance(payload, dict) or payload.get("format") != BUNDLE_FORMAT:
+        got = payload.get("format") if isinstance(payload, dict) else type(payload).__name__
+        raise ModelFileError(f"{src}: not a GLOBE household model (format {got!r})")
+    if payload.get("version") != BUNDLE_VERSION:
+        raise ModelFileError(f"{src}: format version {payload.get('version')!r}, this GLOBE reads {BUNDLE_VERSION}")
+    body = {k: v for k, v in payload.items() if k != "checksum"}
+    if payload.get("checksum") != _checksum(body):
+        raise ModelFileError(f"{src}: checksum mismatch (the file was edited, mixed with another or damaged); retrain it")
+    name, fp, columns = payload.get("household"), payload.get("map_fingerprint"), payload.get("objects_columns", [])
+    if not isinstance(name, str) or not isinstance(fp, str) or not _is_labels(columns):
+        raise ModelFileError(f"{src}: malformed model file: household, map_fingerprint or objects_columns missing")
+    if fingerprint is not None and fp != fingerprint:
+        raise ModelFileError(f"{src}: trained for another map (household {name!r}, map {fp[:19]}...; this map is "
+                             f"{fingerprint[:19]}...); retrain it for this household")
+    if household is not None and name != household:
+        raise ModelFileError(f"{src}: trained for household {name!r}, not {household!r}")
+    activity = model_from_dict(payload.get("activity"), f"{src} (activity)")
+    objects = model_from_dict(payload.get("objects"), f"{src} (objects)")
+    if activity.kind not in _ACTIVITY_KINDS or objects.kind != "object":
+        raise ModelFileError(f"{src}: malformed model file: parts are {activity.kind!r} and {objects.kind!r}, expected an "
+                             "activity model and an object model")
+    return HouseholdModel(name, fp, activity, objects, tuple(columns))
