@@ -3,7 +3,12 @@ personalised one: cold (no cache) and from the cache.
 
 Targets: <= 20 s per household cold on 2 cores (the paper: 192 s with a hosted model); a re-run
 from the answer cache within 2x of the n-gram-only inference time.
-Usage: python benchmarks/bench_llm.py [--data DIR]
+
+First, the scorer alone on real questions (every object of the household as a candidate, as the
+LLM-only baseline asks): each candidate scored on its own (the reference, the scorer before the
+shared-prefix trie) against the trie, with the time per question, the single-token decodes and
+the largest score difference (must be 0: the same decodes).
+Usage: python benchmarks/bench_llm.py [--data DIR] [--questions N] [--scorer-only]
 """
 
 from __future__ import annotations
@@ -14,23 +19,72 @@ from pathlib import Path
 
 from common import setup
 from globe.assembly import fit_household, object_chooser
+from globe.data.records import Household
 from globe.evaluation.protocol import evaluate_days
 from globe.evaluation.published import TABLE2
-from globe.reasoning.backends.embedded import EmbeddedBackend
+from globe.reasoning.backends.embedded import EmbeddedBackend, _sequential_logprobs
 from globe.reasoning.cache import AnswerCache
 from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.context import ChoiceContext
+from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefix, diary_prefix
+from globe.sequences.runs import training_sequences
 
 PAPER_S, TARGET_S = TABLE2["globe"][1], 20.0
 
 
+def questions(h: Household, alignment, n: int, examples: int) -> list[tuple[str, list[str]]]:
+    """Up to ``n`` real prompts per kind (cloze and diary) from training runs, each with every object."""
+    runs: dict[str, list[tuple[str, ...]]] = {}
+    for activity, objs in training_sequences(h, h.train, alignment).runs:
+        if objs:
+            runs.setdefault(activity, []).append(objs)
+    conts = [cloze_continuation(o) for o in h.objects]
+    out = []
+    for activity, seen in sorted(runs.items())[:n]:
+        last = seen[-1]
+        out.append((cloze_prefix(ChoiceContext(activity, last[:1])), conts))
+        out.append((diary_prefix(ChoiceContext(activity, last[:1], tuple(seen[-1 - examples:-1]))), conts))
+    out.append((NULL_PREFIX, conts))
+    return out
+
+
+def compare_scorers(backend: EmbeddedBackend, homes: list[Household], cfg, n: int) -> None:
+    shared = backend._shared()
+    llm = shared.llm
+    print(f"{'household':9s} {'prompts':>7s} {'decodes 1-by-1':>14s} {'decodes trie':>12s} {'1-by-1 s/prompt':>15s} "
+          f"{'trie s/prompt':>13s} {'speed-up':>8s} {'max |diff|':>10s}")
+    for h in homes:
+        qs = questions(h, cfg.sequences.alignment, n, cfg.evaluation.personal_examples)
+        tails = [llm.tokenize(c.encode("utf-8"), add_bos=False) for c in qs[0][1]]
+        before = sum(len(t) - 1 for t in tails)
+        after = len({tuple(t[:d]) for t in tails for d in range(1, len(t))})
+        t_ref = t_new = diff = 0.0
+        for prefix, conts in qs:
+            shared.cached_head = []  # both start from a cold model cache: the prompt is evaluated in full
+            t = time.perf_counter()
+            ref = _sequential_logprobs(backend, prefix, conts)
+            t_ref += time.perf_counter() - t
+            shared.cached_head = []
+            t = time.perf_counter()
+            new = backend.continuation_logprobs(prefix, conts)
+            t_new += time.perf_counter() - t
+            diff = max(diff, max(abs(a - b) for a, b in zip(ref, new)))
+        k = len(qs)
+        print(f"{h.name:9s} {k:7d} {before:14d} {after:12d} {t_ref / k:15.3f} {t_new / k:13.3f} {t_ref / t_new:7.2f}x {diff:10.1e}")
+
+
 def main() -> None:
-    cfg, homes, _ = setup(__doc__)
+    cfg, homes, args = setup(__doc__, {"--questions": {"type": int, "default": 6, "help": "activities per household"},
+                                       "--scorer-only": {"action": "store_true", "help": "only the scorer comparison"}})
     with tempfile.TemporaryDirectory() as tmp:
         cache_path = Path(tmp) / "answers.sqlite3"
         warm = EmbeddedBackend(n_threads=cfg.llm.n_threads)
         t = time.perf_counter()
         warm.load()
         print(f"model load: {time.perf_counter() - t:.2f} s (once per process and shared by every backend; not counted below)")
+        compare_scorers(warm, homes, cfg, args.questions)
+        if args.scorer_only:
+            return
         print(f"{'prompt':9s} {'household':9s} {'ngram s':>8s} {'globe cold s':>12s} {'calls':>6s} {'s/call':>7s} "
               f"{'globe cached s':>14s} {'cached/ngram':>12s} {'paper/cold':>10s}")
         for prompt, examples in (("paper", 0), ("personal", cfg.evaluation.personal_examples)):

@@ -11,7 +11,16 @@ listed candidate:
   score after a context-free sentence (pointwise mutual information).
 
 The text is evaluated once (a diary already in the model's cache is reused: consecutive
-questions about one activity share it); each candidate then costs only its own few tokens.
+questions about one activity share it); each candidate then costs only its own few tokens, and
+candidates that start alike ("food cereal", "food jam") share the decodes of their common start
+(a prefix trie walked depth first).
+
+Every decode after the prompt is a single token. Batching several candidates' tokens into one
+``llama_decode`` (one sequence id each over the shared prompt) was measured and rejected: in this
+llama.cpp build a row's logits depend on the other rows of its batch (with or without weight
+repacking or flash attention), which moved some candidates' scores by up to 0.3 nats against
+one-token decodes and would make a score depend on the other candidates asked with it. One-token
+decodes give exactly the scores of evaluating each candidate on its own.
 """
 
 from __future__ import annotations
@@ -100,6 +109,58 @@ def _last_log_softmax(llm):
     return row - m - math.log(float(np.exp(row - m).sum()))
 
 
+def _next_logprobs(llm, tokens: set[int]) -> dict[int, float]:
+    """:func:`_last_log_softmax` at ``tokens`` only (the same float64 operations, so the same bits),
+    without normalising the other 262k entries."""
+    import llama_cpp
+    import numpy as np
+
+    row = np.ctypeslib.as_array(llama_cpp.llama_get_logits(llm.ctx), shape=(llm.n_vocab(),)).astype(np.float64)
+    m = row.max()
+    lse = math.log(float(np.exp(row - m).sum()))
+    return {tok: float(row[tok] - m - lse) for tok in tokens}
+
+
+def _trie_logprobs(llm, n_prompt: int, tails: list[list[int]]) -> dict[tuple[int, ...], dict[int, float]]:
+    """Log-probability of each needed next token after each proper prefix of ``tails``.
+
+    ``llm`` has just evaluated a prompt of ``n_prompt`` tokens. The prefixes are visited in
+    lexicographic order (depth first), so the key/value cells of a prefix's ancestors are always
+    in place: each prefix costs one single-token decode at position ``n_prompt + depth``, the
+    same arithmetic as evaluating each tail on its own (:func:`_sequential_logprobs`).
+    """
+    wanted: dict[tuple[int, ...], set[int]] = {}
+    for tail in tails:
+        for depth in range(len(tail)):
+            wanted.setdefault(tuple(tail[:depth]), set()).add(tail[depth])
+    out = {(): _next_logprobs(llm, wanted.pop((), set()))}
+    for path in sorted(wanted):
+        llm.n_tokens = n_prompt + len(path) - 1
+        llm.eval([path[-1]])
+        out[path] = _next_logprobs(llm, wanted[path])
+    return out
+
+
+def _sequential_logprobs(backend: "EmbeddedBackend", prefix: str, continuations: list[str]) -> list[float]:
+    """Reference: each continuation on its own, one single-token decode per token after its first
+    (the scorer before the trie). Kept for tests and ``benchmarks/bench_llm.py``."""
+    shared = backend._shared()
+    llm = shared.llm
+    with shared.lock:
+        head = backend._eval_prompt(shared, prefix)
+        first = _last_log_softmax(llm)
+        scores = []
+        for text in continuations:
+            tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
+            total = float(first[tail[0]])
+            llm.n_tokens = len(head)
+            for nxt_tok, tok in zip(tail[1:], tail[:-1]):
+                llm.eval([tok])
+                total += float(_last_log_softmax(llm)[nxt_tok])
+            scores.append(total)
+        return scores
+
+
 class EmbeddedBackend(LLMBackend):
     name = "embedded"
 
@@ -129,24 +190,23 @@ class EmbeddedBackend(LLMBackend):
     def continuation_logprobs(self, prefix: str, continuations: list[str], memo: bool = False) -> list[float]:
         """Sum of token log-probabilities of each continuation after ``prefix``.
 
-        The prefix is evaluated once; each continuation then costs one single-token decode per
-        token after its first (one-token names cost nothing more).
+        The prefix is evaluated once; the first token of every continuation is read from its last
+        logits, and each distinct proper prefix of the continuations' tokens costs one single-token
+        decode (shared by every continuation that starts with it; one-token names cost nothing).
         """
         shared = self._shared()
         llm = shared.llm
         with shared.lock:
             known = {c: self._memo[(prefix, c)] for c in continuations if memo and (prefix, c) in self._memo}
-            todo = [c for c in continuations if c not in known]
+            todo = [c for c in dict.fromkeys(continuations) if c not in known]
             if todo:
                 head = self._eval_prompt(shared, prefix)
-                first = _last_log_softmax(llm)
-                for text in todo:
-                    tail = llm.tokenize(text.encode("utf-8"), add_bos=False)
-                    total = float(first[tail[0]])
-                    llm.n_tokens = len(head)
-                    for nxt_tok, tok in zip(tail[1:], tail[:-1]):
-                        llm.eval([tok])
-                        total += float(_last_log_softmax(llm)[nxt_tok])
+                tails = {text: llm.tokenize(text.encode("utf-8"), add_bos=False) for text in todo}
+                after = _trie_logprobs(llm, len(head), list(tails.values()))
+                for text, tail in tails.items():
+                    total = after[()][tail[0]]
+                    for depth in range(1, len(tail)):
+                        total += after[tuple(tail[:depth])][tail[depth]]
                     known[text] = total
                     if memo:
                         self._memo[(prefix, text)] = total
