@@ -86,3 +86,27 @@ class MissingExtraError(GlobeError, ImportError):
 
 class StoreError(GlobeError):
     """The service's database failed."""
+
+
+class LLMCacheError(LLMError):
+    """The on-disk answer cache failed (locked, missing, corrupt): the gate falls back to the n-gram."""
+
+
+class AuthenticationError(GlobeError):
+    """No credentials, or credentials the service does not know (HTTP 401)."""
+
+    field = "authorization"
+
+
+class PermissionDeniedError(GlobeError):
+    """Valid credentials that do not reach this resource (HTTP 403)."""
+
+    field = "authorization"
+
+
+class LimitError(DataError):
+    """A request exceeds a configured limit; ``field`` names what is too large."""
+
+
+class StoreUnavailableError(StoreError):
+    """The database file disappeared or was replaced while the service ran: writes are refused."""

@@ -1,7 +1,8 @@
-"""A real service process on a free loopback port, with its SQLite file under tmp."""
+"""A real service process on a free loopback port, with its SQLite file under tmp, and tokens."""
 
 from __future__ import annotations
 
+import datetime as dt
 import os
 import signal
 import subprocess
@@ -11,25 +12,45 @@ import time
 import httpx
 import pytest
 
+from globe.service.auth import create_token
+from globe.service.client import GlobeClient, household_payload
 from tests.helpers import free_port
+
+# Replays of HOMER+ days run in the past, so the replay tests widen the clock-skew window.
+REPLAY_ENV = {"GLOBE_SERVICE__MAX_CLOCK_SKEW": "P400D"}
+BASE = dt.datetime.combine(dt.date.today() - dt.timedelta(days=90), dt.time())
+
+
+def at(day: int, minute: int) -> dt.datetime:
+    return BASE + dt.timedelta(days=day, minutes=minute)
 
 
 class Server:
-    def __init__(self, db, log):
+    def __init__(self, db, log, env=None):
         self.db, self.log, self.port, self.proc = db, log, free_port(), None
+        self.env = {"GLOBE_LLM__BACKEND": "none", "GLOBE_SERVICE__PRELOAD": "false", **(env or {})}
+        self.admin = create_token(db, admin=True)
 
     @property
     def url(self) -> str:
         return f"http://127.0.0.1:{self.port}"
 
-    def start(self) -> "Server":
-        env = dict(os.environ, GLOBE_LLM__BACKEND="none")
+    def client(self, token: str | None = None, **kw) -> GlobeClient:
+        return GlobeClient(self.url, token=self.admin if token is None else token, **kw)
+
+    def token(self, household: str) -> str:
+        return create_token(self.db, household=household)
+
+    def start(self, expect_failure: bool = False) -> "Server":
+        env = dict(os.environ, **self.env)
         with open(self.log, "a") as fh:
             self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port)],
                                          stdout=fh, stderr=subprocess.STDOUT, env=env)
         deadline = time.time() + 60
         while time.time() < deadline:
             if self.proc.poll() is not None:
+                if expect_failure:
+                    return self
                 pytest.fail(f"service exited: {open(self.log).read()[-3000:]}")
             try:
                 if httpx.get(self.url + "/health", timeout=1).status_code == 200:
@@ -54,7 +75,25 @@ class Server:
 
 
 @pytest.fixture()
-def server(tmp_path):
-    srv = Server(tmp_path / "globe.sqlite3", tmp_path / "server.log").start()
-    yield srv
-    srv.stop()
+def make_server(tmp_path):
+    started = []
+
+    def make(env=None, db=None, start=True) -> Server:
+        srv = Server(db or tmp_path / "globe.sqlite3", tmp_path / "server.log", env)
+        started.append(srv)
+        return srv.start() if start else srv
+
+    yield make
+    for srv in started:
+        srv.stop()
+
+
+@pytest.fixture()
+def server(make_server):
+    """A service whose clock-skew window admits HOMER+ replays."""
+    return make_server(REPLAY_ENV)
+
+
+def upload(client: GlobeClient, name: str, household, timezone: str | None = "UTC", days: bool = True) -> dict:
+    payload = household_payload(household)
+    return client.create_household(name, payload["nodes"], payload["days"] if days else [], timezone=timezone)

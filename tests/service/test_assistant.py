@@ -5,9 +5,10 @@ import datetime as dt
 import pytest
 
 from globe.assembly import fit_household
+from globe.data.records import Household
 from globe.errors import DataError
 from globe.reasoning.choice import ObjectChooser
-from globe.service.assistant import Observation, OnlineAssistant
+from globe.service.assistant import Observation, OnlineAssistant, fill_unknown
 
 
 @pytest.fixture()
@@ -28,10 +29,11 @@ def test_a_whole_day_including_midnight_is_one_day(assistant, households):
     live = assistant.current_day()
     assert live.minutes == day.minutes and live.activities == day.activities and live.locations == day.locations
     assistant.observe(Observation(at(360, 1), "wake_up", {}))  # 06:00 next day: roll over and learn
-    assert assistant.days_learned == 1 and assistant.stats()["steps_today"] == 1
+    assert assistant.days_learned == len(households["A"].train) + 1 and assistant.stats()["steps_today"] == 1
 
 
 def test_short_gaps_repeat_the_last_step_and_long_gaps_restart(assistant):
+    learned = assistant.days_learned
     assistant.observe(Observation(at(360), "wake_up", {}))
     assistant.observe(Observation(at(400), "breakfast", {"bowl": "table#114"}))  # 3 steps missing
     day = assistant.current_day()
@@ -39,7 +41,7 @@ def test_short_gaps_repeat_the_last_step_and_long_gaps_restart(assistant):
     assert day.activities == ("wake_up",) * 4 + ("breakfast",)
     assert dict(zip(assistant.household.objects, day.locations[-1]))["bowl"] == "table#114"
     assistant.observe(Observation(at(600), "reading", {}))  # 19 steps missing > max_gap_steps
-    assert assistant.current_day().minutes == (600,) and assistant.days_learned == 1
+    assert assistant.current_day().minutes == (600,) and assistant.days_learned == learned + 1
 
 
 def test_validation_names_the_field(assistant):
@@ -59,3 +61,37 @@ def test_prediction_has_an_action_decision(assistant, households):
     p = assistant.predict()
     assert p.activity is not None and 0 < p.activity_probability <= 1
     assert p.act == (p.obj is not None and p.object_probability >= assistant.action_threshold)
+
+
+def test_observations_inside_one_step_update_it(assistant):
+    assistant.observe(Observation(at(360), "wake_up", {}))
+    for second in range(1, 50):  # 49 more observations within the same ten minutes
+        assistant.observe(Observation(at(360) + dt.timedelta(seconds=10 * second), None, {"bowl": "table#114"}))
+    assistant.observe(Observation(at(365), "breakfast", {}))
+    day = assistant.current_day()
+    assert day.minutes == (360,) and day.activities == ("breakfast",)
+    assert dict(zip(assistant.household.objects, day.locations[0]))["bowl"] == "table#114"
+    assert assistant.observations == 51
+    assistant.observe(Observation(at(371), None, {}))  # next step, unknown activity: carried forward
+    assert assistant.current_day().minutes == (360, 370) and assistant.current_day().activities == ("breakfast", "breakfast")
+
+
+def test_unknown_activities_are_filled_from_known_ones():
+    assert fill_unknown([None, "a", None, None, "b", None]) == ["a", "a", "a", "a", "b", "b"]
+    assert fill_unknown([None, None]) is None and fill_unknown([]) is None
+
+
+def test_a_household_without_days_learns_from_scratch(households, config):
+    h = households["B"]
+    empty = Household(h.name, h.nodes, h.objects, (), (), "upload")
+    fitted = fit_household(empty, config)
+    a = OnlineAssistant(empty, fitted.activity, ObjectChooser(fitted.objects))
+    assert a.predict().status == "learning" and not a.predict().act
+    day = h.test[0]
+    for t in range(len(day)):
+        a.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(h.objects, day.locations[t]))))
+        p = a.predict()
+        assert p.status == "learning" and p.act is False and p.activity is None
+    a.observe(Observation(at(360, 1), day.activities[0], {}))  # the next morning: the first day is learned
+    p = a.predict()
+    assert a.days_learned == 1 and p.status == "ready" and p.activity in set(day.activities)

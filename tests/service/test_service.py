@@ -1,6 +1,5 @@
 """The service over real loopback HTTP against the real server process and SQLite."""
 
-import datetime as dt
 import threading
 import time
 
@@ -10,15 +9,11 @@ from globe.models.activity import ActivityModel
 from globe.models.io import model_from_dict
 from globe.models.objects import ObjectModel
 from globe.sequences.runs import activity_runs
-from globe.service.client import GlobeClient, ServiceError
+from globe.service.client import ServiceError, household_payload
 from globe.service.robot import SimulatedRobot, replay_days
+from tests.service.conftest import BASE, at, upload
 
 pytestmark = pytest.mark.service
-BASE = dt.datetime(2026, 3, 2)
-
-
-def at(day: int, minute: int) -> dt.datetime:
-    return BASE + dt.timedelta(days=day, minutes=minute)
 
 
 def post_day(client, name, household, day, index, steps=None):
@@ -28,17 +23,17 @@ def post_day(client, name, household, day, index, steps=None):
 
 @pytest.fixture()
 def client(server):
-    with GlobeClient(server.url) as c:
+    with server.client() as c:
         yield c
 
 
 def test_incremental_learning_equals_batch_training(client, households):
     h = households["B"]
-    client.create_household("B", h.source)
+    upload(client, "B", h)
     post_day(client, "B", h, h.test[0], 0)
     post_day(client, "B", h, h.test[1], 1)
     post_day(client, "B", h, h.test[2], 2, steps=3)  # the first steps of day 3 close day 2
-    assert client.stats("B")["days_learned"] == 2
+    assert client.stats("B")["days_learned"] == len(h.train) + 2
     exported = client.export_model("B")
     online_act, online_obj = model_from_dict(exported["activity"]), model_from_dict(exported["objects"])
     days = list(h.train) + [h.test[0], h.test[1]]
@@ -54,14 +49,14 @@ def test_incremental_learning_equals_batch_training(client, households):
 
 def test_state_survives_a_killed_server(server, households):
     h = households["A"]
-    with GlobeClient(server.url) as c:
-        c.create_household("A", h.source)
+    with server.client() as c:
+        upload(c, "A", h)
         post_day(c, "A", h, h.test[0], 0)
         post_day(c, "A", h, h.test[1], 1, steps=40)
         before_stats, before_pred = c.stats("A"), c.prediction("A")
     server.kill()  # SIGKILL: no shutdown hook runs
     server.start()
-    with GlobeClient(server.url) as c:
+    with server.client() as c:
         after_stats, after_pred = c.stats("A"), c.prediction("A")
         assert after_stats == before_stats
         assert (after_pred.activity, after_pred.object, after_pred.object_probability) == (
@@ -77,7 +72,7 @@ def test_state_survives_a_killed_server(server, households):
 
 def test_bad_input_gets_4xx_naming_the_field_and_changes_nothing(client, households):
     h = households["C"]
-    client.create_household("C", h.source)
+    upload(client, "C", h)
     post_day(client, "C", h, h.test[0], 0, steps=10)
     before, pred = client.stats("C"), client.prediction("C")
     cases = [
@@ -86,9 +81,10 @@ def test_bad_input_gets_4xx_naming_the_field_and_changes_nothing(client, househo
         (lambda: client.observe("C", at(0, 300), "idle", {}), 422, "time"),  # before the last observation
         (lambda: client.observe("C", at(0, 600), "idle", {"book": "attic#1"}), 422, "locations.book"),
         (lambda: client.observe("C", at(0, 600), "idle", {"spaceship": "kitchen#1"}), 422, "locations.spaceship"),
-        (lambda: client._call("POST", "/households/C/observations", json={"time": at(0, 600).isoformat()}), 422, "activity"),
-        (lambda: client.create_household("C", h.source), 409, None),
-        (lambda: client.create_household("D", "/no/such/folder"), 422, "source"),
+        (lambda: client._call("POST", "/households/C/observations", json={"time": at(0, 600).isoformat(), "activity": " "}), 422, "activity"),
+        (lambda: upload(client, "C", h), 409, "name"),
+        (lambda: client._call("POST", "/households", json={"name": "D", "nodes": household_payload(h)["nodes"],
+                                                                "source": "/etc"}), 422, "source"),  # no server paths
     ]
     for call, status, field in cases:
         with pytest.raises(ServiceError) as err:
@@ -102,14 +98,14 @@ def test_bad_input_gets_4xx_naming_the_field_and_changes_nothing(client, househo
 
 def test_concurrent_clients_are_serialised(server, households):
     hA, hB = households["A"], households["B"]
-    with GlobeClient(server.url) as c:
-        c.create_household("A", hA.source)
-        c.create_household("B", hB.source)
+    with server.client() as c:
+        upload(c, "A", hA)
+        upload(c, "B", hB)
     day = hA.test[0]
     accepted, errors = [], []
 
     def worker(offset):
-        with GlobeClient(server.url) as c:
+        with server.client() as c:
             for t in range(offset, len(day), 4):  # four clients interleave the steps of one day
                 try:
                     c.observe("A", at(0, day.minutes[t]), day.activities[t], dict(zip(hA.objects, day.locations[t])))
@@ -119,7 +115,7 @@ def test_concurrent_clients_are_serialised(server, households):
                 c.prediction("A")
 
     def household_b():
-        with GlobeClient(server.url) as c:
+        with server.client() as c:
             post_day(c, "B", hB, hB.test[0], 0)
 
     threads = [threading.Thread(target=worker, args=(i,)) for i in range(4)] + [threading.Thread(target=household_b)]
@@ -128,7 +124,7 @@ def test_concurrent_clients_are_serialised(server, households):
     for th in threads:
         th.join()
     assert all(e.status == 422 and e.field == "time" for e in errors)  # out-of-order arrivals only
-    with GlobeClient(server.url) as c:
+    with server.client() as c:
         assert c.stats("A")["observations"] == len(accepted)
         assert c.stats("B")["observations"] == len(hB.test[0])
         assert c.stats("B")["steps_today"] == len(hB.test[0])
@@ -136,26 +132,26 @@ def test_concurrent_clients_are_serialised(server, households):
 
 def test_simulated_robot_reports_assistance_metrics(client, households):
     h = households["A"]
-    client.create_household("A", h.source)
-    report = replay_days(client, "A", h, h.test[:2], SimulatedRobot())
+    upload(client, "A", h)
+    report = replay_days(client, "A", h, h.test[:2], SimulatedRobot(), base_date=BASE.date())
     s = report.summary()
     assert s["steps"] == 2 * 109 and s["days"] == 2
     assert s["fetches"] > 0 and 0 < s["precision"] <= 1 and 0 < s["recall"] <= 1
     assert report.useful_fetches <= report.fetches
     assert s["latency_median_ms"] > 0
-    assert client.stats("A")["days_learned"] == 1
+    assert client.stats("A")["days_learned"] == len(h.train) + 1
 
 
 def test_no_acknowledged_observation_is_lost_when_killed_mid_stream(server, households):
     h = households["B"]
     day = h.test[4]
-    with GlobeClient(server.url) as c:
-        c.create_household("B", h.source)
+    with server.client() as c:
+        upload(c, "B", h)
     acknowledged = []
     stop = threading.Event()
 
     def stream():
-        with GlobeClient(server.url, timeout_s=5) as c:
+        with server.client(timeout_s=5) as c:
             for t in range(len(day)):
                 if stop.is_set():
                     return
@@ -174,6 +170,6 @@ def test_no_acknowledged_observation_is_lost_when_killed_mid_stream(server, hous
     stop.set()
     th.join()
     server.start()
-    with GlobeClient(server.url) as c:
+    with server.client() as c:
         stored = c.stats("B")["observations"]
     assert len(acknowledged) <= stored <= len(acknowledged) + 1  # at most the one in flight, committed unacknowledged

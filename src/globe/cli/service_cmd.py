@@ -22,19 +22,24 @@ from globe.errors import MissingExtraError
 
 def serve(
     database: Annotated[Path | None, typer.Option("--db", help="SQLite file (created if missing)")] = None,
-    host: Annotated[str | None, typer.Option("--host", help="bind address")] = None,
+    host: Annotated[str | None, typer.Option("--host", help="bind address (keep loopback; put a TLS reverse proxy in front)")] = None,
     port: Annotated[int | None, typer.Option("--port", help="TCP port")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
     config: ConfigOption = None,
 ) -> None:
-    """Start the GLOBE assistance service (OpenAPI at /docs)."""
+    """Start the GLOBE assistance service (OpenAPI at /docs). Requests need a token: globe token create."""
     cfg = resolve(config, service__database=database, service__host=host, service__port=port, llm__backend=backend)
     try:
         import uvicorn
     except ImportError as err:
         raise MissingExtraError("uvicorn", "service") from err
     from globe.service.app import create_app
+    from globe.service.store import Store
 
+    Store(cfg.service.database).close()  # refuse a foreign or newer database here, with a clear message
+    if cfg.service.host not in ("127.0.0.1", "localhost", "::1"):
+        console.print(f"[yellow]warning:[/yellow] listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; "
+                      "keep the service on 127.0.0.1 behind a TLS reverse proxy (see the README)")
     console.print(f"GLOBE service on http://{cfg.service.host}:{cfg.service.port} (database {cfg.service.database})")
     uvicorn.run(create_app(cfg), host=cfg.service.host, port=cfg.service.port, log_level="warning")
 
@@ -47,17 +52,18 @@ def robot(
     data: DataOption = None,
     config: ConfigOption = None,
     report_file: Annotated[Path | None, typer.Option("--report", help="also write the metrics as JSON")] = None,
+    token: Annotated[str | None, typer.Option("--token", envvar="GLOBE_TOKEN", help="admin token (or $GLOBE_TOKEN)")] = None,
 ) -> None:
     """Replay HOMER+ test days through the service as a simulated robot; print assistance metrics."""
-    from globe.service.client import GlobeClient, ServiceError
+    from globe.service.client import GlobeClient, ServiceError, household_payload
     from globe.service.robot import SimulatedRobot, replay_days
 
     cfg = resolve(config)
     (h,) = households_from(cfg, data, household)
     ident = name or h.name
-    with GlobeClient(url) as client:
+    with GlobeClient(url, token=token) as client:
         try:
-            client.create_household(ident, h.source)
+            client.create_household(ident, **household_payload(h))
         except ServiceError as err:
             if err.status != 409:
                 raise

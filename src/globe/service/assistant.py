@@ -2,18 +2,24 @@
 
 No web imports here: the service, the simulated robot and tests drive it directly.
 
-Observations arrive one at a time (a time, the current activity, and the locations of the
-objects the robot sees; unseen objects keep their last known place). Each observation is one
-step of the day. A day begins at ``day_start_minute``; when an observation belongs to a new day
-the finished day is added to both models (``partial_fit``), so the result equals training on
-all days at once. A gap longer than one step is filled by repeating the last observed step
-(the person is assumed to have gone on doing the same thing), up to ``max_gap_steps``; a longer
-gap ends the day early (what was seen is learned) and starts its history afresh.
+Observations arrive one at a time: an aware time in the household's zone, the current activity
+(or None when the robot could not tell), and the locations of the objects the robot sees (unseen
+objects keep their last known place). The day is cut into steps of ``step_minutes`` from
+``day_start_minute`` (wall-clock time): several observations inside one step update that step;
+a gap of a few steps is filled by repeating the last step (the person is assumed to have gone
+on doing the same thing), up to ``max_gap_steps``; a longer gap ends the day early (what was
+seen is learned) and starts its history afresh. When an observation belongs to a new day the
+finished day is added to both models (``partial_fit``), so the result equals training on all
+days at once.
+
+A household may start with no training day at all (cold start): until it has learned a first
+day its predictions say ``status = "learning"`` and never ask the robot to act.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import sys
 import threading
 from collections import Counter, defaultdict
 from dataclasses import dataclass
@@ -21,19 +27,22 @@ from typing import Mapping, Sequence
 
 from globe.data.records import Day, Household
 from globe.errors import DataError, UnknownLabelError
-from globe.reasoning.choice import ObjectChooser, run_context
+from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
 from globe.sequences.runs import activity_runs
+
+UTC = dt.timezone.utc
 
 
 @dataclass(frozen=True, slots=True)
 class Observation:
-    time: dt.datetime
-    activity: str
+    time: dt.datetime  # aware, in the household's zone (naive = wall time, for library use)
+    activity: str | None  # None: unknown at this step
     locations: Mapping[str, str]  # object -> location (may be partial)
 
 
 @dataclass(frozen=True, slots=True)
 class Prediction:
+    status: str  # "learning" (no day learned yet) or "ready"
     day: str
     step: int
     activity: str | None
@@ -46,13 +55,35 @@ class Prediction:
     fetch_to: str | None  # where the person is likely to need it (the object's usual target)
 
 
+@dataclass(frozen=True, slots=True)
+class Placement:
+    """Where an observation lands: its day, its step, and whether it opens a new step."""
+
+    day: str
+    step: int
+    new_step: bool
+
+
+def fill_unknown(labels: Sequence[str | None]) -> list[str] | None:
+    """Carry the last known activity forward over unknown steps (leading unknowns take the first
+    known label); None if no step is known. A stand-in for a proper filter over missing labels."""
+    first = next((a for a in labels if a is not None), None)
+    if first is None:
+        return None
+    out: list[str] = []
+    last = first
+    for a in labels:
+        last = a if a is not None else last
+        out.append(last)
+    return out
+
+
 class OnlineAssistant:
     """State and models of one household (thread-safe: one lock serialises its requests)."""
 
     def __init__(self, household: Household, activity_model, chooser: ObjectChooser, *, alignment: str = "previous",
                  action_threshold: float = 0.5, day_start_minute: int = 360, step_minutes: int = 10,
                  max_gap_steps: int = 36) -> None:
-        self.household = household
         self.activity_model = activity_model
         self.chooser = chooser
         self.alignment = alignment
@@ -61,70 +92,135 @@ class OnlineAssistant:
         self.step_minutes = step_minutes
         self.max_gap_steps = max_gap_steps
         self.lock = threading.RLock()
-        self._start_state = {n.cls: n.start_location for n in household.nodes if n.movable}
-        self.days_learned = 0
+        self._locations = {label: label for label in household.locations}  # interned labels
+        self._object_index = {o: i for i, o in enumerate(household.objects)}
+        self._start = tuple(self._locations[n.start_location] for o in household.objects
+                            for n in household.nodes if n.movable and n.cls == o)
         self.observations = 0
         self.feedback = {"accepted": 0, "refused": 0}
+        self.fallbacks: Counter[str] = Counter()
+        self.quarantined = 0
         self._target_counts: dict[tuple[str, str], Counter[str]] = defaultdict(Counter)
+        # the training days are counted, then dropped: keep the map only (memory per household stays small)
+        self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
         self._count_targets(household.train)
+        self.days_learned = len(household.train)
+        self._last_instant: dt.datetime | None = None
         self._reset_day(None)
 
     # -- validation ------------------------------------------------------------------------
     def validate(self, obs: Observation) -> None:
         """Raise :class:`DataError` (naming the field) for an observation that must not be stored."""
-        if not obs.activity or not obs.activity.strip():
-            raise DataError("empty activity", field="activity")
-        known = self.household.locations
+        if obs.activity is not None and not obs.activity.strip():
+            raise DataError("empty activity (send null when it is unknown)", field="activity")
         for obj, loc in obs.locations.items():
-            if obj not in self._start_state:
-                raise UnknownLabelError(f"unknown object {obj!r} (not a movable node of household {self.household.name})",
-                                        field=f"locations.{obj}")
-            if loc not in known:
-                raise UnknownLabelError(f"unknown location {loc!r} for {obj!r}", field=f"locations.{obj}")
-        if self._last_time is not None and obs.time <= self._last_time:
-            raise DataError(f"time {obs.time.isoformat()} is not after the last observation {self._last_time.isoformat()}",
+            if obj not in self._object_index:
+                raise UnknownLabelError(f"unknown object {obj[:64]!r} (not a movable node of household {self.household.name})",
+                                        field=f"locations.{obj[:64]}")
+            if loc not in self._locations:
+                raise UnknownLabelError(f"unknown location {loc[:64]!r} for {obj!r}", field=f"locations.{obj}")
+        instant = _instant(obs.time)
+        if self._last_instant is not None and instant <= self._last_instant:
+            raise DataError(f"time {obs.time.isoformat()} is not after the last observation {self._last_instant.isoformat()}",
                             field="time")
 
     # -- the loop ---------------------------------------------------------------------------
-    def day_key(self, time: dt.datetime) -> str:
-        return (time - dt.timedelta(minutes=self.day_start_minute)).date().isoformat()
+    def _wall(self, time: dt.datetime) -> tuple[str, int]:
+        """Day key and minute since that date's midnight (00:00 of the next date is 1440)."""
+        wall = time.replace(tzinfo=None)
+        key = (wall - dt.timedelta(minutes=self.day_start_minute)).date()
+        minute = int((wall - dt.datetime.combine(key, dt.time())).total_seconds() // 60)
+        return key.isoformat(), minute
 
-    def observe(self, obs: Observation) -> None:
+    def day_key(self, time: dt.datetime) -> str:
+        return self._wall(time)[0]
+
+    def _slot(self, minute: int) -> int:
+        return (minute - self.day_start_minute) // self.step_minutes
+
+    def placement(self, time: dt.datetime) -> Placement:
+        """Where an observation at ``time`` would land (no state changes)."""
+        key, minute = self._wall(time)
+        slot = self._slot(minute)
+        if key == self._day_key and self._slots:
+            if slot <= self._slots[-1]:
+                return Placement(key, len(self._slots) - 1, False)
+            missing = slot - self._slots[-1] - 1
+            if missing <= self.max_gap_steps:
+                return Placement(key, len(self._slots) + missing, True)
+        return Placement(key, 0, True)
+
+    def observe(self, obs: Observation) -> Placement:
         """Add one (already validated) observation; learns from the previous day on rollover."""
-        key = self.day_key(obs.time)
+        key, minute = self._wall(obs.time)
+        slot = self._slot(minute)
         if self._day_key is not None and key != self._day_key:
             self._learn_current_day()
             self._reset_day(key)
         elif self._day_key is None:
             self._reset_day(key)
-        midnight = dt.datetime.combine(dt.date.fromisoformat(key), dt.time(), tzinfo=obs.time.tzinfo)
-        minute = int((obs.time - midnight).total_seconds() // 60)  # 00:00 of the next date is 1440
-        if self._minutes:
-            missing = round((minute - self._minutes[-1]) / self.step_minutes) - 1
-            if missing > self.max_gap_steps:  # learn what was seen, then start afresh
-                self._learn_current_day()
-                self._reset_day(key)
-            else:
-                for _ in range(max(0, missing)):
-                    self._append(self._minutes[-1] + self.step_minutes, self._activities[-1], self._states[-1])
-        state = dict(self._states[-1]) if self._states else dict(self._start_state)
-        state.update(obs.locations)
-        self._append(minute, obs.activity, state)
-        self._last_time = obs.time
+        activity = sys.intern(obs.activity.strip()) if obs.activity is not None else None
+        if self._slots and slot <= self._slots[-1]:  # inside the current step (or a DST repeat): update it
+            state = list(self._states[-1])
+            self._set(state, obs.locations)
+            self._states[-1] = tuple(state)
+            if activity is not None:
+                self._activities[-1] = activity
+        else:
+            if self._slots:
+                missing = slot - self._slots[-1] - 1
+                if missing > self.max_gap_steps:  # learn what was seen, then start afresh
+                    self._learn_current_day()
+                    self._reset_day(key)
+                else:
+                    for _ in range(missing):
+                        self._append(self._slots[-1] + 1, self._activities[-1], self._states[-1])
+            state = list(self._states[-1]) if self._states else list(self._start)
+            self._set(state, obs.locations)
+            self._append(slot, activity, tuple(state))
+        self._last_instant = _instant(obs.time)
         self.observations += 1
+        return Placement(key, len(self._slots) - 1, True)
+
+    def _set(self, state: list[str], locations: Mapping[str, str]) -> None:
+        for obj, loc in locations.items():
+            state[self._object_index[obj]] = self._locations[loc]
+
+    # -- the two decisions the lead may swap (a filter over missing labels, a fetch policy) ----
+    def activity_history(self) -> list[str]:
+        """The day's activities as the activity model reads them: unknown steps carry the last
+        known label forward (see :func:`fill_unknown`)."""
+        return fill_unknown(self._activities) or []
+
+    def activity_belief(self) -> dict[str, float]:
+        """The next-activity distribution given the day so far."""
+        return self.activity_model.predict_proba(tuple(self.activity_history()))
+
+    def should_act(self, choice: ObjectChoice) -> bool:
+        """Fetch now: an object was chosen and its probability reaches the action threshold."""
+        return choice.obj is not None and choice.confidence >= self.action_threshold
+
+    # -- prediction ------------------------------------------------------------------------
+    @property
+    def status(self) -> str:
+        return "ready" if self.days_learned > 0 else "learning"
 
     def predict(self) -> Prediction:
         """Next activity, the object likely needed, and whether the robot should act."""
-        history = tuple(self._activities)
-        belief = self.activity_model.predict_proba(history)
+        step = len(self._slots)
+        day = self._day_key or ""
+        if self.days_learned == 0:
+            return Prediction("learning", day, step, None, 0.0, None, 0.0, False, None, False, None)
+        belief = self.activity_belief()
         ranked = self.activity_model.ranked(belief)
         if not ranked:
-            return Prediction(self._day_key or "", len(history), None, 0.0, None, 0.0, False, None, False, None)
+            return Prediction(self.status, day, step, None, 0.0, None, 0.0, False, None, False, None)
         nxt = ranked[0]
         choice = self.chooser.choose_given(nxt, belief, run_context(*self._current_run()))
-        act = choice.obj is not None and choice.confidence >= self.action_threshold
-        return Prediction(self._day_key or "", len(history), nxt, belief[nxt], choice.obj, choice.confidence,
-                          choice.asked, choice.fallback, act, self.fetch_target(nxt, choice.obj))
+        if choice.fallback:
+            self.fallbacks[choice.fallback] += 1
+        return Prediction(self.status, day, step, nxt, belief[nxt], choice.obj, choice.confidence,
+                          choice.asked, choice.fallback, self.should_act(choice), self.fetch_target(nxt, choice.obj))
 
     def record_feedback(self, accepted: bool) -> None:
         self.feedback["accepted" if accepted else "refused"] += 1
@@ -132,21 +228,19 @@ class OnlineAssistant:
     # -- internals ---------------------------------------------------------------------------
     def _reset_day(self, key: str | None) -> None:
         self._day_key = key
-        self._minutes: list[int] = []
-        self._activities: list[str] = []
-        self._states: list[dict[str, str]] = []
-        if key is None:
-            self._last_time: dt.datetime | None = None
+        self._slots: list[int] = []
+        self._activities: list[str | None] = []
+        self._states: list[tuple[str, ...]] = []
 
-    def _append(self, minute: int, activity: str, state: Mapping[str, str]) -> None:
-        self._minutes.append(minute)
+    def _append(self, slot: int, activity: str | None, state: tuple[str, ...]) -> None:
+        self._slots.append(slot)
         self._activities.append(activity)
-        self._states.append(dict(state))
+        self._states.append(state)
 
     def current_day(self) -> Day:
-        objects = self.household.objects
-        return Day(f"live/{self._day_key}", tuple(self._minutes), tuple(self._activities),
-                   tuple(tuple(s[o] for o in objects) for s in self._states))
+        """The day so far (unknown activities filled as :meth:`activity_history` does)."""
+        minutes = tuple(self.day_start_minute + s * self.step_minutes for s in self._slots)
+        return Day(f"live/{self._day_key}", minutes, tuple(self.activity_history()), tuple(self._states))
 
     def _current_run(self) -> tuple[str | None, tuple[str, ...]]:
         if not self._activities:
@@ -156,7 +250,7 @@ class OnlineAssistant:
         return last.activity, last.objects
 
     def _learn_current_day(self) -> None:
-        if len(self._activities) < 2:
+        if len(self._activities) < 2 or fill_unknown(self._activities) is None:
             return
         self.learn([self.current_day()])
 
@@ -164,7 +258,7 @@ class OnlineAssistant:
         """Add whole days to both models (the same counts as training on them from the start)."""
         self.activity_model.partial_fit([d.activities for d in days])
         runs = [(r.activity, r.objects) for d in days for r in activity_runs(d, self.household.objects, self.alignment)]  # type: ignore[arg-type]
-        self.chooser.model.partial_fit(runs)
+        self.chooser.model.partial_fit(runs)  # type: ignore[attr-defined]
         self._count_targets(days)
         self.days_learned += len(days)
 
@@ -180,7 +274,13 @@ class OnlineAssistant:
         return max(sorted(counts), key=counts.__getitem__) if counts else None
 
     def stats(self) -> dict:
-        return {"household": self.household.name, "days_learned": self.days_learned, "observations": self.observations,
-                "current_day": self._day_key, "steps_today": len(self._activities), "feedback": dict(self.feedback),
-                "activities_known": len(getattr(self.activity_model, "classes_", ())),
-                "training_days": len(self.activity_model.training_data_)}
+        return {"household": self.household.name, "status": self.status, "days_learned": self.days_learned,
+                "observations": self.observations, "current_day": self._day_key, "steps_today": len(self._slots),
+                "feedback": dict(self.feedback), "activities_known": len(getattr(self.activity_model, "classes_", ())),
+                "training_days": len(self.activity_model.training_data_), "quarantined": self.quarantined,
+                "llm_fallbacks": dict(self.fallbacks)}
+
+
+def _instant(time: dt.datetime) -> dt.datetime:
+    """The UTC instant of ``time`` (naive = UTC, for library callers without a zone)."""
+    return time.astimezone(UTC) if time.tzinfo else time.replace(tzinfo=UTC)

@@ -1,11 +1,18 @@
-"""The Python client a robot program imports to talk to the GLOBE service (httpx)."""
+"""The Python client a robot program imports to talk to the GLOBE service (httpx).
+
+Every call sends the bearer token; any non-2xx answer raises :class:`ServiceError` with the
+status, the detail and the field the service named (also when the body is not JSON, e.g. from
+a reverse proxy).
+"""
 
 from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
+from globe.data.csv_logs import format_day
+from globe.data.records import Household
 from globe.errors import GlobeError, MissingExtraError
 
 
@@ -13,7 +20,7 @@ class ServiceError(GlobeError):
     """The service answered with an error status; ``field`` names the bad input if it said."""
 
     def __init__(self, status: int, detail: str, field: str | None = None) -> None:
-        super().__init__(f"HTTP {status}: {detail}")
+        super().__init__(f"HTTP {status}: {detail}" + (f" (field {field})" if field else ""))
         self.status, self.detail, self.field = status, detail, field
 
 
@@ -27,44 +34,75 @@ class ServicePrediction:
     act: bool
     fetch_to: str | None
     latency_s: float
+    status: str = "ready"
+    days_learned: int = 0
+    llm_fallback: str | None = None
+    step: int = 0
+    day: str = ""
+
+
+def household_payload(household: Household) -> dict[str, Any]:
+    """``nodes`` and ``days`` (the training days as day-file text) of a loaded household."""
+    nodes = [{"node": n.node, "class": n.cls, "category": n.category, "movable": n.movable, "start_location": n.start_location}
+             for n in household.nodes]
+    return {"nodes": nodes, "days": [format_day(d, household.objects) for d in household.train]}
 
 
 class GlobeClient:
-    def __init__(self, base_url: str, *, timeout_s: float = 30.0) -> None:
+    def __init__(self, base_url: str, *, token: str | None = None, timeout_s: float = 30.0) -> None:
         try:
             import httpx
         except ImportError as err:
             raise MissingExtraError("httpx", "service") from err
-        self._http = httpx.Client(base_url=base_url.rstrip("/"), timeout=timeout_s)
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        self._http = httpx.Client(base_url=base_url.rstrip("/"), timeout=timeout_s, headers=headers)
 
-    def _call(self, method: str, path: str, **kw: Any) -> Any:
+    def _request(self, method: str, path: str, **kw: Any):
         response = self._http.request(method, path, **kw)
-        if response.status_code >= 400:
+        if not 200 <= response.status_code < 300:
             try:
                 body = response.json()
             except ValueError:
-                body = {"detail": response.text}
+                body = None
+            if not isinstance(body, dict):
+                body = {"detail": response.text[:500] or response.reason_phrase}
             raise ServiceError(response.status_code, str(body.get("detail")), body.get("field"))
-        return response.json()
+        return response
+
+    def _call(self, method: str, path: str, **kw: Any) -> Any:
+        response = self._request(method, path, **kw)
+        return response.json() if response.content else None
 
     def health(self) -> dict:
         return self._call("GET", "/health")
 
-    def create_household(self, name: str, source: str) -> dict:
-        return self._call("POST", "/households", json={"name": name, "source": source})
+    def households(self) -> list[str]:
+        return self._call("GET", "/households")
 
-    def observe(self, household: str, time: dt.datetime, activity: str, locations: Mapping[str, str]) -> dict:
-        return self._call("POST", f"/households/{household}/observations",
-                          json={"time": time.isoformat(), "activity": activity, "locations": dict(locations)})
+    def create_household(self, name: str, nodes: Sequence[Mapping[str, Any]], days: Sequence[str] = (),
+                         timezone: str | None = None) -> dict:
+        body: dict[str, Any] = {"name": name, "nodes": list(nodes), "days": list(days)}
+        if timezone:
+            body["timezone"] = timezone
+        return self._call("POST", "/households", json=body)
+
+    def delete_household(self, name: str) -> None:
+        self._call("DELETE", f"/households/{name}")
+
+    def observe(self, household: str, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
+                id: str | None = None) -> dict:
+        body: dict[str, Any] = {"time": time.isoformat(), "activity": activity, "locations": dict(locations)}
+        if id is not None:
+            body["id"] = id
+        return self._call("POST", f"/households/{household}/observations", json=body)
 
     def prediction(self, household: str) -> ServicePrediction:
-        response = self._http.get(f"/households/{household}/prediction")
-        if response.status_code >= 400:
-            body = response.json()
-            raise ServiceError(response.status_code, str(body.get("detail")), body.get("field"))
+        response = self._request("GET", f"/households/{household}/prediction")
         p = response.json()
         return ServicePrediction(p["activity"], p["activity_probability"], p["object"], p["object_probability"],
-                                 p["llm_consulted"], p["act"], p["fetch_to"], response.elapsed.total_seconds())
+                                 p["llm_consulted"], p["act"], p["fetch_to"], response.elapsed.total_seconds(),
+                                 p.get("status", "ready"), p.get("days_learned", 0), p.get("llm_fallback"),
+                                 p.get("step", 0), p.get("day", ""))
 
     def feedback(self, household: str, obj: str, accepted: bool) -> dict:
         return self._call("POST", f"/households/{household}/feedback", json={"object": obj, "accepted": accepted})

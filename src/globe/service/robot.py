@@ -12,7 +12,7 @@ from typing import Callable, Protocol, Sequence
 from globe.data.records import Day, Household
 from globe.sequences.movements import extract_movements
 from globe.sequences.runs import run_bounds
-from globe.service.client import GlobeClient
+from globe.service.client import GlobeClient, ServicePrediction
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,16 +77,19 @@ def _timestamp(day_index: int, minute: int, base: dt.date) -> dt.datetime:
 
 
 def replay_days(client: GlobeClient, household_name: str, household: Household, days: Sequence[Day],
-                robot: RobotAdapter, *, base_date: dt.date = dt.date(2026, 1, 5), lead_window_steps: int = 6,
-                progress: Callable[[int], None] | None = None) -> AssistanceReport:
+                robot: RobotAdapter, *, base_date: dt.date | None = None, lead_window_steps: int = 6,
+                progress: Callable[[int], None] | None = None,
+                on_prediction: Callable[[int, int, ServicePrediction], None] | None = None) -> AssistanceReport:
     """Post every step of ``days`` as observations, ask for a prediction after each, and fetch
     when the service says to act. Returns the assistance metrics.
 
     A fetch at step t is *useful* if the object moves during the rest of the activity run that
     is under way at step t+1. A used object (a movement event) counts as *fetched in advance*
-    if it was fetched within ``lead_window_steps`` steps before it moved.
+    if it was fetched within ``lead_window_steps`` steps before it moved. ``on_prediction(day
+    index, step, prediction)`` sees every prediction (made after observing that step).
     """
     report = AssistanceReport()
+    base_date = base_date or dt.date.today()  # days run forward from today: the service needs a clock skew that covers them
     for d_index, day in enumerate(days):
         report.days += 1
         run_end = {t: e for s, e in run_bounds(day.activities) for t in range(s, e + 1)}
@@ -106,6 +109,8 @@ def replay_days(client: GlobeClient, household_name: str, household: Household, 
                            dict(zip(household.objects, day.locations[t])))
             pred = client.prediction(household_name)
             report.latencies_s.append(time.perf_counter() - started)
+            if on_prediction:
+                on_prediction(d_index, t, pred)
             report.steps += 1
             report.llm_consulted += pred.llm_consulted
             if pred.act and pred.object and pred.object not in pending and t + 1 < len(day):

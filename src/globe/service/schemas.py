@@ -1,40 +1,60 @@
-"""Typed request and response bodies of the HTTP service (pydantic; shown in the OpenAPI)."""
+"""Typed request and response bodies of the HTTP service (pydantic; shown in the OpenAPI).
+
+Label lengths, list sizes and the time are checked again against the configured limits by the
+app (the limits are configurable, these bounds are the hard ceilings)."""
 
 from __future__ import annotations
 
 import datetime as dt
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 
 class _Body(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+class NodeIn(_Body):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    node: str = Field(..., min_length=1, max_length=4096, description="class#id, the node's unique label")
+    cls: str = Field(..., alias="class", min_length=1, max_length=4096, description="the node's class")
+    category: str = Field(..., min_length=1, max_length=4096, description="Rooms, Furniture, ...")
+    movable: StrictBool | int = Field(..., description="true for objects the person moves")
+    start_location: str = Field(..., min_length=1, max_length=4096, description="node it is on or in at the start of a day")
+
+
 class HouseholdCreate(_Body):
     name: str = Field(..., min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$", description="household id")
-    source: str = Field(..., description="server-side folder in GLOBE's CSV format (nodes.csv, train/*.csv)")
+    timezone: str | None = Field(None, max_length=64, description="IANA time zone, e.g. Europe/Paris (default: the server's)")
+    nodes: list[NodeIn] = Field(..., min_length=1, description="the household's map: the rows of nodes.csv")
+    days: list[str] = Field(default_factory=list, description="optional training logs: the text of day files (minute,activity,...)")
 
 
 class HouseholdInfo(_Body):
     name: str
+    timezone: str
     objects: list[str]
-    training_days: int
+    days_learned: int
 
 
 class ObservationIn(_Body):
-    time: dt.datetime = Field(..., description="when it was observed (ISO 8601)")
-    activity: str = Field(..., min_length=1, description="what the person is doing")
-    locations: dict[str, str] = Field(default_factory=dict, description="object -> class#id of where it is (partial allowed)")
+    time: dt.datetime = Field(..., description="ISO 8601; naive = wall time in the household's zone, aware = converted")
+    activity: str | None = Field(None, max_length=4096, description="what the person is doing (null: unknown)")
+    locations: dict[str, str] = Field(default_factory=dict, description="object class -> node label where it is (partial allowed)")
+    id: str | None = Field(None, min_length=1, max_length=4096, description="client-chosen id: a retry with it returns the first answer")
 
 
 class ObservationAck(_Body):
-    id: int
+    id: str
     day: str
     step: int
+    duplicate: bool = False
 
 
 class PredictionOut(_Body):
+    status: str = Field(..., description="'learning' until a first day is learned, then 'ready'")
+    days_learned: int
     day: str
     step: int
     activity: str | None
@@ -43,13 +63,13 @@ class PredictionOut(_Body):
     object_probability: float
     llm_consulted: bool
     llm_fallback: str | None
-    act: bool = Field(..., description="fetch now: object probability >= the action threshold")
+    act: bool = Field(..., description="fetch now: object probability >= the action threshold (never while learning)")
     fetch_to: str | None = Field(None, description="where the object is usually taken during that activity")
 
 
 class FeedbackIn(_Body):
-    object: str
-    accepted: bool
+    object: str = Field(..., min_length=1, max_length=4096)
+    accepted: StrictBool
 
 
 class ErrorOut(_Body):

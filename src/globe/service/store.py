@@ -1,23 +1,29 @@
-"""SQLite persistence of the service: households, their training days, every observation.
+"""SQLite persistence of the service: households (map, time zone, training logs), every
+observation, feedback, and the hashes of access tokens.
 
-The schema is created and migrated here (``PRAGMA user_version``). Every accepted observation
-is committed before the service replies; on start-up the service rebuilds each household by
-re-counting its training days and replaying its observations, so a restart (or a kill in the
-middle of a request) resumes with the same model state and no acknowledged observation lost.
+The schema is created and migrated here (``PRAGMA user_version``; ``application_id`` marks the
+file as GLOBE's). A file that is not a GLOBE database, or one written by a newer GLOBE, is
+refused with a clear message instead of being altered. Every accepted observation is committed
+before the service replies. The file is watched: if it disappears or is replaced while the
+service runs, writes fail with :class:`StoreUnavailableError` (503) rather than vanishing.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import json
+import os
 import sqlite3
 import threading
-from dataclasses import asdict
+import zlib
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, Sequence
 
 from globe.data.records import Day, Household, Node
-from globe.errors import StoreError
+from globe.errors import StoreError, StoreUnavailableError
+
+APPLICATION_ID = 0x474C4F42  # "GLOB"
 
 MIGRATIONS: list[str] = [
     # 1: the first schema
@@ -54,15 +60,71 @@ MIGRATIONS: list[str] = [
         received_at TEXT NOT NULL
     );
     """,
+    # 3: time zones, unknown activities, client ids (idempotent retries), quarantine, tokens
+    f"""
+    ALTER TABLE households ADD COLUMN timezone TEXT NOT NULL DEFAULT 'UTC';
+    CREATE TABLE observations_v3 (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        household TEXT NOT NULL REFERENCES households(name),
+        time TEXT NOT NULL,
+        activity TEXT,
+        locations TEXT NOT NULL,
+        received_at TEXT NOT NULL,
+        client_id TEXT,
+        ack TEXT,
+        quarantined INTEGER NOT NULL DEFAULT 0
+    );
+    INSERT INTO observations_v3 (id, household, time, activity, locations, received_at)
+        SELECT id, household, time, activity, locations, received_at FROM observations;
+    DROP TABLE observations;
+    ALTER TABLE observations_v3 RENAME TO observations;
+    CREATE INDEX observations_by_household ON observations(household, id);
+    CREATE UNIQUE INDEX observations_by_client_id ON observations(household, client_id) WHERE client_id IS NOT NULL;
+    CREATE TABLE tokens (
+        id TEXT PRIMARY KEY,
+        hash TEXT NOT NULL UNIQUE,
+        household TEXT,
+        admin INTEGER NOT NULL,
+        created_at TEXT NOT NULL,
+        revoked_at TEXT
+    );
+    PRAGMA application_id = {APPLICATION_ID};
+    """,
 ]
+SCHEMA_VERSION = len(MIGRATIONS)
 
 
 def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat()
 
 
+@dataclass(frozen=True, slots=True)
+class HouseholdRow:
+    name: str
+    timezone: str
+    created_at: dt.datetime  # aware (UTC)
+
+
+@dataclass(frozen=True, slots=True)
+class StoredObservation:
+    id: int
+    time: str
+    activity: str | None
+    locations: str  # JSON
+    received_at: str
+
+
+@dataclass(frozen=True, slots=True)
+class TokenRow:
+    id: str
+    household: str | None
+    admin: bool
+    created_at: str
+    revoked_at: str | None
+
+
 class Store:
-    """One SQLite file (WAL mode); a lock serialises writers across request threads."""
+    """One SQLite file (WAL mode); a lock serialises access across request threads."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
@@ -70,12 +132,35 @@ class Store:
         self._lock = threading.Lock()
         try:
             self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
+            self._check_identity()
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA foreign_keys=ON")
+            self._db.execute("PRAGMA busy_timeout=5000")
             self.migrate()
-        except sqlite3.Error as err:
-            raise StoreError(f"{self.path}: cannot open the database: {err}") from err
+        except sqlite3.DatabaseError as err:
+            self._db.close()
+            raise StoreError(f"{self.path}: not a GLOBE database (SQLite says: {err})") from err
+        except StoreError:
+            self._db.close()
+            raise
+        self._stat = self._file_id()
+
+    # -- identity and schema -------------------------------------------------------------------
+    def _check_identity(self) -> None:
+        app_id = self._db.execute("PRAGMA application_id").fetchone()[0]
+        version = self._db.execute("PRAGMA user_version").fetchone()[0]
+        tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if app_id == APPLICATION_ID:
+            if version > SCHEMA_VERSION:
+                raise StoreError(f"{self.path}: database schema version {version} is newer than this GLOBE's "
+                                 f"({SCHEMA_VERSION}); upgrade GLOBE, or use another --db file")
+            return
+        legacy = app_id == 0 and 1 <= version < SCHEMA_VERSION and "households" in tables
+        fresh = app_id == 0 and version == 0 and not tables
+        if not (legacy or fresh):
+            raise StoreError(f"{self.path}: not a GLOBE database (application id {app_id:#x}, schema version {version}, "
+                             f"{len(tables)} tables); refusing to change it")
 
     @property
     def version(self) -> int:
@@ -95,68 +180,169 @@ class Store:
                     self._db.execute("ROLLBACK")
                     raise
 
-    def _write(self, sql: str, params: tuple) -> int:
-        with self._lock:
-            try:
-                cur = self._db.execute(sql, params)
-                return cur.lastrowid or 0
-            except sqlite3.Error as err:
-                raise StoreError(f"database write failed: {err}") from err
+    def _file_id(self) -> tuple[int, int] | None:
+        try:
+            st = os.stat(self.path)
+        except OSError:
+            return None
+        return st.st_dev, st.st_ino
 
-    # -- households --------------------------------------------------------------------------
-    def add_household(self, household: Household) -> None:
+    def problem(self) -> str | None:
+        """Why writes must stop (the file is gone or was replaced), or None."""
+        now = self._file_id()
+        if now is None:
+            return f"database file {self.path} has disappeared"
+        if now != self._stat:
+            return f"database file {self.path} was replaced while the service ran"
+        return None
+
+    def _writable(self) -> None:
+        reason = self.problem()
+        if reason:
+            raise StoreUnavailableError(f"{reason}; restart the service (writes are refused so nothing is lost silently)")
+
+    def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]]) -> int:
         with self._lock:
+            self._writable()
             try:
                 self._db.execute("BEGIN IMMEDIATE")
-                self._db.execute("INSERT INTO households (name, nodes, objects, created_at) VALUES (?, ?, ?, ?)",
-                                 (household.name, json.dumps([asdict(n) for n in household.nodes]),
-                                  json.dumps(household.objects), _now()))
-                self._db.executemany("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)",
-                                     [(household.name, i, json.dumps(asdict(d))) for i, d in enumerate(household.train)])
+                last = 0
+                for sql, params in statements:
+                    last = self._db.execute(sql, params).lastrowid or last
                 self._db.execute("COMMIT")
+                return last
             except sqlite3.Error as err:
-                self._db.execute("ROLLBACK")
-                raise StoreError(f"cannot store household {household.name!r}: {err}") from err
+                if self._db.in_transaction:
+                    self._db.execute("ROLLBACK")
+                raise StoreError(f"cannot {what}: {err}") from err
 
-    def household_names(self) -> list[str]:
+    def _read(self, sql: str, params: tuple = ()) -> list[tuple]:
         with self._lock:
-            return [r[0] for r in self._db.execute("SELECT name FROM households ORDER BY created_at, name")]
+            try:
+                return self._db.execute(sql, params).fetchall()
+            except sqlite3.Error as err:
+                raise StoreError(f"database read failed: {err}") from err
 
-    def load_household(self, name: str) -> Household:
-        with self._lock:
-            row = self._db.execute("SELECT nodes, objects FROM households WHERE name = ?", (name,)).fetchone()
-            days = [r[0] for r in self._db.execute(
-                "SELECT day FROM training_days WHERE household = ? ORDER BY position", (name,))]
-        nodes = tuple(Node(**n) for n in json.loads(row[0]))
-        train = tuple(_day(json.loads(d)) for d in days)
-        return Household(name, nodes, tuple(json.loads(row[1])), train, (), f"sqlite:{self.path}")
+    # -- households --------------------------------------------------------------------------
+    def add_household(self, household: Household, timezone: str, day_texts: Sequence[str]) -> None:
+        """Store the map and the training days (as their CSV text: compact, re-validated on load)."""
+        stmts: list[tuple[str, tuple]] = [
+            ("INSERT INTO households (name, nodes, objects, created_at, timezone) VALUES (?, ?, ?, ?, ?)",
+             (household.name, json.dumps([asdict(n) for n in household.nodes]), json.dumps(household.objects), _now(), timezone)),
+        ]
+        stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)",
+                   (household.name, i, zlib.compress(text.encode("utf-8"), 1))) for i, text in enumerate(day_texts)]
+        self._transaction(f"store household {household.name!r}", stmts)
+
+    def households(self) -> list[HouseholdRow]:
+        rows = self._read("SELECT name, timezone, created_at FROM households ORDER BY created_at, name")
+        return [HouseholdRow(n, tz, _aware(c)) for n, tz, c in rows]
+
+    def household(self, name: str) -> HouseholdRow | None:
+        rows = self._read("SELECT name, timezone, created_at FROM households WHERE name = ?", (name,))
+        return HouseholdRow(rows[0][0], rows[0][1], _aware(rows[0][2])) if rows else None
+
+    def count_households(self) -> int:
+        return self._read("SELECT COUNT(*) FROM households")[0][0]
+
+    def load_map(self, name: str) -> tuple[tuple[Node, ...], tuple[str, ...]]:
+        rows = self._read("SELECT nodes, objects FROM households WHERE name = ?", (name,))
+        if not rows:
+            raise StoreError(f"household {name!r} is not in the database")
+        nodes = tuple(Node(**n) for n in json.loads(rows[0][0]))
+        return nodes, tuple(json.loads(rows[0][1]))
+
+    def training_days(self, name: str) -> list[str]:
+        """Each stored day: CSV text (stored zlib-compressed: a tenth of the size; or, from schema
+        1-2 files, a JSON-encoded :class:`Day`)."""
+        rows = self._read("SELECT day FROM training_days WHERE household = ? ORDER BY position", (name,))
+        return [_text(r[0]) for r in rows]
+
+    def delete_household(self, name: str) -> None:
+        """Everything about a household, in one transaction (the right to be forgotten)."""
+        self._transaction(f"delete household {name!r}", [
+            (f"DELETE FROM {table} WHERE household = ?", (name,))
+            for table in ("tokens", "feedback", "observations", "training_days")
+        ] + [("DELETE FROM households WHERE name = ?", (name,))])
 
     # -- observations and feedback ----------------------------------------------------------
-    def add_observation(self, household: str, time: dt.datetime, activity: str, locations: dict[str, str]) -> int:
-        return self._write("INSERT INTO observations (household, time, activity, locations, received_at) VALUES (?, ?, ?, ?, ?)",
-                           (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now()))
+    def add_observation(self, household: str, time: dt.datetime, activity: str | None, locations: dict[str, str],
+                        client_id: str | None, ack: dict) -> int:
+        return self._transaction("store the observation", [(
+            "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id, json.dumps(ack)))])
 
-    def observations(self, household: str) -> Iterator[tuple[dt.datetime, str, dict[str, str]]]:
-        with self._lock:
-            rows = self._db.execute("SELECT time, activity, locations FROM observations WHERE household = ? ORDER BY id",
-                                    (household,)).fetchall()
-        for time, activity, locations in rows:
-            yield dt.datetime.fromisoformat(time), activity, json.loads(locations)
+    def find_observation(self, household: str, client_id: str) -> tuple[int, dict] | None:
+        rows = self._read("SELECT id, ack FROM observations WHERE household = ? AND client_id = ?", (household, client_id))
+        if not rows:
+            return None
+        return rows[0][0], json.loads(rows[0][1] or "{}")
+
+    def observations(self, household: str) -> Iterator[StoredObservation]:
+        rows = self._read("SELECT id, time, activity, locations, received_at FROM observations "
+                          "WHERE household = ? AND quarantined = 0 ORDER BY id", (household,))
+        for r in rows:
+            yield StoredObservation(*r)
+
+    def quarantine(self, ids: Sequence[int]) -> None:
+        """Set rows aside that cannot be replayed (kept for inspection, never replayed again)."""
+        if ids:
+            self._transaction("quarantine observations", [("UPDATE observations SET quarantined = 1 WHERE id = ?", (i,)) for i in ids])
+
+    def quarantined(self, household: str) -> int:
+        return self._read("SELECT COUNT(*) FROM observations WHERE household = ? AND quarantined = 1", (household,))[0][0]
 
     def add_feedback(self, household: str, obj: str, accepted: bool) -> int:
-        return self._write("INSERT INTO feedback (household, object, accepted, received_at) VALUES (?, ?, ?, ?)",
-                           (household, obj, int(accepted), _now()))
+        return self._transaction("store the feedback", [(
+            "INSERT INTO feedback (household, object, accepted, received_at) VALUES (?, ?, ?, ?)",
+            (household, obj, int(accepted), _now()))])
 
     def feedback(self, household: str) -> list[bool]:
+        return [bool(r[0]) for r in self._read("SELECT accepted FROM feedback WHERE household = ? ORDER BY id", (household,))]
+
+    # -- tokens ------------------------------------------------------------------------------
+    def add_token(self, token_id: str, digest: str, household: str | None, admin: bool) -> None:
+        self._transaction("store the token", [(
+            "INSERT INTO tokens (id, hash, household, admin, created_at) VALUES (?, ?, ?, ?, ?)",
+            (token_id, digest, household, int(admin), _now()))])
+
+    def token(self, digest: str) -> TokenRow | None:
+        rows = self._read("SELECT id, household, admin, created_at, revoked_at FROM tokens WHERE hash = ?", (digest,))
+        return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
+
+    def revoke_token(self, token_id: str | None = None, digest: str | None = None) -> int:
+        """Revoke by id or hash; returns how many tokens were revoked (0 if none matched)."""
         with self._lock:
-            return [bool(r[0]) for r in self._db.execute(
-                "SELECT accepted FROM feedback WHERE household = ? ORDER BY id", (household,))]
+            self._writable()
+            cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) AND revoked_at IS NULL",
+                                   (_now(), token_id, digest))
+            return cur.rowcount
+
+    def tokens(self) -> list[TokenRow]:
+        rows = self._read("SELECT id, household, admin, created_at, revoked_at FROM tokens ORDER BY created_at")
+        return [TokenRow(r[0], r[1], bool(r[2]), r[3], r[4]) for r in rows]
 
     def close(self) -> None:
         with self._lock:
             self._db.close()
 
 
-def _day(payload: dict) -> Day:
-    return Day(payload["name"], tuple(payload["minutes"]), tuple(payload["activities"]),
-               tuple(tuple(s) for s in payload["locations"]), payload.get("source", ""))
+def _aware(text: str) -> dt.datetime:
+    t = dt.datetime.fromisoformat(text)
+    return t if t.tzinfo else t.replace(tzinfo=dt.timezone.utc)
+
+
+def _text(stored: bytes | str) -> str:
+    """A stored day's text; a damaged blob becomes "" (then refused, logged and set aside by the loader)."""
+    if not isinstance(stored, bytes):
+        return stored
+    try:
+        return zlib.decompress(stored).decode("utf-8")
+    except (zlib.error, UnicodeDecodeError):
+        return ""
+
+
+def legacy_day(payload: str) -> Day:
+    """A day stored by schema 1-2 (a JSON-encoded :class:`Day`)."""
+    d = json.loads(payload)
+    return Day(d["name"], tuple(d["minutes"]), tuple(d["activities"]), tuple(tuple(s) for s in d["locations"]), d.get("source", ""))

@@ -1,0 +1,222 @@
+"""The assistance service under load, over real loopback HTTP against a real ``globe serve``.
+
+Prints, with the targets of issue 10 (before: ~38 MB and ~0.8 s per household, ~6 ms per observation):
+- memory: RSS growth of the server process per created (and built) HOMER+ household (target <= 4 MB);
+- creation: time of ``POST /households`` with a HOMER+ map and its 65 training days (target <= 0.1 s);
+- start-up: a database of 100 households with a month of observations each: time until the service
+  answers (target <= 2 s), and until every household is built (replayed);
+- latency and throughput of observations and predictions at 1, 4 and 8 concurrent clients.
+
+Usage: python benchmarks/bench_service.py [--households 30] [--startup-households 100] [--startup-days 30]
+       [--steps 218] [--data DIR]
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import signal
+import socket
+import sqlite3
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import httpx
+
+from common import setup
+from globe.config import GlobeConfig
+from globe.service.auth import create_token
+from globe.service.client import GlobeClient, household_payload
+from globe.service.registry import Registry
+from globe.service.store import Store
+from globe.service.upload import household_from, parse_nodes
+
+TARGET_MB, TARGET_CREATE_S, TARGET_STARTUP_S, BEFORE_OBS_MS = 4.0, 0.1, 2.0, 6.0
+BASE = dt.datetime.combine(dt.date.today() - dt.timedelta(days=200), dt.time())
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+class Service:
+    def __init__(self, db: Path, env: dict[str, str]) -> None:
+        self.db, self.port = db, free_port()
+        self.admin = create_token(db, admin=True)
+        self.env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D", **env)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def start(self) -> float:
+        """Start; returns seconds until /health answers (process start and imports included)."""
+        started = time.perf_counter()
+        self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port)],
+                                     env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        while True:
+            try:
+                if httpx.get(self.url + "/health", timeout=1).status_code == 200:
+                    return time.perf_counter() - started
+            except httpx.HTTPError:
+                time.sleep(0.02)
+            if self.proc.poll() is not None:
+                raise SystemExit("the service exited")
+
+    def stop(self) -> None:
+        self.proc.send_signal(signal.SIGTERM)
+        self.proc.wait(timeout=30)
+
+
+def memory_and_creation(homes, n: int, tmp: Path) -> None:
+    svc = Service(tmp / "memory.sqlite3", {"GLOBE_SERVICE__MAX_BUILT_HOUSEHOLDS": str(n + 10), "GLOBE_SERVICE__PRELOAD": "false"})
+    svc.start()
+    payloads = [household_payload(h) for h in homes]
+    with GlobeClient(svc.url, token=svc.admin, timeout_s=120) as c:
+        c.create_household("warm-up", **payloads[0])  # first-use imports and allocations are not a household's cost
+        c.prediction("warm-up")
+        c.delete_household("warm-up")
+        before = rss_mb(svc.proc.pid)
+        times = []
+        for i in range(n):
+            t = time.perf_counter()
+            c.create_household(f"h{i:03d}", **payloads[i % len(payloads)])
+            times.append(time.perf_counter() - t)
+        for i in range(n):
+            c.prediction(f"h{i:03d}")
+        after = rss_mb(svc.proc.pid)
+    svc.stop()
+    per = (after - before) / n
+    med = statistics.median(times)
+    size = statistics.mean(len(json.dumps(p)) for p in payloads) / 2**20
+    print(f"memory per HOMER+ household   {per:7.2f} MB   (RSS {before:.0f} -> {after:.0f} MB over {n} households)"
+          f"   target <= {TARGET_MB} MB: {'met' if per <= TARGET_MB else 'NOT met'}; before ~38 MB: {38 / per:.1f}x less")
+    print(f"creation per HOMER+ household {med:7.3f} s    (median of {n}; {size:.1f} MB request; p95 "
+          f"{sorted(times)[int(0.95 * (n - 1))]:.3f} s)   target <= {TARGET_CREATE_S} s: {'met' if med <= TARGET_CREATE_S else 'NOT met'};"
+          f" before ~0.8 s: {0.8 / med:.1f}x faster")
+
+
+def startup(homes, n: int, days: int, tmp: Path) -> None:
+    """A database of ``n`` households with ``days`` days of observations each, written directly."""
+    db = tmp / "startup.sqlite3"
+    store = Store(db)
+    payloads = [household_payload(h) for h in homes]
+    for i in range(n):
+        home, p = homes[i % len(homes)], payloads[i % len(homes)]
+        h = household_from(f"h{i:03d}", parse_nodes(p["nodes"]), p["days"])
+        store.add_household(h, "UTC", p["days"])
+    store.close()
+    created = dt.datetime.now(dt.timezone.utc)
+    rows = []
+    for i in range(n):
+        home = homes[i % len(homes)]
+        source = (home.train + home.test)[:days]
+        for d, day in enumerate(source):
+            for t in range(len(day)):
+                time_ = BASE + dt.timedelta(days=d, minutes=day.minutes[t])
+                rows.append((f"h{i:03d}", time_.isoformat(), day.activities[t], json.dumps(dict(zip(home.objects, day.locations[t]))),
+                             created.isoformat()))
+    db_ = sqlite3.connect(db)
+    db_.execute("UPDATE households SET created_at = ?", ((BASE - dt.timedelta(days=1)).replace(tzinfo=dt.timezone.utc).isoformat(),))
+    db_.executemany("INSERT INTO observations (household, time, activity, locations, received_at) VALUES (?, ?, ?, ?, ?)", rows)
+    db_.commit()
+    db_.close()
+    cfg = GlobeConfig().with_overrides({"llm.backend": "none", "service.max_clock_skew": "P400D", "service.max_built_households": n})
+    t0 = time.perf_counter()
+    store = Store(db)
+    reg = Registry(store, cfg, None)
+    reg.load_all()
+    ready = time.perf_counter() - t0
+    reg.warm_up()
+    built = time.perf_counter() - t0
+    assert reg.built() == n and all(not reg.get(name).quarantined for name in reg.names())
+    store.close()
+    svc = Service(db, {"GLOBE_SERVICE__PRELOAD": "true"})
+    process = svc.start()
+    svc.stop()
+    print(f"start-up, {n} households x {days} days ({len(rows)} observations, {db.stat().st_size / 2**20:.0f} MB):")
+    print(f"  ready to serve (in process)   {ready:7.3f} s   target <= {TARGET_STARTUP_S} s: {'met' if ready <= TARGET_STARTUP_S else 'NOT met'}")
+    print(f"  ready to serve (new process)  {process:7.3f} s   (Python start and imports included)")
+    print(f"  every household built         {built:7.3f} s   (background warm-up; a request builds its household first)")
+
+
+def load(homes, steps: int, tmp: Path) -> None:
+    svc = Service(tmp / "load.sqlite3", {"GLOBE_SERVICE__PRELOAD": "false"})
+    svc.start()
+    payloads = [household_payload(h) for h in homes]
+    with GlobeClient(svc.url, token=svc.admin, timeout_s=120) as c:
+        for i in range(8):
+            c.create_household(f"c{i}", **payloads[i % len(payloads)])
+    print(f"{'clients':>7s} {'obs median ms':>14s} {'obs p95 ms':>11s} {'pred median ms':>15s} {'requests/s':>11s}   before: ~{BEFORE_OBS_MS} ms per observation")
+    offset = 0
+    for clients in (1, 4, 8):
+        obs_lat: list[float] = []
+        pred_lat: list[float] = []
+        lock = threading.Lock()
+
+        def work(i: int, offset: int = offset, lock: threading.Lock = lock, obs_lat: list = obs_lat,
+                 pred_lat: list = pred_lat) -> None:
+            home = homes[i % len(homes)]
+            days = home.test
+            mine_o, mine_p = [], []
+            with GlobeClient(svc.url, token=svc.admin) as c:
+                for k in range(steps):
+                    d, t = divmod(k, len(days[0]))
+                    day = days[d % len(days)]
+                    t = min(t, len(day) - 1)
+                    when = BASE + dt.timedelta(days=offset + d, minutes=day.minutes[t])
+                    s = time.perf_counter()
+                    c.observe(f"c{i}", when, day.activities[t], dict(zip(home.objects, day.locations[t])))
+                    mine_o.append(time.perf_counter() - s)
+                    s = time.perf_counter()
+                    c.prediction(f"c{i}")
+                    mine_p.append(time.perf_counter() - s)
+            with lock:
+                obs_lat.extend(mine_o)
+                pred_lat.extend(mine_p)
+
+        threads = [threading.Thread(target=work, args=(i,)) for i in range(clients)]
+        started = time.perf_counter()
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+        wall = time.perf_counter() - started
+        offset += steps // 100 + 2
+        o = sorted(obs_lat)
+        print(f"{clients:7d} {1000 * statistics.median(o):14.2f} {1000 * o[int(0.95 * (len(o) - 1))]:11.2f} "
+              f"{1000 * statistics.median(pred_lat):15.2f} {(len(obs_lat) + len(pred_lat)) / wall:11.0f}")
+    svc.stop()
+
+
+def main() -> None:
+    _, homes, args = setup(__doc__, {
+        "--households": {"type": int, "default": 30, "help": "households created for the memory figure"},
+        "--startup-households": {"type": int, "default": 100, "help": "households in the start-up database"},
+        "--startup-days": {"type": int, "default": 30, "help": "days of observations per household there"},
+        "--steps": {"type": int, "default": 218, "help": "observations (and predictions) per client"},
+    })
+    print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (figures are wall-clock)")
+    with tempfile.TemporaryDirectory() as tmp:
+        memory_and_creation(homes, args.households, Path(tmp))
+        startup(homes, args.startup_households, args.startup_days, Path(tmp))
+        load(homes, args.steps, Path(tmp))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,103 @@
+"""Administration of a service database on the server's own machine: ``globe token create|revoke|list``
+and ``globe household import`` (a folder on this disk; never offered over HTTP)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from globe.cli.common import console, out
+from globe.errors import DataError
+
+DbOption = Annotated[Path, typer.Option("--db", help="the service's SQLite file (created if missing)")]
+
+token_app = typer.Typer(help="Access tokens of the assistance service.", no_args_is_help=True)
+household_app = typer.Typer(help="Households of the assistance service's database.", no_args_is_help=True)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``globe token`` and ``globe household`` to the main application."""
+    app.add_typer(token_app, name="token")
+    app.add_typer(household_app, name="household")
+
+
+@token_app.command("create")
+def token_create(
+    db: DbOption,
+    admin: Annotated[bool, typer.Option("--admin", help="may create, list and delete households")] = False,
+    household: Annotated[str | None, typer.Option("--household", help="reaches this household only")] = None,
+) -> None:
+    """Print a new token once (the database keeps only its hash)."""
+    from globe.service.auth import issue
+    from globe.service.store import Store
+
+    if admin == (household is not None):
+        raise DataError("give exactly one of --admin and --household NAME", field="household")
+    store = Store(db)
+    try:
+        token, token_id = issue(store, household=household, admin=admin)
+    finally:
+        store.close()
+    console.print(f"token {token_id} ({'admin' if admin else 'household ' + str(household)}); it is shown only now:")
+    out.print(token, highlight=False, soft_wrap=True)
+
+
+@token_app.command("revoke")
+def token_revoke(db: DbOption, token: Annotated[str, typer.Argument(help="the token, or its id from 'globe token list'")]) -> None:
+    """Revoke a token (effective at once, also in a running service)."""
+    from globe.service.auth import revoke
+    from globe.service.store import Store
+
+    store = Store(db)
+    try:
+        n = revoke(store, token)
+    finally:
+        store.close()
+    if not n:
+        raise DataError("no such active token", field="token")
+    console.print("revoked")
+
+
+@token_app.command("list")
+def token_list(db: DbOption) -> None:
+    """Tokens by id (never the tokens themselves)."""
+    from globe.service.store import Store
+
+    store = Store(db)
+    try:
+        rows = store.tokens()
+    finally:
+        store.close()
+    for r in rows:
+        scope = "admin" if r.admin else f"household {r.household}"
+        out.print(f"{r.id}  {scope:30s}  created {r.created_at}" + (f"  revoked {r.revoked_at}" if r.revoked_at else ""))
+
+
+@household_app.command("import")
+def household_import(
+    db: DbOption,
+    name: Annotated[str, typer.Option("--name", help="household id in the service")],
+    folder: Annotated[Path, typer.Argument(help="folder with nodes.csv and optional train/*.csv")],
+    timezone: Annotated[str | None, typer.Option("--timezone", help="IANA zone (default: the server's)")] = None,
+) -> None:
+    """Import a household folder from this machine's disk into the database."""
+    from globe.data.csv_logs import day_files, read_nodes
+    from globe.service.registry import check_timezone
+    from globe.service.store import Store
+    from globe.service.upload import household_from
+
+    nodes = read_nodes(folder / "nodes.csv")
+    texts = [f.read_text(encoding="utf-8-sig") for f in day_files(folder / "train")] if (folder / "train").is_dir() else []
+    household = household_from(name, nodes, texts)
+    objects, days = household.objects, household.train
+    tz = check_timezone(timezone)
+    store = Store(db)
+    try:
+        if store.household(name) is not None:
+            raise DataError(f"household {name!r} exists already", field="name")
+        store.add_household(household, tz, texts)
+    finally:
+        store.close()
+    console.print(f"imported household {name!r}: {len(objects)} objects, {len(days)} training days, time zone {tz}")

@@ -1,0 +1,77 @@
+"""Time in the service: each household lives in one IANA time zone.
+
+A naive time is a wall-clock time in the household's zone; an aware time is converted to it,
+so a robot may send either (or mix them). A time is refused (422, field ``time``) when it lies
+more than ``max_clock_skew`` ahead of the server clock, or before the household's creation minus
+that skew: one glitched clock must not lock a household's history or poison its replay.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+from pathlib import Path
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+
+from globe.errors import DataError
+
+UTC = dt.timezone.utc
+
+
+def server_timezone() -> str:
+    """The IANA name of the server's zone ($TZ, else /etc/localtime's target, else UTC)."""
+    name = os.environ.get("TZ", "").lstrip(":")
+    if name and _valid(name):
+        return name
+    try:
+        target = str(Path("/etc/localtime").resolve())
+        if "zoneinfo/" in target:
+            name = target.split("zoneinfo/", 1)[1]
+            if _valid(name):
+                return name
+    except OSError:
+        pass
+    return "UTC"
+
+
+def _valid(name: str) -> bool:
+    try:
+        ZoneInfo(name)
+        return True
+    except (ZoneInfoNotFoundError, ValueError, OSError):
+        return False
+
+
+def zone(name: str, field: str = "timezone") -> ZoneInfo:
+    """The zone called ``name``; a :class:`DataError` naming ``field`` if there is none."""
+    if not name or len(name) > 64 or not _valid(name):
+        raise DataError(f"unknown IANA time zone {name[:64]!r} (e.g. 'Europe/Paris', 'UTC')", field=field)
+    return ZoneInfo(name)
+
+
+def to_zone(time: dt.datetime, tz: ZoneInfo) -> dt.datetime:
+    """An aware time in ``tz``: naive = wall time there (the earlier one if ambiguous)."""
+    try:
+        local = time.replace(tzinfo=tz) if time.tzinfo is None else time.astimezone(tz)
+        local.astimezone(UTC)  # the instant must exist too (year 1 or 9999 near the edges may not)
+    except (OverflowError, ValueError) as err:
+        raise DataError(f"time {time.isoformat()} cannot be placed in {tz.key}: {err}", field="time") from None
+    return local
+
+
+def check_bounds(time: dt.datetime, *, created: dt.datetime, now: dt.datetime, skew: dt.timedelta) -> None:
+    """Refuse a time outside [created - skew, now + skew] (all aware)."""
+    try:
+        lower, upper = created - skew, now + skew
+    except OverflowError:  # pragma: no cover - skew is bounded by the configuration
+        lower, upper = dt.datetime.min.replace(tzinfo=UTC), dt.datetime.max.replace(tzinfo=UTC)
+    if time > upper:
+        raise DataError(f"time {time.isoformat()} is more than {skew} ahead of the server clock ({now.isoformat()}); "
+                        "check the robot's clock", field="time")
+    if time < lower:
+        raise DataError(f"time {time.isoformat()} is before the household was created ({created.isoformat()}) "
+                        f"minus the allowed clock skew {skew}", field="time")
+
+
+def utcnow() -> dt.datetime:
+    return dt.datetime.now(UTC)

@@ -1,0 +1,56 @@
+"""The store: a database written by the previous schema (2) migrates and replays; training days
+are stored compactly and read back identically."""
+
+import datetime as dt
+import json
+import sqlite3
+from dataclasses import asdict
+
+from globe.config import GlobeConfig
+from globe.service.registry import Registry
+from globe.service.store import APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION, Store
+
+
+def test_a_schema_2_database_migrates_and_replays(tmp_path, households):
+    h = households["B"]
+    path = tmp_path / "old.sqlite3"
+    db = sqlite3.connect(path, isolation_level=None)
+    for number, script in enumerate(MIGRATIONS[:2], start=1):
+        for statement in filter(str.strip, script.split(";")):
+            db.execute(statement)
+        db.execute(f"PRAGMA user_version = {number}")
+    created = (dt.datetime.now(dt.timezone.utc) - dt.timedelta(days=30)).isoformat()
+    db.execute("INSERT INTO households VALUES (?, ?, ?, ?)", ("B", json.dumps([asdict(n) for n in h.nodes]), json.dumps(h.objects), created))
+    for i, d in enumerate(h.train[:3]):
+        db.execute("INSERT INTO training_days VALUES (?, ?, ?)", ("B", i, json.dumps(asdict(d))))
+    base = dt.datetime.now() - dt.timedelta(days=10)
+    day = h.test[0]
+    for t in range(12):  # naive times, as schema 2 stored them
+        db.execute("INSERT INTO observations (household, time, activity, locations, received_at) VALUES (?, ?, ?, ?, ?)",
+                   ("B", (base.replace(hour=0, minute=0) + dt.timedelta(minutes=day.minutes[t])).isoformat(), day.activities[t],
+                    json.dumps(dict(zip(h.objects, day.locations[t]))), dt.datetime.now(dt.timezone.utc).isoformat()))
+    db.close()
+    store = Store(path)
+    assert store.version == SCHEMA_VERSION
+    assert store._db.execute("PRAGMA application_id").fetchone()[0] == APPLICATION_ID
+    registry = Registry(store, GlobeConfig(), None)
+    registry.load_all()
+    a = registry.get("B")
+    assert a.days_learned == 3 and a.observations == 12 and a.quarantined == 0
+    assert store.household("B").timezone == "UTC"
+    store.close()
+
+
+def test_training_days_are_stored_compressed_and_read_back(tmp_path, households):
+    from globe.data.csv_logs import format_day
+    from globe.service.client import household_payload
+    from globe.service.upload import household_from, parse_nodes
+
+    h = households["A"]
+    payload = household_payload(h)
+    texts = [format_day(d, h.objects) for d in h.train]
+    store = Store(tmp_path / "s.sqlite3")
+    store.add_household(household_from("A", parse_nodes(payload["nodes"]), texts), "Europe/Paris", texts)
+    assert store.training_days("A") == texts
+    store.close()  # checkpoints the write-ahead log into the file
+    assert (tmp_path / "s.sqlite3").stat().st_size < sum(map(len, texts)) / 4

@@ -1,0 +1,64 @@
+"""Uploaded maps and day logs follow exactly the rules of files on disk: the fast path of
+``parse_day`` gives the data layer's result, and its messages for rows it does not accept."""
+
+import random
+
+import pytest
+
+from globe.data.csv_logs import format_day, parse_day_text
+from globe.errors import DataError
+from globe.service.client import household_payload
+from globe.service.upload import household_from, parse_day, parse_nodes
+
+
+def outcome(parse, *args):
+    try:
+        day, lines = parse(*args)
+        return ("ok", day.minutes, day.activities, day.locations, lines)
+    except DataError as err:
+        return ("error", str(err))
+
+
+def test_the_fast_path_equals_the_data_layer_on_every_homer_day(households):
+    for h in households.values():
+        objects, locations = h.objects, frozenset(n.node for n in h.nodes)
+        owners = {n.cls: n.node for n in h.nodes if n.movable}
+        for d in h.train + h.test:
+            text = format_day(d, objects)
+            assert outcome(parse_day, text, objects, locations, "d", owners) == \
+                outcome(parse_day_text, text, objects, locations, "d", "d", owners)
+
+
+def test_broken_rows_get_the_data_layers_messages(households, seed):
+    rng = random.Random(seed)
+    h = households["A"]
+    objects, locations = h.objects, frozenset(n.node for n in h.nodes)
+    owners = {n.cls: n.node for n in h.nodes if n.movable}
+    lines = format_day(h.train[0], objects).split("\n")
+    owned = next(iter(owners.values()))
+    edits = [lambda c: c.__setitem__(0, "abc"), lambda c: c.__setitem__(0, "9999"), lambda c: c.__setitem__(0, "１２"),
+             lambda c: c.__setitem__(1, ""), lambda c: c.__setitem__(1, "idle\x07"), lambda c: c.__setitem__(2, "moon#1"),
+             lambda c: c.pop(), lambda c: c.append("x"), lambda c: c.__setitem__(2, f" {c[2]}\t"),
+             lambda c: c.__setitem__(objects.index(next(o for o, lab in owners.items() if lab == owned)) + 2, owned)]
+    for edit in edits:
+        for _ in range(3):
+            k = rng.randrange(1, len(lines) - 1)
+            cells = lines[k].split(",")
+            edit(cells)
+            text = "\n".join(lines[:k] + [",".join(cells)] + lines[k + 1:])
+            assert outcome(parse_day, text, objects, locations, "d", owners) == \
+                outcome(parse_day_text, text, objects, locations, "d", "d", owners), (edit, k)
+
+
+def test_maps_follow_the_map_rules(households):
+    nodes = household_payload(households["B"])["nodes"]
+    assert parse_nodes(nodes) == households["B"].nodes
+    with pytest.raises(DataError) as err:
+        parse_nodes(nodes + [dict(nodes[0])])
+    assert err.value.field == f"nodes[{len(nodes)}].node"
+    k = next(i for i, n in enumerate(nodes) if n["movable"])
+    with pytest.raises(DataError) as err:  # an object inside itself
+        parse_nodes([dict(n, start_location=n["node"]) if i == k else n for i, n in enumerate(nodes)])
+    assert err.value.field == f"nodes[{k}].start_location"
+    h = household_from("B", parse_nodes(nodes), household_payload(households["B"])["days"])
+    assert [d.locations for d in h.train] == [d.locations for d in households["B"].train]
