@@ -7,8 +7,6 @@ import statistics
 from collections import Counter
 from typing import Iterable, Literal, Sequence
 
-from sklearn.metrics import f1_score
-
 from globe.data.records import Household
 from globe.sequences.runs import activity_runs
 
@@ -22,6 +20,8 @@ def f1(true: Sequence[str], predicted: Sequence[str], average: Average = "weight
     moved — rather than a NaN that would spread into every mean."""
     if not true:
         return None
+    from sklearn.metrics import f1_score  # imported here: scikit-learn takes a second to import
+
     return float(f1_score(list(true), list(predicted), average=average, zero_division=0))
 
 
