@@ -1,0 +1,101 @@
+"""The robot's fetch decision: fetch when the expected value is positive.
+
+A single threshold on the next-object probability cannot be reasoned about: it says nothing
+about *when* the object will be needed or what a wrong fetch costs. Here each candidate fetch
+(every tracked object, brought to where it is likely to be needed) gets the probability that
+it is *useful*: the person first takes it from where it is now within the lead window, but not
+sooner than the robot needs to get it there (``min_lead_steps``). With the cost of a useless
+fetch c_u and of a need the robot missed c_m,
+
+    E[fetch] - E[no fetch] = p * c_m - (1 - p) * c_u > 0   <=>   p > c_u / (c_u + c_m),
+
+so the robot team sets two costs, not a bare threshold. Probabilities come from the
+:class:`~globe.models.forecast.Forecaster`, which propagates the activity distribution ahead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Collection, Sequence
+
+import numpy as np
+
+from globe.data.records import Day
+from globe.models.forecast import Forecast, Forecaster
+
+
+@dataclass(frozen=True, slots=True)
+class FetchCandidate:
+    """One possible fetch: the object, P(it is useful), where to bring it, and its value."""
+
+    obj: str
+    probability: float
+    to_location: str | None
+    expected_value: float
+
+
+def expected_value(probability: np.ndarray, cost_useless: float, cost_missed: float) -> np.ndarray:
+    """Value of fetching over not fetching: a missed need avoided, minus a useless trip risked."""
+    return probability * cost_missed - (1.0 - probability) * cost_useless
+
+
+class FetchPolicy:
+    """Per step, which objects to fetch now (see module doc). Call :meth:`decide` after each
+    observation with the day's activities and object locations so far."""
+
+    def __init__(self, forecaster: Forecaster, *, cost_useless: float = 3.0, cost_missed: float = 1.0,
+                 min_lead_steps: int = 1, window_steps: int = 6, max_fetches_per_step: int = 2) -> None:
+        if cost_useless < 0 or cost_missed < 0:
+            raise ValueError("fetch costs must be >= 0")
+        if window_steps < max(min_lead_steps, 1):
+            raise ValueError(f"the lead window ({window_steps} steps) ends before the minimum lead ({min_lead_steps} steps)")
+        self.forecaster = forecaster
+        self.cost_useless = cost_useless
+        self.cost_missed = cost_missed
+        self.min_lead_steps = max(1, min_lead_steps)
+        self.window_steps = window_steps
+        self.max_fetches_per_step = max_fetches_per_step
+
+    def learn(self, days: Sequence[Day]) -> None:
+        """Add finished days to the movement model (an online assistant learning as it goes; the
+        activity model is shared with the assistant, which updates it). Counting over every
+        learned day again takes milliseconds."""
+        movements = self.forecaster.movements
+        objects = movements.objects_ if hasattr(movements, "objects_") else ()
+        movements.fit(tuple(getattr(movements, "training_data_", ())) + tuple(days), objects)
+
+    @property
+    def threshold(self) -> float:
+        """The usefulness probability above which a fetch has positive expected value."""
+        total = self.cost_useless + self.cost_missed
+        return self.cost_useless / total if total > 0 else 1.0
+
+    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]]) -> Forecast:
+        """The forecast the decision is read from (the activity of the last step is known)."""
+        return self.forecaster.forecast(activities, locations, self.window_steps - 1)
+
+    def candidates(self, activities: Sequence[str], locations: Sequence[Sequence[str]]) -> list[FetchCandidate]:
+        """Every tracked object as a candidate fetch, most likely useful first."""
+        return self.candidates_from(self.forecast(activities, locations))
+
+    def candidates_from(self, forecast: Forecast) -> list[FetchCandidate]:
+        p = forecast.useful_probability(self.min_lead_steps, self.window_steps)
+        targets = forecast.likely_target(self.min_lead_steps, self.window_steps)
+        ev = expected_value(p, self.cost_useless, self.cost_missed)
+        order = sorted(range(len(p)), key=lambda j: (-p[j], forecast.objects[j]))
+        return [FetchCandidate(forecast.objects[j], float(p[j]), targets[j], float(ev[j])) for j in order]
+
+    def choose(self, candidates: Sequence[FetchCandidate], exclude: Collection[str] = ()) -> list[FetchCandidate]:
+        """The candidates worth fetching: positive expected value, not already fetched, at most
+        ``max_fetches_per_step``, most likely useful first."""
+        chosen = [c for c in candidates if c.obj not in exclude and self._worth(c.probability)]
+        return chosen[: self.max_fetches_per_step]
+
+    def _worth(self, probability: float) -> bool:
+        return float(expected_value(np.asarray(probability), self.cost_useless, self.cost_missed)) > 0
+
+    def decide(self, activities: Sequence[str], locations: Sequence[Sequence[str]],
+               exclude: Collection[str] = ()) -> list[FetchCandidate]:
+        """What to fetch now, given the day so far (``activities`` and ``locations`` up to and
+        including the current step), leaving out objects already fetched (``exclude``)."""
+        return self.choose(self.candidates(activities, locations), exclude)

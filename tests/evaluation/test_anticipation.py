@@ -1,0 +1,32 @@
+"""The anticipation results folder: every file, the columns the issue asks for, one mean row per horizon."""
+
+from __future__ import annotations
+
+import csv
+
+from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
+from globe.evaluation.lookahead import LOOKAHEAD_COLUMNS
+
+
+def test_results_folder(households, config, tmp_path):
+    cfg = config.model_copy(update={
+        "lookahead": config.lookahead.model_copy(update={"methods": ("persistence",), "last_reference": 12, "cv_stride": 4}),
+        "policy": config.policy.model_copy(update={"method": "persistence", "curve_ratios": (1.0, 3.0)}),
+    })
+    messages: list[str] = []
+    result = run_anticipation(cfg, {"A": households["A"]}, progress=messages.append)
+    assert messages == ["lookahead: persistence, household A", "fetch policy: household A"]
+    paths = write_anticipation_results(tmp_path, result)
+    assert all(p.exists() and p.stat().st_size > 0 for p in paths)
+    with (tmp_path / "lookahead.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0]) == LOOKAHEAD_COLUMNS
+    assert [r["horizon_min"] for r in rows if r["household"] == "mean"] == ["10", "20", "30", "40", "50", "60"]
+    assert {r["household"] for r in rows} == {"A", "mean"}
+    with (tmp_path / "fetch_policy.csv").open() as fh:
+        fetch = list(csv.DictReader(fh))
+    assert [r["configured"] for r in fetch if r["household"] == "A"] == ["False", "True"]
+    with (tmp_path / "lookahead_selection.csv").open() as fh:
+        chosen = [r for r in csv.DictReader(fh) if r["chosen"] == "True"]
+    assert [r["horizon_min"] for r in chosen] == ["10", "20", "30", "40", "50", "60"]  # one threshold per horizon
+    assert len({r["run_end"] for r in chosen}) == 1 and all(float(r["threshold"]) in cfg.lookahead.thresholds for r in chosen)

@@ -1,0 +1,170 @@
+"""The forecaster against hand computation on a toy home, and its invariants on HOMER+."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import pytest
+
+from globe import assembly
+from globe.data.records import Day
+from globe.models.base import ActivityModelBase
+from globe.models.forecast import Forecaster, MovementModel, durations, moved_in_run
+
+OBJECTS = ("cup", "book")
+
+
+def toy_day(name: str, acts: Sequence[str], cup: Sequence[str], book: Sequence[str]) -> Day:
+    return Day(name, tuple(range(0, 10 * len(acts), 10)), tuple(acts), tuple(zip(cup, book)))
+
+
+# Day 1: the cup goes to the table when b starts. Day 2: the same, then the book goes to the sink
+# on b's second step. Movements at step u belong to the activity at u-1.
+TOY_DAYS = (
+    toy_day("train/000", "aabb", ["shelf", "shelf", "shelf", "table"], ["shelf"] * 4),
+    toy_day("train/001", "abbb", ["shelf", "shelf", "table", "table"], ["shelf", "shelf", "shelf", "sink"]),
+)
+
+
+class ChainModel(ActivityModelBase):
+    """Test double: after a, a with 0.6 and b with 0.4; after b, always b."""
+
+    def partial_fit(self, days):
+        self.training_data_ = list(days)
+        self.frequency_ = {"a": 1, "b": 1}
+        return self
+
+    def predict_proba(self, history):
+        return {"a": 0.6, "b": 0.4} if history[-1] == "a" else {"b": 1.0}
+
+
+def toy_forecaster() -> Forecaster:
+    movements = MovementModel(hazard_shrinkage=1e-9, destination_shrinkage=1e-9).fit(TOY_DAYS, OBJECTS)
+    return Forecaster(ChainModel().fit([]), movements, min_path_probability=0.0, max_paths=1000)
+
+
+def test_durations_count_steps_since_the_run_began():
+    assert durations(list("aabbba")).tolist() == [0, 1, 0, 1, 2, 0]
+
+
+def test_hazards_and_destinations_are_the_counted_rates():
+    mv = toy_forecaster().movements
+    shelf = np.array([mv.location_index("shelf")] * 2)
+    assert mv.hazards("b", 0, shelf) == pytest.approx([1.0, 0.0], abs=1e-6)  # cup 2/2, book 0/2
+    # book 1/1; the cup was never on the shelf on b's second step: backs off to (b, cup, shelf) = 2/2
+    assert mv.hazards("b", 1, shelf) == pytest.approx([1.0, 1.0], abs=1e-6)
+    assert mv.hazards("a", 0, shelf) == pytest.approx([0.0, 0.0], abs=1e-6)
+    idx, p = mv.destination("b", 0, mv.location_index("shelf"))
+    assert [mv.locations_[i] for i in idx] == ["table"] and p == pytest.approx([1.0])
+    idx, p = mv.destination("b", 1, mv.location_index("shelf"))
+    assert [mv.locations_[i] for i in idx] == ["sink"]
+
+
+def test_destination_never_is_the_current_place():
+    mv = toy_forecaster().movements
+    for a in ("a", "b"):
+        for j in range(2):
+            for loc in ("shelf", "table", "sink"):
+                idx, p = mv.destination(a, j, mv.location_index(loc))
+                assert mv.location_index(loc) not in idx.tolist()
+                if len(p):
+                    assert p.sum() == pytest.approx(1.0)
+
+
+def test_forward_pass_matches_hand_computation():
+    """History a (step 0), locations known at steps 0 and 1, a_1 unknown. Paths: aa 0.36,
+    ab 0.24, bb 0.40. The cup leaves the shelf at step 2 when a_1 = b (0.4), else at step 3 when
+    a_2 = b starts (0.24); the book leaves at step 3 on b's second step (path bb, 0.4)."""
+    f = toy_forecaster()
+    paths = f.paths(("a",), 2)
+    assert [path for _, path in paths] == [("b", "b"), ("a", "a"), ("a", "b")]
+    assert [p for p, _ in paths] == pytest.approx([0.4, 0.36, 0.24])
+    fc = f.forecast(("a",), [("shelf", "shelf"), ("shelf", "shelf")], horizon=1)
+    assert fc.start == 1
+    assert fc.activity[0] == pytest.approx({"a": 0.6, "b": 0.4})
+    assert fc.activity[1] == pytest.approx({"a": 0.36, "b": 0.64})
+    assert fc.departure[0] == pytest.approx([0.4, 0.0], abs=1e-6)
+    assert fc.departure[1] == pytest.approx([0.24, 0.4], abs=1e-6)
+    assert fc.change_probability(1) == pytest.approx([0.64, 0.4], abs=1e-6)
+    where, p = fc.first_location(1)
+    assert where == ["table", "sink"] and p == pytest.approx([0.64, 0.4], abs=1e-6)
+    where0, p0 = fc.first_location(0)
+    assert where0[0] == "table" and p0 == pytest.approx([0.4, 0.0], abs=1e-6)
+
+
+def test_a_known_current_activity_is_not_propagated():
+    """With a_1 = b known, the cup leaves at step 2 for sure, and the activity at step 1 is b."""
+    f = toy_forecaster()
+    fc = f.forecast(("a", "b"), [("shelf", "shelf"), ("shelf", "shelf")], horizon=1)
+    assert fc.activity[0] == {"b": 1.0}
+    assert fc.departure[0] == pytest.approx([1.0, 0.0], abs=1e-6)
+    assert fc.useful_probability(1, 2) == pytest.approx([1.0, 1.0], abs=1e-6)  # the book: b's second step
+    assert fc.likely_target(1, 2) == ["table", "sink"]
+
+
+def test_inconsistent_lengths_are_refused():
+    with pytest.raises(ValueError, match="locations"):
+        toy_forecaster().forecast(("a", "a", "a"), [("shelf", "shelf")], horizon=1)
+
+
+def test_forecasts_on_homer_are_distributions(households, config):
+    h = households["A"]
+    routine = config.models.model_copy(update={"activity_estimator": "routine"})
+    fitted = assembly.forecaster(h, config, models=routine)
+    assert fitted.train_s > 0
+    day = h.test[0]
+    for r in (1, 30, 60, 102):
+        fc = fitted.forecaster.forecast(day.activities[:r], day.locations[: r + 1], horizon=5)
+        for dist in fc.activity:
+            assert sum(dist.values()) == pytest.approx(1.0)
+        change = fc.change_probability(5)
+        assert np.all(change >= -1e-12) and np.all(change <= 1 + 1e-9)
+        assert np.all(fc.destination.sum(axis=2) <= fc.departure + 1e-9)
+        assert np.all(np.diff([fc.change_probability(s) for s in range(6)], axis=0) >= -1e-12)  # grows with s
+
+
+def test_run_end_hazards_tell_put_away_moves_apart():
+    """The cup is put away when a ends (day 1) and stays when a goes on (day 2): with the run-end
+    feature the two hazards are 1 and 0; without it both are the pooled 1/2."""
+    days = (toy_day("train/000", "aab", ["shelf", "shelf", "table"], ["shelf"] * 3),
+            toy_day("train/001", "aaa", ["shelf"] * 3, ["shelf"] * 3))
+    with_end = MovementModel(hazard_shrinkage=1e-9, run_end=True).fit(days, OBJECTS)
+    shelf = np.array([with_end.location_index("shelf")] * 2)
+    assert with_end.hazards("a", 1, shelf, ends=True)[0] == pytest.approx(1.0, abs=1e-6)
+    assert with_end.hazards("a", 1, shelf, ends=False)[0] == pytest.approx(0.0, abs=1e-6)
+    without = MovementModel(hazard_shrinkage=1e-9, run_end=False).fit(days, OBJECTS)
+    assert without.hazards("a", 1, shelf, ends=True)[0] == pytest.approx(0.5, abs=1e-6)
+    assert without.hazards("a", 1, shelf, ends=False)[0] == pytest.approx(0.5, abs=1e-6)
+
+
+def test_memos_follow_the_models_when_they_learn():
+    """An online assistant adds days to the models; forecasts must not come from stale memos."""
+    f = toy_forecaster()
+    before = f.forecast(("a",), [("shelf", "shelf"), ("shelf", "shelf")], horizon=0).departure.copy()
+    extra = toy_day("train/002", "abbb", ["shelf", "shelf", "shelf", "shelf"], ["shelf"] * 4)  # b moves nothing
+    f.movements.fit(TOY_DAYS + (extra,) * 4, OBJECTS)
+    after = f.forecast(("a",), [("shelf", "shelf"), ("shelf", "shelf")], horizon=0).departure
+    assert after[0, 0] < before[0, 0]  # the cup now leaves with b only 2 times in 6
+
+
+def test_moved_in_run_resets_when_a_run_begins():
+    # movement steps u = 1..4 belong to the activity at u-1; runs begin at steps 0 and 2
+    dur = np.array([0, 1, 0, 1, 2])
+    change = np.array([[True, False], [False, False], [False, True], [True, False]])
+    # u=1: nothing earlier; u=2: object 0 moved at u=1 (same run); u=3: new run; u=4: object 1 moved at u=3
+    assert moved_in_run(dur, change).tolist() == [[0, 0], [1, 0], [0, 0], [0, 1]]
+
+
+def test_run_memory_hazards_follow_what_came_out():
+    """The cup comes out at a's first step and goes back at its last; the book never moves. With
+    run memory, the put-away hazard is read for objects that came out in this run only."""
+    days = (toy_day("train/000", "aaab", ["shelf", "table", "table", "shelf"], ["shelf"] * 4),
+            toy_day("train/001", "aaab", ["table", "table", "table", "table"], ["shelf"] * 4))
+    mv = MovementModel(hazard_shrinkage=1e-9, run_end=True, run_memory=True).fit(days, OBJECTS)
+    table = np.array([mv.location_index("table")] * 2)
+    came_out = np.array([True, False])
+    assert mv.hazards("a", 2, table, ends=True, moved=came_out)[0] == pytest.approx(1.0, abs=1e-6)
+    assert mv.hazards("a", 2, table, ends=True, moved=~came_out)[0] == pytest.approx(0.0, abs=1e-6)
+    pooled = MovementModel(hazard_shrinkage=1e-9, run_end=True, run_memory=False).fit(days, OBJECTS)
+    assert pooled.hazards("a", 2, table, ends=True, moved=came_out)[0] == pytest.approx(0.5, abs=1e-6)
