@@ -1,0 +1,362 @@
+"""Evaluation with activity labels visible on only p % of the history steps.
+
+A robot rarely gets a clean activity label for every step. Per test day, a fixed share of the
+steps (``filter.fractions``; which ones is drawn with a seed from ``filter.seed``, the household
+and the day, nested across shares) shows its label; the others must be inferred by the activity
+filter (:mod:`globe.models.activity_filter`) from the time of day, the routine and the object
+movements it sees. Everything else is the protocol of :func:`globe.evaluation.protocol.evaluate_days`:
+
+- **Activity:** at every step t = 1..T-1, predict a_t from the visible labels among a_0..a_{t-1}
+  and the movements seen up to step t-1 (weighted F1 and log loss over all steps).
+- **Object:** at every movement event, the object from the filtered activity distribution of
+  the event's activity step (the chooser mixes over it), with the protocol's run context. With
+  ``sequences.alignment = "previous"`` the event is seen one step after its activity step, so
+  that distribution also uses the places seen *at* the activity step (what a robot knows then);
+  with every label visible and the movement credited to the earlier activity this is exactly
+  the protocol's distribution.
+- **Lookahead** (when :mod:`globe.evaluation.lookahead` is present): the relocation F1 at each
+  horizon, forecasting from a mixture over the filter's most probable histories (its threshold is
+  the one chosen on fully labelled training days).
+
+The activity model is the routine model chosen by cross-validation
+(:func:`globe.evaluation.tuning.tuned_models`); the filter's movement evidence (which step's
+activity a movement tells about, and how much to trust it) is chosen by cross-validation on
+*training* days with every label hidden. Test days are never used to choose anything.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import time
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from globe import assembly
+from globe.config import FilterConfig, GlobeConfig, ModelConfig
+from globe.data.records import Day, Household
+from globe.errors import ConfigError
+from globe.evaluation import report
+from globe.evaluation.metrics import f1, log_loss
+from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
+from globe.evaluation.tuning import Selection, grid, select, tuned_models
+from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
+from globe.models.base import ActivityModelBase
+
+Progress = Callable[[str], None]
+METHOD = "routine"
+
+
+def day_mask(fcfg: FilterConfig, household: str, day: Day, fraction: float) -> list[bool]:
+    """The visible steps of ``day`` at ``fraction``: seeded by the configured seed, the household
+    and the day's name (stable across runs and Python versions), nested across fractions."""
+    seed = (fcfg.seed, zlib.crc32(household.encode()), zlib.crc32(day.name.encode()))
+    return label_mask(len(day), fraction, seed)
+
+
+def check_fractions(fractions: Sequence[float]) -> tuple[float, ...]:
+    bad = [f for f in fractions if not 0.0 <= f <= 1.0]
+    if bad or not fractions:
+        raise ConfigError(f"filter.fractions: {list(fractions)!r}; expected shares between 0 and 1")
+    return tuple(fractions)
+
+
+def beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
+            visible: Sequence[bool], objects: Sequence[str]) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
+    """Per step t of ``day``: the filter's P(a_t) for the activity question (labels and movements
+    of steps < t) and for the object questions whose activity step is t. A movement seen at step
+    t+1 is credited to a_t (``sequences.alignment = "previous"``), so its object question may also
+    use the places seen at t; under another alignment the object would be seen at t itself, so
+    both questions get the predictive distribution."""
+    flt = assembly.activity_filter(activity, emission, config.filter)
+    nowcast = config.sequences.alignment == "previous"
+    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast)
+    return predictive, now if now is not None else predictive
+
+
+# -- choosing the movement evidence on training days --------------------------------------------
+
+class _FoldFilter:
+    """The activity model and the movement emission of one candidate, fitted on a fold of
+    training days (activity fits are shared between candidates through ``memo``)."""
+
+    def __init__(self, household: Household, config: GlobeConfig, models: ModelConfig, params: dict[str, Any],
+                 memo: dict) -> None:
+        self.household, self.config, self.models, self.params, self.memo = household, config, models, params, memo
+
+    def fit(self, days: Sequence[Day]) -> "_FoldFilter":
+        fold = tuple(d.name for d in days)
+        if ("models", fold) not in self.memo:
+            cfg = self.config.model_copy(update={"models": self.models})
+            fitted = assembly.fit_household(self.household, cfg, days=days)
+            chooser = assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=self.models.object_marginal)
+            self.memo[("models", fold)] = fitted.activity, chooser
+        self.activity, self.chooser = self.memo[("models", fold)]
+        self.emission = assembly.movement_emission(self.config.filter, **self.params).fit(days, self.household.objects)
+        return self
+
+
+def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], list[str]]:
+    """Object predictions under the protocol on held-out days with every activity label hidden."""
+    true: list[str] = []
+    pred: list[str] = []
+    for day in days:
+        _, objects = beliefs(model.activity, model.emission, model.config, day, [False] * len(day), model.household.objects)
+        ev = evaluate_days(model.household, [day], _FixedScan(model.activity, objects), model.chooser,
+                           alignment=model.config.sequences.alignment)
+        true.extend(r.true for r in ev.objects)
+        pred.extend(r.predicted for r in ev.objects)
+    return true, pred
+
+
+def tune_filter(household: Household, config: GlobeConfig, models: ModelConfig) -> Selection:
+    """The movement evidence (move rates by activity change or not, share credited to the earlier
+    activity, weight) with the best object F1 under the protocol on held-out training days with
+    no activity labels at all (the case the evidence is for); ties go to the first listed
+    candidate, so the simpler evidence (no change-dependent rates) wins them."""
+    fc = config.filter
+    candidates = grid({"boundary": fc.emission_boundaries, "previous_share": fc.emission_previous_shares,
+                       "weight": fc.emission_weights})
+    memo: dict = {}
+    return select(list(household.train), candidates, lambda p: _FoldFilter(household, config, models, p, memo),
+                  _hidden_fold, config.selection.folds)
+
+
+# -- evaluation ---------------------------------------------------------------------------------
+
+class _FixedScan:
+    """The protocol's activity predictor, answering with precomputed filtered distributions."""
+
+    def __init__(self, model: ActivityModelBase, dists: list[dict[str, float]]) -> None:
+        self.model, self.dists = model, dists
+
+    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
+        if len(day) != len(self.dists):
+            raise ValueError(f"{len(self.dists)} filtered distributions for a day of {len(day)} steps")
+        return self.dists
+
+    def ranked(self, distribution: dict[str, float]) -> list[str]:
+        return self.model.ranked(distribution)
+
+
+@dataclass(slots=True)
+class FractionResult:
+    """One household at one label fraction: the protocol's records and the lookahead counts."""
+
+    household: str
+    fraction: float
+    activity: list[ActivityRecord] = field(default_factory=list)
+    objects: list[ObjectRecord] = field(default_factory=list)
+    hidden_steps: int = 0
+    lookahead_f1: tuple[float, ...] = ()
+    lookahead_accuracy: tuple[float, ...] = ()
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class FilterSetup:
+    """What one household's missing-label runs share: the models and the chosen evidence."""
+
+    household: Household
+    models: ModelConfig
+    activity: ActivityModelBase
+    emission: MovementEmission
+    chooser: Any
+    selection: Selection
+    train_s: float
+
+
+def setup_household(household: Household, config: GlobeConfig, cache: dict | None = None) -> FilterSetup:
+    """Choose the models on training days (cached in ``cache`` like the main job's), fit them on
+    all training days, and fit the chosen movement emission."""
+    models, _ = tuned_models(household, config, "routine", {} if cache is None else cache)
+    selection = tune_filter(household, config, models)
+    started = time.perf_counter()
+    fitted = assembly.fit_household(household, config.model_copy(update={"models": models}))
+    emission = assembly.movement_emission(config.filter, **selection.best).fit(household.train, household.objects)
+    train_s = fitted.train_s + time.perf_counter() - started
+    chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=models.object_marginal)
+    return FilterSetup(household, models, fitted.activity, emission, chooser, selection, train_s)
+
+
+def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, days: Sequence[Day] | None = None,
+                      lookahead: bool = True, cache: dict | None = None) -> FractionResult:
+    """One label fraction on ``days`` (default: the test days); ``cache`` memoises the
+    lookahead's threshold choice across fractions."""
+    h = setup.household
+    days = h.test if days is None else days
+    started = time.perf_counter()
+    res = FractionResult(h.name, fraction)
+    masks = {day.name: day_mask(config.filter, h.name, day, fraction) for day in days}
+    for day in days:
+        mask = masks[day.name]
+        predictive, for_objects = beliefs(setup.activity, setup.emission, config, day, mask, h.objects)
+        ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=config.sequences.alignment)
+        res.activity.extend(ev.activity)
+        if for_objects is not predictive:
+            ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser,
+                               alignment=config.sequences.alignment)
+        res.objects.extend(ev.objects)
+        res.hidden_steps += sum(not v for v in mask)
+    if lookahead:
+        la = _lookahead(setup, config, days, masks, {} if cache is None else cache)
+        if la is not None:
+            res.lookahead_f1, res.lookahead_accuracy = la
+    res.seconds = time.perf_counter() - started
+    return res
+
+
+# -- lookahead through the filter -------------------------------------------------------------
+
+class _FilteredForecaster:
+    """Duck-types :class:`globe.models.forecast.Forecaster` for one day whose labels are partly
+    hidden: the forecast at reference r mixes the forecaster's own forecasts from the filter's
+    most probable histories a_0..a_{r-1} (given the visible labels and every movement up to r),
+    weighted by their posterior. With every label visible it is the plain forecast."""
+
+    def __init__(self, inner: Any, day: Day, mask: Sequence[bool], objects: Sequence[str], setup: FilterSetup,
+                 fcfg: FilterConfig) -> None:
+        self.inner, self.day, self.mask, self.fcfg = inner, day, mask, fcfg
+        self.movements, self.activity = inner.movements, inner.activity
+        self.moved = moved_objects(day, objects)
+        self.filter = assembly.activity_filter(setup.activity, setup.emission, fcfg)
+
+    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]], horizon: int) -> Any:
+        r = len(locations) - 1
+        flt = self.filter
+        while flt.step < r - 1:  # labels and movements of steps 0..r-1
+            t = flt.step + 1
+            flt.update(t, self.day.activities[t] if self.mask[t] else None, self.moved[t])
+        peek = copy.copy(flt)
+        peek.update(r, None, self.moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
+        prefixes: dict[tuple[str, ...], float] = {}
+        for hyp in peek.hypotheses():
+            prefixes[hyp.history[:r]] = prefixes.get(hyp.history[:r], 0.0) + hyp.weight
+        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: self.fcfg.forecast_hypotheses]
+        total = sum(w for _, w in top)
+        parts = [(w / total, self.inner.forecast(prefix, locations, horizon)) for prefix, w in top]
+        if len(parts) == 1:
+            return parts[0][1]
+        first = parts[0][1]
+        acts: list[dict[str, float]] = [dict() for _ in first.activity]
+        for w, fc in parts:
+            for k, dist in enumerate(fc.activity):
+                for a, p in dist.items():
+                    acts[k][a] = acts[k].get(a, 0.0) + w * p
+        return dataclasses.replace(first, activity=tuple(acts), departure=sum(w * fc.departure for w, fc in parts),
+                                   destination=sum(w * fc.destination for w, fc in parts))
+
+
+def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
+               masks: dict[str, list[bool]], cache: dict) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """Relocation F1 and activity accuracy per horizon through the filter, or None when the
+    lookahead module is not available."""
+    try:
+        from globe.evaluation import lookahead as lk
+    except ImportError:  # pragma: no cover - the lookahead part ships separately
+        return None
+    h, la = setup.household, config.lookahead
+    threshold = _lookahead_threshold(setup, config, cache)
+    fitted = assembly.forecaster(h, config, models=setup.models)
+    counts = [lk.RelocationCounts() for _ in range(la.horizons)]
+    correct, total = np.zeros(la.horizons), np.zeros(la.horizons)
+    for day in days:
+        wrapper = _FilteredForecaster(fitted.forecaster, day, masks[day.name], h.objects, setup, config.filter)
+        run = lk.forecast_days(wrapper, [day], la.horizons, la.first_reference, la.last_reference)  # type: ignore[arg-type]
+        counts = [c + p.counts(threshold) for c, p in zip(counts, run.pairs)]
+        correct += run.activity_correct
+        total += run.activity_total
+    return tuple(c.f1 for c in counts), tuple(float(c / t) if t else 0.0 for c, t in zip(correct, total))
+
+
+def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict) -> float:
+    """The lookahead's change threshold, chosen on fully labelled training days (memoised)."""
+    from globe.evaluation import lookahead as lk
+
+    key = ("lookahead_threshold", setup.household.name, setup.models, config.lookahead)
+    if key not in cache:
+        cache[key] = float(lk.choose_threshold(setup.household, config, setup.models).best["threshold"])
+    return cache[key]
+
+
+# -- the whole run ------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class MissingLabelResults:
+    rows: list[dict]
+    selection_rows: list[dict]
+    results: list[FractionResult]
+
+
+def run_missing_labels(config: GlobeConfig, households: Sequence[Household], progress: Progress | None = None,
+                       cache: dict | None = None, lookahead: bool = True) -> MissingLabelResults:
+    """Every household at every label fraction of ``config.filter.fractions`` (the library entry
+    point of ``globe reproduce``; ``cache`` shares the main job's cross-validated model choices)."""
+    fractions = check_fractions(config.filter.fractions)
+    cache = {} if cache is None else cache
+    results: list[FractionResult] = []
+    selection_rows: list[dict] = []
+    for h in households:
+        if progress:
+            progress(f"missing labels: household {h.name}: choosing the filter's movement evidence")
+        setup = setup_household(h, config, cache)
+        for params, score in setup.selection.scores:
+            selection_rows.append({"household": h.name, "params": params, "cv_object_f1_no_labels": round(score, 4),
+                                   "chosen": params == setup.selection.best})
+        for fraction in fractions:
+            if progress:
+                progress(f"missing labels: household {h.name}: {fraction:.0%} of labels")
+            results.append(evaluate_fraction(setup, config, fraction, lookahead=lookahead, cache=cache))
+    return MissingLabelResults(missing_label_rows(results, config.lookahead.horizons), selection_rows, results)
+
+
+def _round(x: float | None) -> float | None:
+    return None if x is None or x != x else round(float(x), 4)
+
+
+def missing_label_rows(results: Sequence[FractionResult], horizons: int = 6, step_minutes: int = 10) -> list[dict]:
+    """``missing_labels.csv``: one row per household and label share, then the mean of households."""
+    rows: list[dict] = []
+    for r in results:
+        acts, objs = r.activity, r.objects
+        row: dict[str, Any] = {
+            "method": METHOD, "household": r.household, "labels_pct": round(100 * r.fraction),
+            "activity_f1": f1([a.true for a in acts], [a.predicted for a in acts]),
+            "activity_log_loss": log_loss([a.p_true for a in acts]),
+            "object_f1": f1([o.true for o in objs], [o.predicted for o in objs]),
+            "hidden_steps": r.hidden_steps, "seconds": r.seconds,
+        }
+        for s in range(horizons):
+            row[f"lookahead_f1_{step_minutes * (s + 1)}min"] = r.lookahead_f1[s] if s < len(r.lookahead_f1) else None
+        row["lookahead_f1_mean"] = float(np.mean(r.lookahead_f1)) if r.lookahead_f1 else None
+        rows.append({k: _round(v) if isinstance(v, float) else v for k, v in row.items()})
+    for pct in dict.fromkeys(row["labels_pct"] for row in rows):
+        mine = [row for row in rows if row["labels_pct"] == pct and row["household"] != "mean"]
+        mean: dict[str, Any] = {"method": METHOD, "household": "mean", "labels_pct": pct}
+        for key in mine[0]:
+            if key in mean:
+                continue
+            vals = [row[key] for row in mine if isinstance(row[key], (int, float)) and not isinstance(row[key], bool)]
+            mean[key] = _round(float(np.mean(vals))) if len(vals) == len(mine) else None
+        rows.append(mean)
+    return rows
+
+
+def write_missing_label_results(out_dir: Path, rows: Sequence[dict], selection_rows: Sequence[dict] = ()) -> list[Path]:
+    """``missing_labels.csv``, ``missing_labels.png`` (F1 against the share of visible labels) and,
+    when given, ``missing_labels_selection.csv``; returns the paths written."""
+    from globe.evaluation.plots_missing import missing_labels_figure
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = [out_dir / "missing_labels.csv", out_dir / "missing_labels.png"]
+    report.write_csv(written[0], list(rows))
+    fig = missing_labels_figure(rows)
+    fig.savefig(written[1], dpi=130)
+    if selection_rows:
+        written.append(out_dir / "missing_labels_selection.csv")
+        report.write_csv(written[-1], list(selection_rows))
+    return written

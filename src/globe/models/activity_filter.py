@@ -1,0 +1,448 @@
+"""A forward filter over the current activity when activity labels are missing.
+
+A robot rarely gets an activity label for every step. Feeding its best guess back as if it were
+the truth throws away what the model is unsure about, so the filter keeps a distribution over the
+day's possible activity *histories* instead:
+
+- **Transition.** Each history is extended by the fitted activity model's own next-step
+  distribution given that history: for the routine model its stay hazard (activity, how long it
+  has lasted, hour), its n-gram over runs and its time-of-day start prior; for the n-gram model
+  its backoff over the whole day; any other model through ``predict_proba``. Time of day enters
+  through these distributions.
+- **Evidence.** A visible label pins the activity of its step (histories that disagree get
+  weight 0). The set of objects seen moving at a step is scored by :class:`MovementEmission`,
+  P(moved set | the activities at the step before and at the step), learned by counting on
+  training days: smoothed Bernoullis per (activity, object), so "nothing moved" is evidence too.
+- **State.** Histories that imply the same future are merged exactly: for the routine model the
+  last ``order`` run labels and the current run's start (the hidden state is (activity, how long
+  it has lasted, the runs before it)); for the n-gram model the suffix-automaton match. At most
+  ``max_hypotheses`` states are kept per step (the most probable; those below ``min_weight`` of
+  the total are dropped); with no pruning this is the exact forward algorithm.
+
+With every label visible there is exactly one history, so :func:`filtered_scan` returns exactly
+the model's ``scan_proba``. Training is counting only.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any, Callable, Collection, Hashable, Protocol, Sequence
+
+from globe.data.records import Day
+from globe.errors import ConfigError
+from globe.models.activity import DAY_START as NGRAM_DAY_START
+from globe.models.activity import ActivityModel
+from globe.models.base import CountingModel
+from globe.models.routine import DAY_START as RUN_DAY_START
+from globe.models.routine import RoutineModel
+
+
+class NextActivityModel(Protocol):
+    def predict_proba(self, history: Sequence[str]) -> dict[str, float]: ...
+
+
+def moved_objects(day: Day, objects: Sequence[str]) -> list[frozenset[str]]:
+    """Per step, the objects whose location differs from the step before (empty at step 0)."""
+    out: list[frozenset[str]] = [frozenset()]
+    for t in range(1, len(day)):
+        before, after = day.locations[t - 1], day.locations[t]
+        out.append(frozenset() if before == after else frozenset(o for j, o in enumerate(objects) if before[j] != after[j]))
+    return out
+
+
+class MovementEmission(CountingModel):
+    """P(the set of objects seen moving at step s | the activities at steps s-1 and s).
+
+    A movement seen at step s happened during the interval that began at s-1, so it may belong
+    to either activity (SLaTe-PRO credits the earlier one). The likelihood is the mixture
+    ``previous_share`` * P(moved | a_{s-1}) + (1 - previous_share) * P(moved | a_s), each part a
+    table of independent Bernoullis, one per (activity, object), counted on training days with
+    that attachment: p(a, o) = (c(a, o) + s * p(o)) / (n(a) + s), shrunk towards the object's
+    overall rate p(o) (add-one smoothed) with pseudo-count ``smoothing``, so "nothing moved" is
+    evidence too. The log-likelihood is multiplied by ``weight`` (< 1 tempers the independence
+    assumption: objects used together move together). Objects unknown to training carry no
+    evidence.
+    """
+
+    _parameter_constraints = {"smoothing": float, "weight": float, "previous_share": float, "boundary": bool}
+    kind = "movement_emission"
+
+    def __init__(self, *, smoothing: float = 1.0, weight: float = 1.0, previous_share: float = 1.0,
+                 boundary: bool = False) -> None:
+        self.smoothing = smoothing
+        self.weight = weight
+        self.previous_share = previous_share
+        self.boundary = boundary
+
+    def _validate_params(self) -> None:
+        if not isinstance(self.boundary, bool):
+            raise ConfigError(f"MovementEmission: boundary={self.boundary!r}; expected True or False")
+        for name in ("smoothing", "weight", "previous_share"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or value < 0 or (name == "previous_share" and value > 1):
+                raise ConfigError(f"MovementEmission: {name}={value!r}; expected a number >= 0"
+                                  + (" and <= 1" if name == "previous_share" else ""))
+
+    def fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementEmission":
+        """Count from scratch over ``days`` whose object columns are ``objects``."""
+        self._reset()
+        return self.partial_fit(days, objects)
+
+    def partial_fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementEmission":
+        """Add days to the counts (the service learns each day as it ends)."""
+        if not hasattr(self, "training_data_"):
+            self._validate_params()
+            self.training_data_: list[str] = []
+            self.objects_ = tuple(objects)
+            # keys: (part, activity) and (part, activity, changed); part 0 credits a_{s-1}, 1 credits a_s
+            self.steps_: Counter[tuple] = Counter()
+            self.moves_: Counter[tuple] = Counter()
+            self.transitions_ = 0
+            self.overall_: Counter[str] = Counter()
+        elif tuple(objects) != self.objects_:
+            raise ConfigError("MovementEmission.partial_fit: the object columns differ from the ones it was fitted on")
+        for day in days:
+            self.training_data_.append(day.name)
+            moved = moved_objects(day, self.objects_)
+            for t in range(1, len(day)):
+                self.transitions_ += 1
+                self.overall_.update(moved[t])
+                changed = day.activities[t - 1] != day.activities[t]
+                for part, a in enumerate((day.activities[t - 1], day.activities[t])):
+                    for key in ((part, a), (part, a, changed)):
+                        self.steps_[key] += 1
+                        for o in moved[t]:
+                            self.moves_[(*key, o)] += 1
+        self.activities_ = tuple(sorted({key[1] for key in self.steps_}))
+        self.rate_ = {o: (self.overall_[o] + 1) / (self.transitions_ + 2) for o in self.objects_}
+        self._base: dict[tuple, float] = {}
+        self._memo: dict[tuple, float] = {}
+        return self
+
+    def probability(self, activity: str, obj: str, part: int = 0, changed: bool | None = None) -> float:
+        """p(activity, obj): the chance that ``obj`` moves at a step credited to ``activity``
+        (``part`` 0: the activity at s-1, 1: the activity at s); with ``boundary``, also given
+        whether the activity changes at s (shrunk towards the rate over both cases)."""
+        key: tuple = (part, activity)
+        p = (self.moves_.get((*key, obj), 0) + self.smoothing * self.rate_[obj]) / (self.steps_.get(key, 0) + self.smoothing)
+        if self.boundary and changed is not None:
+            key = (part, activity, changed)
+            p = (self.moves_.get((*key, obj), 0) + self.smoothing * p) / (self.steps_.get(key, 0) + self.smoothing)
+        return p
+
+    def _nothing(self, part: int, activity: str, changed: bool | None) -> float:
+        key = (part, activity, changed)
+        base = self._base.get(key)
+        if base is None:
+            base = self._base[key] = sum(math.log1p(-self.probability(activity, o, part, changed)) for o in self.objects_)
+        return base
+
+    def part_log_likelihood(self, part: int, activity: str, moved: frozenset[str], changed: bool | None = None) -> float:
+        """log P(exactly ``moved`` moved | the activity credited by ``part``), untempered."""
+        changed = changed if self.boundary else None
+        key = (part, activity, changed, moved)
+        out = self._memo.get(key)
+        if out is None:
+            if len(self._memo) >= 500_000:
+                self._memo.clear()
+            ll = self._nothing(part, activity, changed)
+            for o in moved:
+                if o in self.rate_:
+                    p = self.probability(activity, o, part, changed)
+                    ll += math.log(p) - math.log1p(-p)
+            out = self._memo[key] = ll
+        return out
+
+    def log_likelihood(self, previous: str | None, current: str, moved: frozenset[str]) -> float:
+        """``weight`` * log P(exactly ``moved`` moved | a_{s-1} = previous, a_s = current)."""
+        self._check_fitted()
+        lam = self.previous_share if previous is not None else 0.0
+        changed = None if previous is None else previous != current
+        parts = []
+        if lam > 0.0:
+            parts.append(math.log(lam) + self.part_log_likelihood(0, previous, moved, changed))  # type: ignore[arg-type]
+        if lam < 1.0:
+            parts.append(math.log1p(-lam) + self.part_log_likelihood(1, current, moved, changed))
+        top = max(parts)
+        return self.weight * (top + math.log(sum(math.exp(x - top) for x in parts)))
+
+    def upper_bound(self, activities: Collection[str], moved: frozenset[str]) -> float:
+        """At least every :meth:`log_likelihood` over ``activities`` (for scaling weights)."""
+        acts = set(activities) | set(self.activities_)
+        flags: tuple[bool | None, ...] = (None, False, True) if self.boundary else (None,)
+        return self.weight * max((self.part_log_likelihood(part, a, moved, c) for part in (0, 1) for a in acts for c in flags),
+                                 default=0.0)
+
+
+# -- dynamics: how each kind of activity model extends a history ---------------------------------
+
+class _Dynamics:
+    """Any model with ``predict_proba``: the state is the whole history (nothing merges)."""
+
+    def __init__(self, model: NextActivityModel) -> None:
+        self.model = model
+        self._memo: dict[Hashable, dict[str, float]] = {}
+
+    def start(self) -> Hashable:
+        return ()
+
+    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
+        return history + (activity,)
+
+    def key(self, cursor: Any, history: tuple[str, ...]) -> Hashable:
+        """Histories with equal keys have the same future (merged exactly)."""
+        return cursor
+
+    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
+        return self.model.predict_proba(history)
+
+    def distribution(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
+        key = (self.key(cursor, history), len(history))
+        dist = self._memo.get(key)
+        if dist is None:
+            if len(self._memo) >= 200_000:
+                self._memo.clear()
+            dist = self._memo[key] = self._compute(cursor, history)
+        return dist
+
+
+class _RoutineDynamics(_Dynamics):
+    """Routine model: the state is the runs so far; the future depends only on the last ``order``
+    run labels (with the day-start token) and when the current run began."""
+
+    model: RoutineModel
+
+    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
+        runs: tuple[tuple[str, int, int], ...] = cursor
+        t = len(history)
+        if runs and runs[-1][0] == activity:
+            return runs[:-1] + ((activity, runs[-1][1], t),)
+        return runs + ((activity, t, t),)
+
+    def key(self, cursor: Any, history: tuple[str, ...]) -> Hashable:
+        runs: tuple[tuple[str, int, int], ...] = cursor
+        order = self.model.order
+        tokens = tuple(a for a, _, _ in runs[-order:])
+        if len(runs) < order:
+            tokens = ((RUN_DAY_START,) + tokens)[-order:]
+        return tokens, runs[-1][1] if runs else -1
+
+    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
+        return self.model._distribution(list(cursor), len(history))
+
+
+class _NgramDynamics(_Dynamics):
+    """n-gram model: the state is the suffix-automaton match of the day so far."""
+
+    model: ActivityModel
+
+    def start(self) -> Hashable:
+        return self.model.index_.match((NGRAM_DAY_START,))
+
+    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
+        state, matched = cursor
+        return self.model.index_.step(state, matched, activity)
+
+    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
+        state, matched = cursor
+        return self.model._distribution(state, matched, len(history))
+
+
+def dynamics_for(model: NextActivityModel) -> _Dynamics:
+    if isinstance(model, RoutineModel):
+        return _RoutineDynamics(model)
+    if isinstance(model, ActivityModel):
+        return _NgramDynamics(model)
+    return _Dynamics(model)
+
+
+# -- the filter ----------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class Hypothesis:
+    """One possible history a_0..a_s of the day, with its posterior weight."""
+
+    weight: float
+    history: tuple[str, ...]
+    cursor: Any
+
+
+class ActivityFilter:
+    """The belief over the day's activities, updated one step at a time (online or offline).
+
+    ``update(step, label, moved)`` takes what was seen at ``step`` (0, 1, ... from the day start):
+    the activity label or None, and the objects seen moving since the step before, or None when
+    object locations were not observed. ``predictive()`` is then P(a_{step+1} | all seen so far);
+    ``posterior()`` is P(a_step | all seen so far). Skipped steps are filled with "nothing seen".
+    """
+
+    def __init__(self, model: NextActivityModel, emission: MovementEmission | None = None, *,
+                 max_hypotheses: int = 64, min_weight: float = 1e-4) -> None:
+        if max_hypotheses < 1:
+            raise ConfigError(f"ActivityFilter: max_hypotheses={max_hypotheses}; expected a positive integer")
+        if not 0.0 <= min_weight < 1.0:
+            raise ConfigError(f"ActivityFilter: min_weight={min_weight}; expected a number in [0, 1)")
+        self.model = model
+        self.emission = emission
+        self.max_hypotheses = max_hypotheses
+        self.min_weight = min_weight
+        self._dynamics = dynamics_for(model)
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new day: one empty history."""
+        self.step = -1
+        self._beam = [Hypothesis(1.0, (), self._dynamics.start())]
+
+    def _next(self, h: Hypothesis) -> dict[str, float]:
+        dist = self._dynamics.distribution(h.cursor, h.history)
+        if not dist and h.history:  # a model with nothing to say: the activity stays the same
+            return {h.history[-1]: 1.0}
+        return dist
+
+    def predictive(self) -> dict[str, float]:
+        """P(the activity at the next step | everything seen so far), mixed over the beam."""
+        out: dict[str, float] = {}
+        for h in self._beam:
+            for a, p in self._next(h).items():
+                out[a] = out.get(a, 0.0) + h.weight * p
+        total = sum(out.values())
+        return {a: p / total for a, p in out.items()} if total > 0 else {}
+
+    def posterior(self) -> dict[str, float]:
+        """P(the activity at the last updated step | everything seen so far)."""
+        out: dict[str, float] = {}
+        for h in self._beam:
+            if h.history:
+                out[h.history[-1]] = out.get(h.history[-1], 0.0) + h.weight
+        return out
+
+    def hypotheses(self) -> list[Hypothesis]:
+        """The weighted histories a_0..a_step kept now (most probable first, weights sum to 1)."""
+        return list(self._beam)
+
+    def update(self, step: int, label: str | None, moved: Collection[str] | None) -> None:
+        """Condition on what was seen at ``step`` (see the class doc)."""
+        if step <= self.step:
+            raise ValueError(f"step {step} is not after the last updated step {self.step}")
+        while self.step + 1 < step:
+            self._advance(None, None)
+        self._advance(label, None if moved is None else frozenset(moved))
+
+    def _advance(self, label: str | None, moved: frozenset[str] | None) -> None:
+        self.step += 1
+        first = self.step == 0
+        evidence = self._evidence(moved) if moved is not None and not first else None
+        merged: dict[Hashable, list] = {}
+        grown: list[tuple[float, Hypothesis, str]] = []
+        for h in self._beam:
+            dist = self._next(h)
+            if label is not None:
+                dist = {label: dist.get(label, 0.0)}
+            prev = h.history[-1] if h.history else None
+            for a, p in dist.items():
+                w = h.weight * p
+                if evidence is not None and w > 0.0:
+                    w *= evidence(prev, a)
+                if w > 0.0:
+                    grown.append((w, h, a))
+        # Extensions far below the best cannot reach min_weight of the total: skip building them.
+        floor = self.min_weight * max((w for w, _, _ in grown), default=0.0)
+        for w, h, a in grown:
+            if w >= floor:
+                self._add(merged, h, a, w)
+        if not merged:
+            # Nothing kept: the label (or movement) is impossible under the model. The evidence
+            # wins over the model: keep the histories' weights and extend them as observed.
+            for h in self._beam:
+                dist = self._next(h)
+                guess = max(dist, key=lambda k: dist[k]) if dist else (h.history[-1] if h.history else None)
+                chosen = label if label is not None else guess
+                if chosen is not None:
+                    self._add(merged, h, chosen, h.weight)
+        if not merged:
+            raise ValueError("the activity model predicts nothing for the first step; is it fitted?")
+        kept = sorted(merged.values(), key=lambda m: (-m[0], m[1]))[: self.max_hypotheses]
+        total = sum(m[0] for m in kept)
+        kept = [m for m in kept if m[0] >= self.min_weight * total] or kept[:1]
+        total = sum(m[0] for m in kept)
+        self._beam = [Hypothesis(w / total, hist, cur) for w, hist, cur, _ in kept]
+
+    def _add(self, merged: dict[Hashable, list], h: Hypothesis, a: str, w: float) -> None:
+        history = h.history + (a,)
+        cursor = self._dynamics.advance(h.cursor, h.history, a)
+        key = self._dynamics.key(cursor, history)
+        slot = merged.get(key)
+        if slot is None:
+            merged[key] = [w, history, cursor, w]
+        else:
+            slot[0] += w
+            if w > slot[3]:  # the most probable member represents the merged state
+                slot[1], slot[2], slot[3] = history, cursor, w
+
+    def _evidence(self, moved: frozenset[str]) -> Callable[[str | None, str], float] | None:
+        em = self.emission
+        if em is None:
+            return None
+        cache: dict[tuple[str | None, str], float] = {}
+        # Relative to an upper bound so that weights stay in floating-point range.
+        top = em.upper_bound(getattr(self.model, "classes_", ()), moved)
+
+        def likelihood(prev: str | None, current: str) -> float:
+            v = cache.get((prev, current))
+            if v is None:
+                v = cache[(prev, current)] = math.exp(em.log_likelihood(prev, current, moved) - top)
+            return v
+
+        return likelihood
+
+
+def filtered_beliefs(flt: ActivityFilter, day: Day, visible: Sequence[bool], objects: Sequence[str], *,
+                     nowcast: bool = False) -> tuple[list[dict[str, float]], list[dict[str, float]] | None]:
+    """Run ``flt`` over ``day`` (from a reset). Returns, for every step t, the predictive
+    P(a_t | visible labels of steps < t, movements seen at steps < t) and, with ``nowcast``,
+    P(a_t | the same and the movements seen at step t) (what is known about the activity under
+    way once the objects' places at t are seen, before its label would arrive)."""
+    if len(visible) != len(day):
+        raise ValueError(f"the label mask has {len(visible)} steps; the day {day.name} has {len(day)}")
+    flt.reset()
+    moved = moved_objects(day, objects)
+    predictive: list[dict[str, float]] = []
+    now: list[dict[str, float]] | None = [] if nowcast else None
+    for t in range(len(day)):
+        predictive.append(flt.predictive())
+        if now is not None and not visible[t]:  # the update itself is the nowcast
+            flt.update(t, None, moved[t])
+            now.append(flt.posterior())
+            continue
+        if now is not None:
+            peek = copy.copy(flt)
+            peek.update(t, None, moved[t])
+            now.append(peek.posterior())
+        flt.update(t, day.activities[t] if visible[t] else None, moved[t])
+    return predictive, now
+
+
+def filtered_scan(model: NextActivityModel, emission: MovementEmission | None, day: Day, visible: Sequence[bool],
+                  objects: Sequence[str], *, max_hypotheses: int = 64, min_weight: float = 1e-4) -> list[dict[str, float]]:
+    """For every step t of ``day``: P(a_t | the visible labels and the movements seen at steps
+    0..t-1). With every label visible this is exactly ``model.scan_proba(day.activities)``."""
+    flt = ActivityFilter(model, emission, max_hypotheses=max_hypotheses, min_weight=min_weight)
+    return filtered_beliefs(flt, day, visible, objects)[0]
+
+
+def label_mask(n: int, fraction: float, seed: Sequence[int]) -> list[bool]:
+    """Which of ``n`` steps show their label: ``round(fraction * n)`` of them, drawn with ``seed``.
+    Masks of one seed are nested (a larger fraction shows a superset), so fractions compare fairly."""
+    import numpy as np
+
+    order = np.random.default_rng(list(seed)).permutation(n)
+    k = round(fraction * n)
+    out = [False] * n
+    for i in order[:k]:
+        out[int(i)] = True
+    return out
+

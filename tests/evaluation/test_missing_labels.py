@@ -1,0 +1,104 @@
+"""Missing activity labels: the protocol is unchanged with every label visible; masks; results."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from globe import assembly
+from globe.config import GlobeConfig
+from globe.errors import ConfigError
+from globe.evaluation import lookahead as lk
+from globe.evaluation.missing_labels import (
+    FilterSetup,
+    _FilteredForecaster,
+    check_fractions,
+    day_mask,
+    evaluate_fraction,
+    missing_label_rows,
+    write_missing_label_results,
+)
+from globe.evaluation.protocol import evaluate_days
+from globe.evaluation.tuning import Selection
+
+
+def _setup(h, config: GlobeConfig, previous_share: float) -> FilterSetup:
+    models = config.models.model_copy(update={"activity_estimator": "routine", "object_marginal": True})
+    fitted = assembly.fit_household(h, config.model_copy(update={"models": models}))
+    emission = assembly.movement_emission(config.filter, previous_share=previous_share, weight=0.5).fit(h.train, h.objects)
+    chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=True)
+    return FilterSetup(h, models, fitted.activity, emission, chooser, Selection({}), 0.0)
+
+
+def test_every_label_visible_is_the_protocol(households):
+    """With all labels and the movement credited to the earlier activity (as the protocol does),
+    the filter adds nothing: records equal evaluate_days with the plain model."""
+    h, config = households["C"], GlobeConfig()
+    setup = _setup(h, config, previous_share=1.0)
+    days = h.test[:2]
+    res = evaluate_fraction(setup, config, 1.0, days=days, lookahead=False)
+    ref = evaluate_days(h, days, setup.activity, setup.chooser, alignment=config.sequences.alignment)
+    assert res.hidden_steps == 0
+    assert [(r.step, r.predicted, r.p_true) for r in res.activity] == [(r.step, r.predicted, pytest.approx(r.p_true))
+                                                                        for r in ref.activity]
+    assert [(r.step, r.true, r.predicted) for r in res.objects] == [(r.step, r.true, r.predicted) for r in ref.objects]
+
+
+def test_hidden_labels_change_the_activity_beliefs(households):
+    h, config = households["C"], GlobeConfig()
+    setup = _setup(h, config, previous_share=0.5)
+    day = h.test[:1]
+    none = evaluate_fraction(setup, config, 0.0, days=day, lookahead=False)
+    full = evaluate_fraction(setup, config, 1.0, days=day, lookahead=False)
+    assert none.hidden_steps == len(day[0]) and full.hidden_steps == 0
+    assert len(none.activity) == len(full.activity) == len(day[0]) - 1
+    assert len(none.objects) == len(full.objects)
+    assert [r.p_true for r in none.activity] != [r.p_true for r in full.activity]
+
+
+def test_lookahead_through_the_filter_with_all_labels_is_the_plain_forecast(households):
+    h, config = households["A"], GlobeConfig()
+    setup = _setup(h, config, previous_share=0.5)
+    fc = assembly.forecaster(h, config, models=setup.models).forecaster
+    day = h.test[0]
+    plain = lk.forecast_days(fc, [day], 3, 30, 45)
+    wrapped = lk.forecast_days(_FilteredForecaster(fc, day, [True] * len(day), h.objects, setup, config.filter),  # type: ignore[arg-type]
+                               [day], 3, 30, 45)
+    for a, b in zip(plain.pairs, wrapped.pairs):
+        np.testing.assert_allclose(np.concatenate(a.probability), np.concatenate(b.probability), atol=1e-9)
+    hidden = lk.forecast_days(_FilteredForecaster(fc, day, [False] * len(day), h.objects, setup, config.filter),  # type: ignore[arg-type]
+                              [day], 3, 30, 45)
+    assert hidden.activity_total.sum() == plain.activity_total.sum()
+    for p in hidden.pairs:
+        assert np.all(np.concatenate(p.probability) <= 1 + 1e-9)
+
+
+def test_masks_are_per_day_and_fractions_are_checked(households):
+    h, fcfg = households["A"], GlobeConfig().filter
+    a, b = day_mask(fcfg, "A", h.test[0], 0.5), day_mask(fcfg, "A", h.test[1], 0.5)
+    assert sum(a) == round(0.5 * len(h.test[0])) and a != b
+    assert a == day_mask(fcfg, "A", h.test[0], 0.5)
+    assert day_mask(fcfg.model_copy(update={"seed": 1}), "A", h.test[0], 0.5) != a
+    with pytest.raises(ConfigError):
+        check_fractions((0.5, 1.5))
+    with pytest.raises(ConfigError):
+        GlobeConfig().with_overrides({"filter.max_hypotheses": 0})
+    with pytest.raises(ConfigError):
+        GlobeConfig().with_overrides({"filter.fractions": [0.5, 1.5]})
+
+
+def test_results_table_and_plot(households, tmp_path):
+    h, config = households["B"], GlobeConfig()
+    setup = _setup(h, config, previous_share=0.5)
+    results = [evaluate_fraction(setup, config, f, days=h.test[:1], lookahead=False) for f in (0.0, 1.0)]
+    rows = missing_label_rows(results, horizons=2)
+    assert [(r["household"], r["labels_pct"]) for r in rows] == [("B", 0), ("B", 100), ("mean", 0), ("mean", 100)]
+    assert rows[2]["object_f1"] == rows[0]["object_f1"] and 0 <= rows[0]["object_f1"] <= 1
+    assert rows[0]["lookahead_f1_10min"] is None
+    paths = write_missing_label_results(tmp_path, rows, [{"household": "B", "params": {}, "chosen": True}])
+    assert all(p.exists() and p.stat().st_size > 0 for p in paths)
+    with open(tmp_path / "missing_labels.csv", newline="") as f:
+        got = list(csv.DictReader(f))
+    assert [g["labels_pct"] for g in got] == ["0", "100", "0", "100"]
