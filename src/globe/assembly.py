@@ -11,11 +11,13 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Sequence
 
-from globe.config import GateConfig, GlobeConfig, LLMConfig, ModelConfig
+from globe.config import FilterConfig, GateConfig, GlobeConfig, LLMConfig, LookaheadConfig, ModelConfig, PolicyConfig
 from globe.data.records import Day, Household
 from globe.models.activity import ActivityModel
+from globe.models.activity_filter import ActivityFilter, MovementEmission, NextActivityModel
 from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
+from globe.models.forecast import Forecaster, MovementModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
@@ -27,6 +29,7 @@ if TYPE_CHECKING:
     from globe.noise.proposals import Scorer
     from globe.reasoning.backends.embedded import EmbeddedBackend
     from globe.reasoning.cache import AnswerCache
+    from globe.reasoning.fetch_policy import FetchPolicy
     from globe.service.assistant import OnlineAssistant
 
 
@@ -64,6 +67,31 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
     activity = activity_model(config.models).fit(seqs.activities)
     objects = object_model(config.models).fit(seqs.runs)
     return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0)
+
+
+def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight: float,
+                      boundary: bool = False) -> MovementEmission:
+    """An unfitted P(moved objects | activities) for the activity filter (``previous_share``,
+    ``weight`` and ``boundary`` come from cross-validation, :mod:`globe.evaluation.missing_labels`)."""
+    return MovementEmission(smoothing=filter_cfg.emission_smoothing, weight=weight, previous_share=previous_share,
+                            boundary=boundary)
+
+
+def activity_filter(activity: NextActivityModel, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
+    """The forward filter over the current activity, for days whose labels are partly missing."""
+    return ActivityFilter(activity, emission, max_hypotheses=filter_cfg.max_hypotheses, min_weight=filter_cfg.min_weight)
+
+
+def household_filter(household: Household, config: GlobeConfig, activity: NextActivityModel,
+                     days: Sequence[Day] | None = None) -> ActivityFilter:
+    """An activity filter over a fitted ``activity`` model for online use (the service), its
+    movement evidence counted on ``household``'s training days (or ``days``) with the fixed
+    ``filter.emission_*`` settings (no cross-validation on the request path)."""
+    fc = config.filter
+    emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
+                                 boundary=fc.emission_boundary)
+    emission.fit(household.train if days is None else days, household.objects)
+    return activity_filter(activity, emission, fc)
 
 
 def _answer_cache(llm: LLMConfig) -> "AnswerCache | None":
@@ -119,10 +147,21 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
 
     fitted = fit_household(household, config)
     chooser = object_chooser(fitted.objects, config.gate, backend, marginal=config.models.object_marginal)
-    s = config.service
+    s, fc = config.service, config.filter
+    # The filter's movement evidence is learned with the models; the filter itself is rebuilt per
+    # prediction over the current models (cheap), so it never reads stale counts.
+    emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
+                                 boundary=fc.emission_boundary).fit(household.train, household.objects)
+    policy = None
+    if s.fetch_decision == "policy":
+        movements = movement_model(config.lookahead, run_end=True).fit(household.train, household.objects)
+        forecaster_ = Forecaster(fitted.activity, movements, min_path_probability=config.lookahead.min_path_probability,
+                                 max_paths=config.lookahead.max_paths)
+        policy = fetch_policy(forecaster_, config.policy, s.step_minutes)
     return OnlineAssistant(household, fitted.activity, chooser, alignment=config.sequences.alignment,
                            action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
-                           step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps)
+                           step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps, fetch_policy=policy,
+                           activity_filter=lambda: activity_filter(fitted.activity, emission, fc), emission=emission)
 
 
 def describe(activity: ActivityModelBase, chooser: ObjectChooser) -> dict[str, dict[str, Any]]:
@@ -138,3 +177,40 @@ def describe(activity: ActivityModelBase, chooser: ObjectChooser) -> dict[str, d
                            "mode": chooser.mode, "combine_weight": chooser.combine_weight, "examples": chooser.examples,
                            "backend": None if chooser.backend is None else chooser.backend.name}
     return out
+
+
+@dataclass(frozen=True, slots=True)
+class FittedForecaster:
+    forecaster: Forecaster
+    train_s: float  # both models' fitting (the activity model's included)
+
+
+def movement_model(lookahead: LookaheadConfig, run_end: bool = True, run_memory: bool = False) -> MovementModel:
+    """An unfitted movement-hazard and destination model for the ``lookahead`` section
+    (``run_end``, ``run_memory``: of ``lookahead.run_end`` / ``run_memory``, chosen by cross-validation)."""
+    return MovementModel(hazard_shrinkage=lookahead.hazard_shrinkage, duration_cap=lookahead.duration_cap,
+                         destination_shrinkage=lookahead.destination_shrinkage, run_end=run_end, run_memory=run_memory)
+
+
+def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | None = None,
+               models: ModelConfig | None = None, run_end: bool = True, run_memory: bool = False) -> FittedForecaster:
+    """A forecaster over ``household``'s training days (or ``days``): the activity model of
+    ``models`` (default ``config.models``) and the movement model of ``config.lookahead``."""
+    days = tuple(household.train if days is None else days)
+    la = config.lookahead
+    t0 = time.perf_counter()
+    activity = activity_model(models or config.models).fit([d.activities for d in days])
+    movements = movement_model(la, run_end, run_memory).fit(days, household.objects)
+    train_s = time.perf_counter() - t0
+    return FittedForecaster(Forecaster(activity, movements, min_path_probability=la.min_path_probability,
+                                       max_paths=la.max_paths), train_s)
+
+
+def fetch_policy(forecaster: Forecaster, policy: PolicyConfig, step_minutes: int) -> "FetchPolicy":
+    """The robot's fetch decision over ``forecaster`` with the ``policy`` costs and lead times."""
+    from globe.reasoning.fetch_policy import FetchPolicy
+
+    return FetchPolicy(forecaster, cost_useless=policy.cost_useless, cost_missed=policy.cost_missed,
+                       min_lead_steps=-(-policy.min_lead_minutes // step_minutes),
+                       window_steps=max(1, policy.lead_window_minutes // step_minutes),
+                       max_fetches_per_step=policy.max_fetches_per_step)

@@ -119,7 +119,10 @@ class ServiceConfig(_Section):
     host: str = Field("127.0.0.1", description="bind address")
     port: int = Field(8765, ge=0, le=65535, description="TCP port")
     database: Path = Field(Path("globe.sqlite3"), description="SQLite file")
-    action_threshold: float = Field(0.5, ge=0.0, le=1.0, description="fetch when object p >= this")
+    fetch_decision: Literal["policy", "threshold"] = Field(
+        "policy", description="'policy': fetch when the expected value is positive (see [policy]); 'threshold': when p >= action_threshold"
+    )
+    action_threshold: float = Field(0.5, ge=0.0, le=1.0, description="fetch when object p >= this ('threshold' decision)")
     day_start_minute: int = Field(360, ge=0, lt=1440, description="minute at which a new day begins")
     step_minutes: int = Field(10, ge=1, le=1440, description="minutes between observations (one step)")
     max_gap_steps: int = Field(36, ge=0, le=1000, description="longer gaps restart the day's history")
@@ -226,7 +229,7 @@ class FilterConfig(_Section):
         (False, True), description="whether move rates also depend on the activity changing at the step, tried by CV"
     )
     emission_weight: float = Field(
-        0.5, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service)"
+        1.0, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service)"
     )
     emission_previous_share: float = Field(
         0.5, ge=0.0, le=1.0, description="share of a movement credited to the activity at t-1 where no cross-validation runs"

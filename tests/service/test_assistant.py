@@ -60,7 +60,38 @@ def test_prediction_has_an_action_decision(assistant, households):
         assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(assistant.household.objects, day.locations[t]))))
     p = assistant.predict()
     assert p.activity is not None and 0 < p.activity_probability <= 1
-    assert p.act == (p.obj is not None and p.object_probability >= assistant.action_threshold)
+    # without a fetch policy: fetch the chosen object when its probability reaches the threshold
+    assert p.act == (p.object is not None and p.object_probability >= assistant.action_threshold)
+    assert p.fetch_object == (p.object if p.act else None)
+
+
+def test_fetch_policy_and_filter_in_the_assembled_assistant(households):
+    """The assembled assistant decides fetches by expected value and reads days with missing
+    labels through the activity filter: fetches have a usefulness probability above the cost
+    threshold, and hiding labels changes the belief without breaking the prediction."""
+    from dataclasses import replace
+
+    from globe import assembly
+    from globe.config import GlobeConfig
+
+    h = households["A"]
+    cfg = GlobeConfig().with_overrides({"llm.backend": "none"})
+    day = h.test[0]
+    full = assembly.assistant(replace(h, train=h.train[:20]), cfg, None)
+    hidden = assembly.assistant(replace(h, train=h.train[:20]), cfg, None)
+    threshold = full.fetch_policy.threshold
+    fetched, differs = [], 0
+    for t in range(60):
+        row = dict(zip(h.objects, day.locations[t]))
+        full.observe(Observation(at(day.minutes[t]), day.activities[t], row))
+        hidden.observe(Observation(at(day.minutes[t]), day.activities[t] if t % 3 == 0 else None, row))
+        p, q = full.predict(), hidden.predict()
+        if p.act:
+            fetched.append(p)
+        differs += p.activity_probability != q.activity_probability
+        assert q.activity is not None and 0 < q.activity_probability <= 1
+    assert fetched and all(p.fetch_probability > threshold and p.fetch_object for p in fetched)
+    assert differs > 0  # the filter really ran on the hidden steps
 
 
 def test_observations_inside_one_step_update_it(assistant):

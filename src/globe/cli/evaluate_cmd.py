@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Callable, Iterator
+from typing import TYPE_CHECKING, Annotated, Callable, Iterator
 
 import typer
 from rich.table import Table
@@ -21,10 +21,11 @@ from globe.cli.common import (
     require_test_days,
     resolve,
 )
-from globe.evaluation import main_job
 from globe.evaluation.methods import METHODS
-from globe.evaluation.results import Table1Results
-from globe.evaluation.robustness import RobustnessResults
+
+if TYPE_CHECKING:
+    from globe.evaluation.results import Table1Results
+    from globe.evaluation.robustness import RobustnessResults
 
 OutOption = Annotated[Path, typer.Option("--out", help="results folder to write")]
 
@@ -101,6 +102,8 @@ def evaluate(
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
 ) -> None:
     """Evaluate chosen methods on the test days and write a results folder."""
+    from globe.evaluation import main_job
+
     cfg = resolve(config, gate__threshold=threshold, llm__backend=backend)
     names = main_job.check_methods([m.strip() for m in methods.split(",") if m.strip()])
     hs = households_from(cfg, data, households)
@@ -119,15 +122,21 @@ def reproduce(
     config: ConfigOption = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
     robustness: Annotated[bool, typer.Option("--robustness/--no-robustness", help="also generate HOMER-Noise and run the robustness suite")] = True,
+    anticipation: Annotated[bool, typer.Option("--anticipation/--no-anticipation", help="also run lookahead, the fetch policy and missing labels")] = True,
 ) -> None:
     """Run every experiment available on the shipped HOMER+ and write the results folder."""
+    from globe.evaluation import main_job
+
     cfg = resolve(config, llm__backend=backend)
     hs = households_from(cfg, data, None)
     with stage_display() as show:
-        results = main_job.reproduce(cfg, hs, out_dir, with_robustness=robustness, progress=show)
+        results = main_job.reproduce(cfg, hs, out_dir, with_robustness=robustness, with_anticipation=anticipation,
+                                     progress=show)
     print_table1(results.table1)
     if results.robustness is not None:
         print_robustness(results.robustness)
+    if results.anticipation is not None and results.missing_labels is not None:
+        print_anticipation(out_dir)
     print_stages(results.stages)
     console.print(f"results in {out_dir}", markup=False)
 
@@ -151,6 +160,8 @@ def robustness(
     config: ConfigOption = None,
 ) -> None:
     """Robustness suite: noise types, behavioural consistency, ablations (generates noise if needed)."""
+    from globe.evaluation import main_job
+
     cfg = resolve(config, llm__backend=backend)
     hs = households_from(cfg, data, None)
     stages = main_job.Stages(out_dir)
@@ -159,3 +170,34 @@ def robustness(
         _, res = main_job.robustness(cfg, hs, noise_dir, out_dir, main_job.backend_for(cfg), stages)
     print_robustness(res)
     console.print(f"results in {out_dir}", markup=False)
+
+
+def print_anticipation(out_dir: Path) -> None:
+    """The mean rows of the anticipation tables, read back from the results folder."""
+    import csv
+
+    def rows(name: str) -> list[dict]:
+        with (out_dir / name).open(newline="", encoding="utf-8") as fh:
+            return [r for r in csv.DictReader(fh) if r.get("household") == "mean"]
+
+    look = rows("lookahead.csv")
+    horizons = list(dict.fromkeys(r["horizon_min"] for r in look))
+    table = Table(title="Lookahead: relocation F1 (mean of households; SLaTe-PRO published 0.57, 0.60 with queries)")
+    table.add_column("method")
+    for h in horizons:
+        table.add_column(f"{h} min", justify="right")
+    for method in dict.fromkeys(r["method"] for r in look):
+        get = {r["horizon_min"]: r for r in look if r["method"] == method}
+        table.add_row(method, *[f"{float(get[h]['f1']):.3f}" for h in horizons])
+    out.print(table)
+    fetch = [r for r in rows("fetch_policy.csv") if r.get("configured") in ("True", "true", "1")]
+    for r in fetch:
+        out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, recall {float(r['recall']):.3f}, "
+                  f"median lead {r['median_lead_min']} min, {r['fetches']} fetches", markup=False)
+    missing = rows("missing_labels.csv")
+    table = Table(title="Missing activity labels (mean of households)")
+    for col in ("labels %", "activity F1", "object F1", "lookahead F1 (mean)"):
+        table.add_column(col, justify="right")
+    for r in missing:
+        table.add_row(r["labels_pct"], r["activity_f1"], r["object_f1"], r.get("lookahead_f1_mean") or "–")
+    out.print(table)

@@ -14,7 +14,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 from globe import assembly
 from globe.config import GlobeConfig
@@ -28,6 +28,10 @@ from globe.evaluation.robustness import RobustnessResults, run_suite
 from globe.evaluation.robustness_results import write_robustness_results
 from globe.noise.dataset import generate_dataset, read_summary
 from globe.reasoning.backends.base import LLMBackend
+
+if TYPE_CHECKING:
+    from globe.evaluation.anticipation import AnticipationResult
+    from globe.evaluation.missing_labels import MissingLabelResults
 
 log = logging.getLogger("globe.stages")
 
@@ -121,16 +125,36 @@ def _same_noise(summary: dict | None, config: GlobeConfig) -> bool:
             and summary.get("scorer", "").startswith("uniform") == (config.llm.backend == "none"))
 
 
+def anticipation(config: GlobeConfig, households: Sequence[Household], out_dir: Path, stages: Stages | None = None,
+                 selection_cache: dict | None = None) -> tuple["AnticipationResult", "MissingLabelResults"]:
+    """Lookahead (SLaTe-PRO's relocation metric), the fetch policy, and prediction with missing
+    activity labels, written to ``out_dir``. ``selection_cache`` shares the main job's CV."""
+    from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
+    from globe.evaluation.missing_labels import run_missing_labels, write_missing_label_results
+
+    stages = stages or Stages(out_dir)
+    cache = {} if selection_cache is None else selection_cache
+    with stages.stage("anticipation: lookahead and fetch policy"):
+        ahead = run_anticipation(config, households, progress=stages.note, cache=cache)
+        write_anticipation_results(out_dir, ahead)
+    with stages.stage("anticipation: missing activity labels"):
+        missing = run_missing_labels(config, households, progress=stages.note, cache=cache)
+        write_missing_label_results(out_dir, missing.rows, missing.selection_rows)
+    return ahead, missing
+
+
 @dataclass(slots=True)
 class MainJobResults:
     table1: Table1Results
     noise_summary: dict | None
     robustness: RobustnessResults | None
+    anticipation: "AnticipationResult | None"
+    missing_labels: "MissingLabelResults | None"
     stages: list[dict]
 
 
 def reproduce(config: GlobeConfig, households: Sequence[Household], out_dir: Path, *, with_robustness: bool = True,
-              progress: Progress | None = None) -> MainJobResults:
+              with_anticipation: bool = True, progress: Progress | None = None) -> MainJobResults:
     """Every experiment on the given households, into ``out_dir`` (see the module doc)."""
     stages = Stages(out_dir, progress)
     with stages.stage("load LLM"):
@@ -141,4 +165,5 @@ def reproduce(config: GlobeConfig, households: Sequence[Household], out_dir: Pat
     if with_robustness:
         summary, res = robustness(config, households, out_dir / "homer_noise", out_dir / "robustness", backend, stages,
                                   selection_cache)
-    return MainJobResults(table1, summary, res, stages.times)
+    ahead, missing = anticipation(config, households, out_dir, stages, selection_cache) if with_anticipation else (None, None)
+    return MainJobResults(table1, summary, res, ahead, missing, stages.times)

@@ -62,11 +62,11 @@ def select(items: Sequence[Any], candidates: list[dict[str, Any]], make: Callabl
     splits = folds(len(items), k)
     scored = []
     for params in candidates:
-        fold_scores = []
+        fold_scores: list[float] = []
         for train_idx, val_idx in splits:
             model = make(params).fit([items[i] for i in train_idx])
             true, pred = predict_fold(model, [items[i] for i in val_idx])
-            fold_scores.append(f1(true, pred) if true else 0.0)
+            fold_scores.append(f1(true, pred) or 0.0)  # a fold with nothing to score counts 0
         scored.append((params, sum(fold_scores) / len(fold_scores)))
     best = max(scored, key=lambda ps: ps[1])[0] if scored else {}
     return Selection(dict(best), scored, time.perf_counter() - started)

@@ -44,7 +44,7 @@ from globe.service.schemas import (
     HouseholdInfo,
     ObservationAck,
     ObservationIn,
-    PredictionOut,
+    Prediction,
 )
 from globe.service.store import Store
 from globe.service.upload import household_from, parse_nodes
@@ -260,14 +260,10 @@ def create_app(config: GlobeConfig) -> FastAPI:
             a.observe(obs)
             return ObservationAck(id=body.id if body.id is not None else str(stored), duplicate=False, **ack)
 
-    @app.get("/households/{name}/prediction", response_model=PredictionOut, responses=errors)
-    def prediction(name: str, reg: Reg, who: Member) -> PredictionOut:
+    @app.get("/households/{name}/prediction", response_model=Prediction, responses=errors)
+    def prediction(name: str, reg: Reg, who: Member) -> Prediction:
         with reg.locked(name) as a:
-            p = a.predict()
-            days = a.days_learned
-        return PredictionOut(status=p.status, days_learned=days, day=p.day, step=p.step, activity=p.activity,
-                             activity_probability=p.activity_probability, object=p.obj, object_probability=p.object_probability,
-                             llm_consulted=p.llm_consulted, llm_fallback=p.llm_fallback, act=p.act, fetch_to=p.fetch_to)
+            return a.predict()
 
     @app.post("/households/{name}/feedback", status_code=201, responses=errors)
     def feedback(name: str, body: FeedbackIn, reg: Reg, who: Member) -> dict:

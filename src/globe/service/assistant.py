@@ -23,12 +23,15 @@ import sys
 import threading
 from collections import Counter, defaultdict
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 from globe.data.records import Day, Household
 from globe.errors import DataError, UnknownLabelError
+from globe.models.activity_filter import ActivityFilter, MovementEmission
 from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
+from globe.reasoning.fetch_policy import FetchPolicy
 from globe.sequences.runs import activity_runs
+from globe.service.schemas import Prediction
 
 UTC = dt.timezone.utc
 
@@ -38,21 +41,6 @@ class Observation:
     time: dt.datetime  # aware, in the household's zone (naive = wall time, for library use)
     activity: str | None  # None: unknown at this step
     locations: Mapping[str, str]  # object -> location (may be partial)
-
-
-@dataclass(frozen=True, slots=True)
-class Prediction:
-    status: str  # "learning" (no day learned yet) or "ready"
-    day: str
-    step: int
-    activity: str | None
-    activity_probability: float
-    obj: str | None
-    object_probability: float
-    llm_consulted: bool
-    llm_fallback: str | None
-    act: bool
-    fetch_to: str | None  # where the person is likely to need it (the object's usual target)
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,9 +71,14 @@ class OnlineAssistant:
 
     def __init__(self, household: Household, activity_model, chooser: ObjectChooser, *, alignment: str = "previous",
                  action_threshold: float = 0.5, day_start_minute: int = 360, step_minutes: int = 10,
-                 max_gap_steps: int = 36) -> None:
+                 max_gap_steps: int = 36, fetch_policy: FetchPolicy | None = None,
+                 activity_filter: Callable[[], ActivityFilter] | None = None,
+                 emission: MovementEmission | None = None) -> None:
         self.activity_model = activity_model
         self.chooser = chooser
+        self.fetch_policy = fetch_policy  # None: fetch when the object probability reaches action_threshold
+        self._new_filter = activity_filter  # builds a filter over the current models (None: carry labels forward)
+        self.emission = emission  # the filter's movement evidence, learned with the models
         self.alignment = alignment
         self.action_threshold = action_threshold
         self.day_start_minute = day_start_minute
@@ -186,19 +179,44 @@ class OnlineAssistant:
         for obj, loc in locations.items():
             state[self._object_index[obj]] = self._locations[loc]
 
-    # -- the two decisions the lead may swap (a filter over missing labels, a fetch policy) ----
+    # -- the two decisions: what comes next when labels are missing, and what to fetch ----
     def activity_history(self) -> list[str]:
-        """The day's activities as the activity model reads them: unknown steps carry the last
-        known label forward (see :func:`fill_unknown`)."""
+        """The day's activities with unknown steps carrying the last known label forward (see
+        :func:`fill_unknown`): what is learned at the end of the day, and the run context."""
         return fill_unknown(self._activities) or []
 
     def activity_belief(self) -> dict[str, float]:
-        """The next-activity distribution given the day so far."""
-        return self.activity_model.predict_proba(tuple(self.activity_history()))
+        """The next-activity distribution given the day so far. With every label known, the
+        activity model's own; otherwise a forward filter over the activities the unknown steps
+        may have had, given the time and the objects seen moving (never a guess taken as truth)."""
+        if self._new_filter is None or all(a is not None for a in self._activities):
+            return self.activity_model.predict_proba(tuple(self.activity_history()))
+        flt = self._new_filter()
+        previous: tuple[str, ...] | None = None
+        for step, (label, state) in enumerate(zip(self._activities, self._states)):
+            moved = None if previous is None else frozenset(o for o, x, y in zip(self.household.objects, previous, state) if x != y)
+            flt.update(step, label, moved)
+            previous = state
+        return flt.predictive()
 
-    def should_act(self, choice: ObjectChoice) -> bool:
-        """Fetch now: an object was chosen and its probability reaches the action threshold."""
-        return choice.obj is not None and choice.confidence >= self.action_threshold
+    def fetch_decision(self, choice: ObjectChoice, activity: str) -> tuple[str | None, str | None, float | None]:
+        """What to fetch now: (object, where to, P(used within the lead window)), or Nones.
+
+        With a fetch policy: the object whose expected value of fetching is highest and positive
+        (costs of a useless fetch and of a missed need, minimum lead time). Without one: the
+        chosen object when its probability reaches the action threshold."""
+        if self.fetch_policy is None:
+            if choice.obj is not None and choice.confidence >= self.action_threshold:
+                return choice.obj, self.fetch_target(activity, choice.obj), None
+            return None, None, None
+        now = len(self._slots) - 1
+        recent = {o for o, at in self._fetched.items() if now - at < self.fetch_policy.window_steps}
+        fetches = self.fetch_policy.decide(self.activity_history(), self._states, exclude=recent)
+        if not fetches:
+            return None, None, None
+        best = fetches[0]
+        self._fetched[best.obj] = now
+        return best.obj, best.to_location, best.probability
 
     # -- prediction ------------------------------------------------------------------------
     @property
@@ -209,18 +227,24 @@ class OnlineAssistant:
         """Next activity, the object likely needed, and whether the robot should act."""
         step = len(self._slots)
         day = self._day_key or ""
+        nothing = Prediction(status=self.status, days_learned=self.days_learned, day=day, step=step, activity=None,
+                             activity_probability=0.0, object=None, object_probability=0.0, llm_consulted=False,
+                             llm_fallback=None, act=False)
         if self.days_learned == 0:
-            return Prediction("learning", day, step, None, 0.0, None, 0.0, False, None, False, None)
+            return nothing
         belief = self.activity_belief()
         ranked = self.activity_model.ranked(belief)
         if not ranked:
-            return Prediction(self.status, day, step, None, 0.0, None, 0.0, False, None, False, None)
+            return nothing
         nxt = ranked[0]
         choice = self.chooser.choose_given(nxt, belief, run_context(*self._current_run()))
         if choice.fallback:
             self.fallbacks[choice.fallback] += 1
-        return Prediction(self.status, day, step, nxt, belief[nxt], choice.obj, choice.confidence,
-                          choice.asked, choice.fallback, self.should_act(choice), self.fetch_target(nxt, choice.obj))
+        fetch, to, p_useful = self.fetch_decision(choice, nxt)
+        return nothing.model_copy(update={
+            "activity": nxt, "activity_probability": belief[nxt], "object": choice.obj,
+            "object_probability": choice.confidence, "llm_consulted": choice.asked, "llm_fallback": choice.fallback,
+            "act": fetch is not None, "fetch_object": fetch, "fetch_to": to, "fetch_probability": p_useful})
 
     def record_feedback(self, accepted: bool) -> None:
         self.feedback["accepted" if accepted else "refused"] += 1
@@ -228,6 +252,7 @@ class OnlineAssistant:
     # -- internals ---------------------------------------------------------------------------
     def _reset_day(self, key: str | None) -> None:
         self._day_key = key
+        self._fetched: dict[str, int] = {}  # object -> step it was last fetched (not again within the window)
         self._slots: list[int] = []
         self._activities: list[str | None] = []
         self._states: list[tuple[str, ...]] = []
@@ -259,6 +284,10 @@ class OnlineAssistant:
         self.activity_model.partial_fit([d.activities for d in days])
         runs = [(r.activity, r.objects) for d in days for r in activity_runs(d, self.household.objects, self.alignment)]  # type: ignore[arg-type]
         self.chooser.model.partial_fit(runs)  # type: ignore[attr-defined]
+        if self.emission is not None:
+            self.emission.partial_fit(days, self.household.objects)
+        if self.fetch_policy is not None:
+            self.fetch_policy.learn(days)
         self._count_targets(days)
         self.days_learned += len(days)
 

@@ -8,12 +8,12 @@ a reverse proxy).
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 from globe.data.csv_logs import format_day
 from globe.data.records import Household
 from globe.errors import GlobeError, MissingExtraError
+from globe.service.schemas import Prediction
 
 
 class ServiceError(GlobeError):
@@ -24,21 +24,7 @@ class ServiceError(GlobeError):
         self.status, self.detail, self.field = status, detail, field
 
 
-@dataclass(frozen=True, slots=True)
-class ServicePrediction:
-    activity: str | None
-    activity_probability: float
-    object: str | None
-    object_probability: float
-    llm_consulted: bool
-    act: bool
-    fetch_to: str | None
-    latency_s: float
-    status: str = "ready"
-    days_learned: int = 0
-    llm_fallback: str | None = None
-    step: int = 0
-    day: str = ""
+ServicePrediction = Prediction  # the service's own schema (kept as a name for robot code written against it)
 
 
 def household_payload(household: Household) -> dict[str, Any]:
@@ -96,13 +82,11 @@ class GlobeClient:
             body["id"] = id
         return self._call("POST", f"/households/{household}/observations", json=body)
 
-    def prediction(self, household: str) -> ServicePrediction:
+    def prediction(self, household: str) -> Prediction:
+        """The service's prediction after the last observation (``last_latency_s``: its round trip)."""
         response = self._request("GET", f"/households/{household}/prediction")
-        p = response.json()
-        return ServicePrediction(p["activity"], p["activity_probability"], p["object"], p["object_probability"],
-                                 p["llm_consulted"], p["act"], p["fetch_to"], response.elapsed.total_seconds(),
-                                 p.get("status", "ready"), p.get("days_learned", 0), p.get("llm_fallback"),
-                                 p.get("step", 0), p.get("day", ""))
+        self.last_latency_s = response.elapsed.total_seconds()
+        return Prediction.model_validate(response.json())
 
     def feedback(self, household: str, obj: str, accepted: bool) -> dict:
         return self._call("POST", f"/households/{household}/feedback", json={"object": obj, "accepted": accepted})

