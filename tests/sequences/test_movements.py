@@ -1,8 +1,8 @@
 import pytest
 
-from globe.data.records import Day
+from globe.data.records import Day, Household
 from globe.sequences.movements import extract_movements
-from globe.sequences.runs import activity_runs, object_sequences, run_bounds
+from globe.sequences.runs import activity_runs, run_bounds, training_sequences
 
 OBJECTS = ("cup", "plate", "book")
 # step:        0            1            2            3           4
@@ -37,7 +37,10 @@ def test_runs_group_events_by_activity_run():
     runs = activity_runs(DAY, OBJECTS, "previous")
     assert [(r.activity, r.objects) for r in runs] == [
         ("idle", ()), ("breakfast", ("cup", "plate", "cup")), ("idle", ("book",)), ("reading", ())]
-    assert object_sequences([DAY], OBJECTS)["idle"] == [(), ("book",)]
+    home = Household("toy", (), OBJECTS, (DAY,), ())
+    seqs = training_sequences(home, [DAY], "previous")
+    assert seqs.activities == [ACTS]
+    assert seqs.runs == [("idle", ()), ("breakfast", ("cup", "plate", "cup")), ("idle", ("book",)), ("reading", ())]
 
 
 def test_unknown_alignment_is_rejected():
