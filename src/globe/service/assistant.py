@@ -268,7 +268,7 @@ class OnlineAssistant:
         return Day(f"live/{self._day_key}", minutes, tuple(self.activity_history()), tuple(self._states))
 
     def _current_run(self) -> tuple[str | None, tuple[str, ...]]:
-        if not self._activities:
+        if all(a is None for a in self._activities):  # nothing observed today, or no label yet: no run
             return None, ()
         runs = activity_runs(self.current_day(), self.household.objects, self.alignment)  # type: ignore[arg-type]
         last = runs[-1]
