@@ -1,0 +1,102 @@
+"""The learning curve through the real service: scored after exactly k learned days it agrees
+with the offline protocol, and its tables average what they should."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from globe.assembly import fit_household
+from globe.errors import DataError
+from globe.evaluation.learning_curve import CurvePoint, curve_point, learning_curve, mean_rows, table_rows
+from globe.evaluation.metrics import f1
+from globe.evaluation.protocol import evaluate_days
+from globe.reasoning.choice import ObjectChooser
+from tests.helpers import free_port
+
+
+def _point(household: str, k: int, activity: float | None, fetch_precision: float) -> CurvePoint:
+    return CurvePoint(household=household, days_learned=k, activity_f1=activity, object_f1=0.5, fetch_precision=fetch_precision,
+                      fetch_recall=0.25, activity_steps=10, object_events=4, fetches=2, observations=20, elapsed_s=0.1)
+
+
+def test_mean_rows_average_each_checkpoint_over_households_skipping_missing_scores():
+    points = [_point("A", 1, 0.6, 0.2), _point("B", 1, 0.8, 0.4), _point("A", 5, None, 0.5), _point("B", 5, 0.9, 0.7)]
+    means = {r["days_learned"]: r for r in mean_rows(points)}
+    assert means[1]["activity_f1"] == pytest.approx(0.7) and means[1]["fetch_precision"] == pytest.approx(0.3)
+    assert means[5]["activity_f1"] == pytest.approx(0.9)  # A had nothing to score: it does not pull the mean down
+    rows = table_rows(points)
+    assert [r["household"] for r in rows] == ["A", "B", "A", "B", "mean", "mean"]
+    assert list(rows[0]) == ["household", "days_learned", "activity_f1", "object_f1", "fetch_precision", "fetch_recall"]
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    """``globe serve`` whose clock-skew window admits replayed days, with an admin token."""
+    pytest.importorskip("httpx", reason="the service extra is not installed")
+    import httpx
+
+    from globe.service.auth import create_token
+
+    tmp = tmp_path_factory.mktemp("curve")
+    db, log, port = tmp / "globe.sqlite3", tmp / "server.log", free_port()
+    token = create_token(db, admin=True)
+    env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P30D")
+    with log.open("w") as fh:
+        proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(db), "--port", str(port)],
+                                stdout=fh, stderr=subprocess.STDOUT, env=env)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.time() + 60
+        while True:
+            if proc.poll() is not None:
+                pytest.fail(f"service exited: {log.read_text()[-3000:]}")
+            try:
+                if httpx.get(url + "/health", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if time.time() > deadline:
+                pytest.fail("service did not start within 60 s")
+            time.sleep(0.1)
+        yield url, token
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+@pytest.mark.service
+def test_curve_point_through_the_service_matches_the_offline_protocol(service, households, config):
+    """Two training days streamed as observations, two test days each in its own household: the
+    activity F1 is exactly the protocol's for a model trained on those two days (nothing leaked
+    from one test day into the other), and the households are gone afterwards."""
+    from globe.service.client import GlobeClient
+
+    h = households["B"]
+    small = dataclasses.replace(h, train=h.train[:3], test=h.test[:2])
+    url, token = service
+    with GlobeClient(url, token=token) as client:
+        point = curve_point(client, small, 2, isolate_test_days=True)
+        assert client.households() == []
+    fitted = fit_household(small, config, days=small.train[:2])
+    offline = evaluate_days(small, small.test, fitted.activity, ObjectChooser(fitted.objects))
+    assert point.activity_steps == len(offline.activity) == sum(len(d) - 1 for d in small.test)
+    assert point.activity_f1 == pytest.approx(f1([r.true for r in offline.activity], [r.predicted for r in offline.activity]))
+    assert point.object_events == len(offline.objects)
+    streamed = sum(len(d) for d in small.train[:2])  # into each test day's own household
+    assert point.observations == len(small.test) * streamed + sum(len(d) for d in small.test)
+    assert 0.0 <= point.fetch_precision <= 1.0 and 0.0 <= point.fetch_recall <= 1.0
+
+
+def test_checkpoints_beyond_the_training_days_are_refused(households):
+    h = households["A"]
+    with pytest.raises(DataError, match="checkpoint 66"):
+        learning_curve(None, h, (1, 66))  # type: ignore[arg-type]  # refused before any request
