@@ -4,10 +4,6 @@ with the offline protocol, and its tables average what they should."""
 from __future__ import annotations
 
 import dataclasses
-import os
-import subprocess
-import sys
-import time
 
 import pytest
 
@@ -17,7 +13,6 @@ from globe.evaluation.learning_curve import CurvePoint, curve_point, learning_cu
 from globe.evaluation.metrics import f1
 from globe.evaluation.protocol import evaluate_days
 from globe.reasoning.choice import ObjectChooser
-from tests.helpers import free_port
 
 
 def _point(household: str, k: int, activity: float | None, fetch_precision: float) -> CurvePoint:
@@ -39,38 +34,15 @@ def test_mean_rows_average_each_checkpoint_over_households_skipping_missing_scor
 def service(tmp_path_factory):
     """``globe serve`` whose clock-skew window admits replayed days, with an admin token."""
     pytest.importorskip("httpx", reason="the service extra is not installed")
-    import httpx
-
-    from globe.service.auth import create_token
+    from tests.service_process import Server
 
     tmp = tmp_path_factory.mktemp("curve")
-    db, log, port = tmp / "globe.sqlite3", tmp / "server.log", free_port()
-    token = create_token(db, admin=True)
-    env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P30D")
-    with log.open("w") as fh:
-        proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(db), "--port", str(port)],
-                                stdout=fh, stderr=subprocess.STDOUT, env=env)
-    url = f"http://127.0.0.1:{port}"
+    server = Server(tmp / "globe.sqlite3", tmp / "server.log", {"GLOBE_SERVICE__MAX_CLOCK_SKEW": "P30D"}).start()
+    url, token = server.url, server.admin
     try:
-        deadline = time.time() + 60
-        while True:
-            if proc.poll() is not None:
-                pytest.fail(f"service exited: {log.read_text()[-3000:]}")
-            try:
-                if httpx.get(url + "/health", timeout=1).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if time.time() > deadline:
-                pytest.fail("service did not start within 60 s")
-            time.sleep(0.1)
         yield url, token
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        server.stop()
 
 
 @pytest.mark.service

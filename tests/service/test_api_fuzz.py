@@ -18,11 +18,7 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import os
-import signal
 import sqlite3
-import subprocess
-import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,7 +41,7 @@ from schemathesis.specs.openapi.checks import (  # noqa: E402
 from globe.data.csv_logs import format_day  # noqa: E402
 from globe.service.auth import create_token  # noqa: E402
 from globe.service.client import GlobeClient, household_payload  # noqa: E402
-from tests.helpers import free_port  # noqa: E402
+from tests.service_process import Server  # noqa: E402
 
 pytestmark = pytest.mark.service
 
@@ -87,26 +83,9 @@ def fuzz_service(tmp_path_factory, households):
     """``globe serve`` with two households: HOME (the map of HOMER+ A and two training days) and
     OTHER (the map only: a cold start)."""
     tmp = tmp_path_factory.mktemp("fuzz")
-    db, log, port = tmp / "globe.sqlite3", tmp / "server.log", free_port()
-    admin = create_token(db, admin=True)
-    env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__PRELOAD="false")
-    with log.open("w") as fh:
-        proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(db), "--port", str(port)],
-                                stdout=fh, stderr=subprocess.STDOUT, env=env)
-    url = f"http://127.0.0.1:{port}"
+    server = Server(tmp / "globe.sqlite3", tmp / "server.log").start()
+    db, log, url, admin = server.db, server.log, server.url, server.admin
     try:
-        deadline = time.time() + 60
-        while True:
-            if proc.poll() is not None:
-                pytest.fail(f"service exited: {log.read_text()[-3000:]}")
-            try:
-                if httpx.get(url + "/health", timeout=1).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if time.time() > deadline:
-                pytest.fail("service did not start within 60 s")
-            time.sleep(0.1)
         h = households["A"]
         payload = household_payload(h)
         with GlobeClient(url, token=admin) as client:
@@ -119,12 +98,7 @@ def fuzz_service(tmp_path_factory, households):
                               tuple(sorted({a for d in h.train[:2] for a in d.activities})), payload["nodes"],
                               format_day(h.train[2], h.objects), http)
     finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
+        server.stop()
     log_text = log.read_text()
     assert "Traceback" not in log_text, f"the service logged an unexpected error:\n{log_text[-3000:]}"
 

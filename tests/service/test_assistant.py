@@ -126,3 +126,20 @@ def test_a_household_without_days_learns_from_scratch(households, config):
     a.observe(Observation(at(360, 1), day.activities[0], {}))  # the next morning: the first day is learned
     p = a.predict()
     assert a.days_learned == 1 and p.status == "ready" and p.activity in set(day.activities)
+
+
+def test_policy_makes_no_fetch_without_a_basis_today(households):
+    """Found by the API fuzzer: before any observation today, or when no step has a label yet,
+    the policy has nothing to forecast from: no fetch, and no error."""
+    from dataclasses import replace
+
+    from globe import assembly
+    from globe.config import GlobeConfig
+
+    h = households["A"]
+    a = assembly.assistant(replace(h, train=h.train[:5]), GlobeConfig().with_overrides({"llm.backend": "none"}), None)
+    assert a.fetch_policy is not None
+    assert not a.predict().act
+    a.observe(Observation(at(360), None, dict(zip(h.objects, h.test[0].locations[0]))))
+    p = a.predict()
+    assert not p.act and p.fetch_object is None and p.status == "ready"

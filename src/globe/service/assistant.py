@@ -209,9 +209,12 @@ class OnlineAssistant:
             if choice.obj is not None and choice.confidence >= self.action_threshold:
                 return choice.obj, self.fetch_target(activity, choice.obj), None
             return None, None, None
+        history = self.activity_history()
+        if not self._states or len(history) != len(self._states):  # nothing seen today, or no label yet: no basis
+            return None, None, None
         now = len(self._slots) - 1
         recent = {o for o, at in self._fetched.items() if now - at < self.fetch_policy.window_steps}
-        fetches = self.fetch_policy.decide(self.activity_history(), self._states, exclude=recent)
+        fetches = self.fetch_policy.decide(history, self._states, exclude=recent)
         if not fetches:
             return None, None, None
         best = fetches[0]

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Protocol, Sequence
 
 from globe.data.records import Day, Household
+from globe.evaluation.fetch import FetchReport
 from globe.sequences.movements import extract_movements
 from globe.service.client import GlobeClient, ServicePrediction
 
@@ -40,31 +41,20 @@ class SimulatedRobot:
 
 
 @dataclass(slots=True)
-class AssistanceReport:
+class AssistanceReport(FetchReport):
+    """The offline replay's fetch metrics (:class:`~globe.evaluation.fetch.FetchReport`), plus what
+    only a run through the service has: days, LLM consultations and request latencies."""
+
     days: int = 0
-    steps: int = 0
-    fetches: int = 0
-    useful_fetches: int = 0
-    used_objects: int = 0
-    used_fetched_in_advance: int = 0
-    lead_minutes: list[int] = field(default_factory=list)
     llm_consulted: int = 0
     latencies_s: list[float] = field(default_factory=list)
-
-    @property
-    def precision(self) -> float:
-        return self.useful_fetches / self.fetches if self.fetches else 0.0
-
-    @property
-    def recall(self) -> float:
-        return self.used_fetched_in_advance / self.used_objects if self.used_objects else 0.0
 
     def summary(self) -> dict:
         lat = sorted(self.latencies_s)
         return {
             "days": self.days, "steps": self.steps, "fetches": self.fetches,
             "precision": round(self.precision, 4), "recall": round(self.recall, 4),
-            "median_lead_min": statistics.median(self.lead_minutes) if self.lead_minutes else None,
+            "median_lead_min": self.median_lead_min,
             "llm_consult_rate": round(self.llm_consulted / self.steps, 4) if self.steps else 0.0,
             "latency_median_ms": round(1000 * statistics.median(lat), 2) if lat else None,
             "latency_p95_ms": round(1000 * lat[int(0.95 * (len(lat) - 1))], 2) if lat else None,

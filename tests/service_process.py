@@ -1,0 +1,66 @@
+"""A real ``globe serve`` process on a free loopback port, with its SQLite file and an admin
+token: what every test that talks HTTP to the service starts."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import httpx
+import pytest
+
+from globe.service.auth import create_token
+from globe.service.client import GlobeClient
+from tests.helpers import free_port
+
+
+class Server:
+    def __init__(self, db, log, env=None):
+        self.db, self.log, self.port, self.proc = db, log, free_port(), None
+        self.env = {"GLOBE_LLM__BACKEND": "none", "GLOBE_SERVICE__PRELOAD": "false", **(env or {})}
+        self.admin = create_token(db, admin=True)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def client(self, token: str | None = None, **kw) -> GlobeClient:
+        return GlobeClient(self.url, token=self.admin if token is None else token, **kw)
+
+    def token(self, household: str) -> str:
+        return create_token(self.db, household=household)
+
+    def start(self, expect_failure: bool = False) -> "Server":
+        env = dict(os.environ, **self.env)
+        with open(self.log, "a") as fh:
+            self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port)],
+                                         stdout=fh, stderr=subprocess.STDOUT, env=env)
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            if self.proc.poll() is not None:
+                if expect_failure:
+                    return self
+                pytest.fail(f"service exited: {open(self.log).read()[-3000:]}")
+            try:
+                if httpx.get(self.url + "/health", timeout=1).status_code == 200:
+                    return self
+            except httpx.HTTPError:
+                time.sleep(0.1)
+        self.kill()
+        pytest.fail("service did not start within 60 s")
+
+    def kill(self) -> None:
+        if self.proc and self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGKILL)
+            self.proc.wait(timeout=10)
+
+    def stop(self) -> None:
+        if self.proc and self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.kill()
