@@ -142,7 +142,9 @@ def _object_fold(gate: GateConfig, backend: LLMBackend | None) -> Callable[[_Fol
 def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tuple[ModelConfig, dict[str, Selection]]:
     """Model configuration for ``family`` ("witten_bell" or "routine") chosen by k-fold CV on
     the training days; memoised in ``cache`` per household so methods share one search."""
-    key = (h.name, family)
+    # Everything the search depends on: the household's data (a noisy variant shares its name),
+    # the search space, the alignment and the base models.
+    key = (h.name, hash(h.train), family, cfg.selection, cfg.sequences.alignment, cfg.models)
     if key in cache:
         return cache[key]
     sel = cfg.selection
@@ -178,7 +180,8 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
     """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is a candidate
     and wins ties, so the LLM must earn its place on held-out days. ``examples`` recent runs of
     the activity personalise the prompt (fixed, not searched)."""
-    key = (h.name, "gate", models, examples)
+    key = (h.name, hash(h.train), "gate", models, examples, cfg.gate, cfg.selection, cfg.sequences.alignment,
+           backend.name, backend.model_name)
     if key in cache:
         return cache[key]
     sel, g = cfg.selection, cfg.gate
