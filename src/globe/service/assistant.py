@@ -30,7 +30,7 @@ from globe.errors import DataError, UnknownLabelError
 from globe.models.activity_filter import ActivityFilter, MovementEmission
 from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
 from globe.reasoning.fetch_policy import FetchPolicy
-from globe.sequences.runs import activity_runs
+from globe.sequences.runs import ActivityRun, activity_runs
 from globe.service.schemas import Prediction
 
 UTC = dt.timezone.utc
@@ -96,7 +96,7 @@ class OnlineAssistant:
         self._target_counts: dict[tuple[str, str], Counter[str]] = defaultdict(Counter)
         # the training days are counted, then dropped: keep the map only (memory per household stays small)
         self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
-        self._count_targets(household.train)
+        self._count_targets(self._runs(household.train))
         self.days_learned = len(household.train)
         self._last_instant: dt.datetime | None = None
         self._reset_day(None)
@@ -285,20 +285,22 @@ class OnlineAssistant:
     def learn(self, days: Sequence[Day]) -> None:
         """Add whole days to both models (the same counts as training on them from the start)."""
         self.activity_model.partial_fit([d.activities for d in days])
-        runs = [(r.activity, r.objects) for d in days for r in activity_runs(d, self.household.objects, self.alignment)]  # type: ignore[arg-type]
-        self.chooser.model.partial_fit(runs)  # type: ignore[attr-defined]
+        runs = self._runs(days)
+        self.chooser.model.partial_fit([(r.activity, r.objects) for r in runs])  # type: ignore[attr-defined]
         if self.emission is not None:
             self.emission.partial_fit(days, self.household.objects)
         if self.fetch_policy is not None:
             self.fetch_policy.learn(days)
-        self._count_targets(days)
+        self._count_targets(runs)
         self.days_learned += len(days)
 
-    def _count_targets(self, days: Sequence[Day]) -> None:
-        for d in days:
-            for r in activity_runs(d, self.household.objects, self.alignment):  # type: ignore[arg-type]
-                for e in r.events:
-                    self._target_counts[(r.activity, e.obj)][e.target] += 1
+    def _runs(self, days: Sequence[Day]) -> list[ActivityRun]:
+        return [r for d in days for r in activity_runs(d, self.household.objects, self.alignment)]  # type: ignore[arg-type]
+
+    def _count_targets(self, runs: Sequence[ActivityRun]) -> None:
+        for r in runs:
+            for e in r.events:
+                self._target_counts[(r.activity, e.obj)][e.target] += 1
 
     def fetch_target(self, activity: str, obj: str | None) -> str | None:
         """Where ``obj`` is usually taken during ``activity``: where the robot should bring it."""
