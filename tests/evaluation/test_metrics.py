@@ -28,3 +28,22 @@ def test_consistency_groups_split_activities_into_thirds(households):
     assert set(groups) == {a for d in small.train for a in d.activities}
     with pytest.raises(ValueError, match="unknown consistency definition"):
         consistency_groups([small], "vibes")
+
+
+def test_f1_equals_scikit_learn_bit_for_bit():
+    import random
+
+    from sklearn.metrics import f1_score
+
+    from globe.evaluation.metrics import f1
+
+    rng = random.Random(7)
+    for trial in range(300):
+        labels = [f"a{i}" for i in range(rng.randint(1, 9))] + ["<none>"]
+        n = rng.randint(1, 60)
+        true = [rng.choice(labels[:-1]) for _ in range(n)]
+        pred = [rng.choice(labels) if rng.random() < 0.6 else t for t in true]
+        for average in ("weighted", "micro", "macro"):
+            expected = float(f1_score(true, pred, average=average, zero_division=0))
+            assert f1(true, pred, average) == expected, (trial, average)
+    assert f1([], []) is None

@@ -62,3 +62,21 @@ def test_gate_cv_prefers_never_asking_when_the_llm_adds_nothing(households):
     assert max(scores) == scores[0]  # asking only repeats the n-gram: no candidate beats never asking
     assert gate.threshold == 0.0 and gate.examples == 2
     assert len(selection.scores) == 1 + len(cfg.selection.gate_thresholds) * (1 + len(cfg.selection.combine_weights))
+
+
+def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(households):
+    from globe import assembly
+    from globe.evaluation.tuning import _SharedFit, activity_fold, grid, select
+
+    h = households["A"]
+    days = [d.activities for d in h.train[:24]]
+    cfg = GlobeConfig().models
+    space = [{"activity_estimator": "longest"}] + grid({"activity_estimator": ["witten_bell", "routine"],
+                                                        "routine_order": [2, 4], "time_weight": [0.0, 2.0],
+                                                        "routine_time_weight": [0.0, 1.0]})
+    fits: dict = {}
+    shared = select(days, space, lambda p: _SharedFit(assembly.activity_model(cfg.model_copy(update=p)), fits), activity_fold, 3)
+    alone = select(days, space, lambda p: assembly.activity_model(cfg.model_copy(update=p)), activity_fold, 3)
+    assert shared.scores == alone.scores and shared.best == alone.best
+    assert len(fits) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit
+    assert len({s for _, s in alone.scores}) > 3  # the candidates really predict differently

@@ -107,8 +107,9 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
         return memo[key]
 
     res = RobustnessResults([], [], [], [])
+    loaded: dict = {}  # households read from the noise folders, shared by the datasets built from them
     datasets = [(clean_dataset(clean), 0.0)] + [
-        (noisy_dataset(noise_root, t, n.train_level, n.test_level, names), n.train_level) for t in n.types]
+        (noisy_dataset(noise_root, t, n.train_level, n.test_level, names, loaded), n.train_level) for t in n.types]
     for data, level in datasets:
         for method in methods:
             evals = evaluated(data, level, method, cfg.gate.threshold)
@@ -119,7 +120,7 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
             res.threshold.append(score_row(data.name, gate_method, evaluated(data, level, gate_method, d), threshold=d))
     for t in n.types:
         for level in n.levels:
-            data = noisy_dataset(noise_root, t, level, n.test_level, names)
+            data = noisy_dataset(noise_root, t, level, n.test_level, names, loaded)
             for method in dict.fromkeys(("ngram", gate_method)):
                 res.train_level.append(score_row(t, method, evaluated(data, level, method, cfg.gate.threshold), train_level=level))
     res.threshold.sort(key=lambda r: (r["dataset"], r["threshold"]))

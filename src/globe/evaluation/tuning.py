@@ -72,6 +72,22 @@ def select(items: Sequence[Any], candidates: list[dict[str, Any]], make: Callabl
     return Selection(dict(best), scored, time.perf_counter() - started)
 
 
+class _SharedFit:
+    """One candidate activity model; candidates that count the same share one fit per fold."""
+
+    def __init__(self, model: ActivityModelBase, fits: dict) -> None:
+        self.model, self.fits = model, fits
+
+    def fit(self, days: Sequence[Sequence[str]]) -> ActivityModelBase:
+        m = self.model
+        key = (type(m).__name__, tuple(sorted(m.fit_params().items())), tuple(map(id, days)))
+        if key not in self.fits:
+            self.fits[key] = m.fit(days)
+        fitted = self.fits[key]
+        own = {k: v for k, v in m.get_params().items() if k in m._prediction_params}
+        return fitted if fitted is m else fitted.with_prediction_params(**own)
+
+
 def activity_fold(model: ActivityModelBase, days: Sequence[Sequence[str]]) -> tuple[list[str], list[str]]:
     """Next-activity predictions at steps 1..T-1 of held-out days."""
     true, pred = [], []
@@ -79,9 +95,8 @@ def activity_fold(model: ActivityModelBase, days: Sequence[Sequence[str]]) -> tu
         for t, dist in enumerate(model.scan_proba(day)):
             if t == 0:
                 continue
-            ranked = model.ranked(dist)
             true.append(day[t])
-            pred.append(ranked[0] if ranked else "<none>")
+            pred.append(model.top(dist) or "<none>")
     return true, pred
 
 
@@ -162,8 +177,10 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tu
     # The simpler models are candidates too, listed first so that they win ties: a home whose
     # routine is "the activity stays the same" gets persistence, not a model that overfits.
     simpler: list[dict[str, Any]] = [{"activity_estimator": "persistence"}, {"activity_estimator": "longest"}]
+    fits: dict = {}  # one fit per fold and counting configuration: the candidates differ in how they predict
     act = select(seqs.activities, simpler + space,
-                 lambda p: assembly.activity_model(cfg.models.model_copy(update=base | p)), activity_fold, sel.folds)
+                 lambda p: _SharedFit(assembly.activity_model(cfg.models.model_copy(update=base | p)), fits),
+                 activity_fold, sel.folds)
     models = cfg.models.model_copy(update=base | act.best)
     ospace = grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token})
     memo: dict = {}

@@ -10,7 +10,7 @@ from globe.models.backoff import (
     longest_distribution,
     witten_bell_distribution,
 )
-from globe.models.base import ActivityModelBase, windowed_prior
+from globe.models.base import ActivityModelBase
 from globe.models.suffix_index import SuffixIndex
 
 DAY_START = "<day>"
@@ -25,6 +25,7 @@ class ActivityModel(ActivityModelBase):
     """
 
     _parameter_constraints = {"estimator": ESTIMATORS, "max_order": int, "time_weight": float, "time_window": int}
+    _prediction_params = frozenset(_parameter_constraints)  # the automaton holds every order
     kind = "activity"
 
     def __init__(self, *, estimator: str = "longest", max_order: int = 109, time_weight: float = 0.0, time_window: int = 2) -> None:
@@ -66,7 +67,7 @@ class ActivityModel(ActivityModelBase):
         return dist
 
     def _with_time(self, dist: dict[str, float], step: int) -> dict[str, float]:
-        prior = windowed_prior(self.by_step_, step, self.time_window, self.classes_)
+        prior = self.step_prior(self.by_step_, step, self.time_window)
         mixed = {a: p * prior.get(a, 1e-9) ** self.time_weight for a, p in dist.items()}
         total = sum(mixed.values())
         return {a: p / total for a, p in mixed.items()} if total > 0 else dict(dist)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from collections import Counter
 from typing import Any, ClassVar, Mapping, Sequence
 
@@ -13,10 +14,30 @@ class CountingModel:
     "reset, then one ``partial_fit``", so batch and incremental training cannot drift apart."""
 
     _parameter_constraints: ClassVar[dict[str, tuple[Any, ...] | type]] = {}
+    _prediction_params: ClassVar[frozenset[str]] = frozenset()
+    """Parameters read only when predicting: models that differ only in these count the same."""
     kind: ClassVar[str] = ""
 
     def get_params(self) -> dict[str, Any]:
         return {name: getattr(self, name) for name in self._parameter_constraints}
+
+    def fit_params(self) -> dict[str, Any]:
+        """The parameters that change what :meth:`fit` counts."""
+        return {k: v for k, v in self.get_params().items() if k not in self._prediction_params}
+
+    def with_prediction_params(self, **params: Any) -> "CountingModel":
+        """A fitted copy answering with other prediction-only parameters. It *shares* this model's
+        counts (cross-validation fits each fold once for every such candidate), so it must not
+        learn more days: only the original may."""
+        self._check_fitted()
+        bad = set(params) - self._prediction_params
+        if bad:
+            raise ValueError(f"{type(self).__name__}: {sorted(bad)} change what is counted; fit a new model instead")
+        clone = copy.copy(self)
+        for name, value in params.items():
+            setattr(clone, name, value)
+        clone._validate_params()
+        return clone
 
     def _validate_params(self) -> None:
         for name, allowed in self._parameter_constraints.items():
@@ -61,11 +82,22 @@ def rank(distribution: Mapping[str, float], frequency: Mapping[str, int]) -> lis
     return sorted(distribution, key=lambda w: (-distribution[w], -frequency.get(w, 0), str(w)))
 
 
+def top(distribution: Mapping[str, float], frequency: Mapping[str, int]) -> str | None:
+    """``rank(distribution, frequency)[0]`` without sorting everything (None if empty)."""
+    if not distribution:
+        return None
+    best = max(distribution.values())
+    tied = [w for w, p in distribution.items() if p == best]
+    return tied[0] if len(tied) == 1 else min(tied, key=lambda w: (-frequency.get(w, 0), str(w)))
+
+
 class ActivityModelBase(CountingModel):
     """What every next-activity model shares: fit = reset + partial_fit, ranking, argmax,
     confidence, and a default prefix scan (subclasses override it with a linear pass)."""
 
     frequency_: Counter
+    classes_: tuple[str, ...]
+    _priors: tuple[int, dict[tuple[int, int], dict[str, float]]] | None = None
 
     def fit(self, days: Sequence[Sequence[str]]):
         """Train from scratch on per-day activity sequences."""
@@ -84,6 +116,26 @@ class ActivityModelBase(CountingModel):
 
     def ranked(self, distribution: Mapping[str, float]) -> list[str]:
         return rank(distribution, self.frequency_)
+
+    def top(self, distribution: Mapping[str, float]) -> str | None:
+        """The first of :meth:`ranked` (None if the distribution is empty)."""
+        return top(distribution, self.frequency_)
+
+    def _reset(self) -> None:
+        super()._reset()
+        self._priors = None
+
+    def step_prior(self, by_step: Sequence[Mapping[str, int]], step: int, window: int) -> dict[str, float]:
+        """:func:`windowed_prior` over ``classes_``, memoised per step until days are added (every
+        scan of every cross-validation fold asks it again at each step)."""
+        version = len(getattr(self, "training_data_", ()))
+        if self._priors is None or self._priors[0] != version:
+            self._priors = (version, {})
+        memo = self._priors[1]
+        prior = memo.get((step, window))
+        if prior is None:
+            prior = memo[(step, window)] = windowed_prior(by_step, step, window, self.classes_)
+        return prior
 
     def predict(self, history: Sequence[str]) -> str | None:
         """Most probable next activity (ties: training frequency, then name)."""

@@ -23,7 +23,7 @@ from collections import Counter
 from typing import Sequence
 
 from globe.models.backoff import witten_bell_distribution
-from globe.models.base import ActivityModelBase, windowed_prior
+from globe.models.base import ActivityModelBase
 from globe.models.suffix_index import SuffixIndex
 from globe.sequences.runs import run_bounds
 
@@ -40,6 +40,7 @@ class RoutineModel(ActivityModelBase):
 
     _parameter_constraints = {"order": int, "time_weight": float, "time_window": int,
                               "shrinkage": float, "duration_cap": int, "hour_steps": int}
+    _prediction_params = frozenset({"order", "time_weight", "time_window", "shrinkage"})  # counts: durations, hours
     kind = "routine"
 
     def __init__(self, *, order: int = 3, time_weight: float = 1.0, time_window: int = 3,
@@ -103,7 +104,7 @@ class RoutineModel(ActivityModelBase):
         nxt = witten_bell_distribution(self.runs_, state, matched, self.order, self.classes_)
         nxt.pop(current, None)
         if self.time_weight > 0:
-            prior = windowed_prior(self.starts_, step, self.time_window, self.classes_)
+            prior = self.step_prior(self.starts_, step, self.time_window)
             nxt = {b: p * prior[b] ** self.time_weight for b, p in nxt.items()}
         z = sum(nxt.values())
         dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}

@@ -128,10 +128,20 @@ def clean_dataset(households: Sequence[Household]) -> Dataset:
     return Dataset(CLEAN, list(households), set())
 
 
-def noisy_dataset(root: Path, noise_type: str, train_level: float, test_level: float, names: Sequence[str]) -> Dataset:
+def noisy_dataset(root: Path, noise_type: str, train_level: float, test_level: float, names: Sequence[str],
+                  loaded: dict[tuple[Path, str], Household] | None = None) -> Dataset:
+    """Train at ``train_level``, test at ``test_level``; ``loaded`` keeps households already read
+    (the suite reads each level's folder for several datasets)."""
+    loaded = {} if loaded is None else loaded
+
+    def load(level: float, name: str) -> Household:
+        folder = level_dir(root, noise_type, level)
+        if (folder, name) not in loaded:
+            loaded[(folder, name)] = load_household(folder, name)
+        return loaded[(folder, name)]
+
     out = []
     for name in names:
-        train = load_household(level_dir(root, noise_type, train_level), name)
-        test = load_household(level_dir(root, noise_type, test_level), name)
+        train, test = load(train_level, name), load(test_level, name)
         out.append(replace(train, test=test.test))
     return Dataset(noise_type, out, read_manifest(level_dir(root, noise_type, test_level) / "manifest.csv"))
