@@ -160,6 +160,9 @@ class EvaluationConfig(_Section):
     personal_examples: int = Field(
         4, ge=1, le=50, description="recent runs shown to the LLM by the personalised rows (globe_personal, globe_routine)"
     )
+    workers: int | None = Field(
+        None, ge=1, le=256, description="processes for the cross-validation of each household (None = one per core)"
+    )
 
 
 class LookaheadConfig(_Section):

@@ -22,7 +22,8 @@ from globe.data.records import Household
 from globe.errors import ConfigError
 from globe.evaluation import report
 from globe.evaluation.experiments import run_methods
-from globe.evaluation.methods import METHODS
+from globe.evaluation.methods import METHODS, families
+from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.results import Table1Results, write_table1_results
 from globe.evaluation.robustness import RobustnessResults, run_suite
 from globe.evaluation.robustness_results import write_robustness_results
@@ -89,6 +90,11 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
     ``selection_cache`` (cross-validation results on these households) is filled and reused."""
     methods = check_methods(methods)
     stages = stages or Stages(out_dir)
+    selection_cache = {} if selection_cache is None else selection_cache
+    needed = families([m for m in methods if backend is not None or not METHODS[m].needs_llm])
+    if needed:
+        with stages.stage("table1: model selection (cross-validation, in parallel)"):
+            precompute_selections(config, [(h, selection_cache) for h in households], needed)
     runs = []
     for method in methods:
         with stages.stage(f"table1: {method}"):

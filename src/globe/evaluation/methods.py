@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Sequence
 
 from globe import assembly
 from globe.assembly import FittedHousehold
@@ -39,6 +39,7 @@ class Method:
     label: str
     needs_llm: bool
     prepare: Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]
+    family: str | None = None  # the model family chosen by cross-validation, if any
 
 
 def _fit(h: Household, cfg: GlobeConfig, models: ModelConfig | None = None) -> FittedHousehold:
@@ -85,6 +86,11 @@ def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache:
     return Prepared(model, LLMOnlyChooser(fitted.objects, backend), fitted.train_s)
 
 
+def families(methods: Sequence[str]) -> list[str]:
+    """The model families the listed methods choose by cross-validation."""
+    return list(dict.fromkeys(f for m in methods if (f := METHODS[m].family)))
+
+
 def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]:
     def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
         models, selection = tuned_models(h, cfg, family, cache)
@@ -109,8 +115,8 @@ METHODS: dict[str, Method] = {
         Method("globe_combine", "GLOBE, LLM + n-gram scores", True, _globe_combine),
         Method("globe_personal", "GLOBE, personalised prompt", True, _globe_personal),
         Method("llm_only", "LLM-only", True, _llm_only),
-        Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False)),
-        Method("routine", "Routine model (CV)", False, _tuned("routine", False)),
-        Method("globe_routine", "GLOBE + routine model (personalised, gate CV)", True, _tuned("routine", True)),
+        Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False), "witten_bell"),
+        Method("routine", "Routine model (CV)", False, _tuned("routine", False), "routine"),
+        Method("globe_routine", "GLOBE + routine model (personalised, gate CV)", True, _tuned("routine", True), "routine"),
     )
 }

@@ -18,8 +18,9 @@ from typing import Callable, Sequence
 
 from globe.config import GlobeConfig
 from globe.data.records import Household
-from globe.evaluation.methods import METHODS
+from globe.evaluation.methods import METHODS, families
 from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1, mean_present
+from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
 from globe.noise.dataset import CLEAN, Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
@@ -110,6 +111,9 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
     loaded: dict = {}  # households read from the noise folders, shared by the datasets built from them
     datasets = [(clean_dataset(clean), 0.0)] + [
         (noisy_dataset(noise_root, t, n.train_level, n.test_level, names, loaded), n.train_level) for t in n.types]
+    # every dataset's cross-validations at once, on several processes
+    precompute_selections(cfg, [(h, caches.setdefault((data.name, level), {})) for data, level in datasets
+                                for h in data.households], families(methods))
     for data, level in datasets:
         for method in methods:
             evals = evaluated(data, level, method, cfg.gate.threshold)

@@ -154,12 +154,16 @@ def _object_fold(gate: GateConfig, backend: LLMBackend | None) -> Callable[[_Fol
     return predict
 
 
+def selection_key(h: Household, cfg: GlobeConfig, family: str) -> tuple:
+    """Everything a model search depends on: the household's data (a noisy variant shares its
+    name), the family, the search space, the alignment and the base models."""
+    return (h.name, hash(h.train), family, cfg.selection, cfg.sequences.alignment, cfg.models)
+
+
 def tuned_models(h: Household, cfg: GlobeConfig, family: str, cache: dict) -> tuple[ModelConfig, dict[str, Selection]]:
     """Model configuration for ``family`` ("witten_bell" or "routine") chosen by k-fold CV on
     the training days; memoised in ``cache`` per household so methods share one search."""
-    # Everything the search depends on: the household's data (a noisy variant shares its name),
-    # the search space, the alignment and the base models.
-    key = (h.name, hash(h.train), family, cfg.selection, cfg.sequences.alignment, cfg.models)
+    key = selection_key(h, cfg, family)
     if key in cache:
         return cache[key]
     sel = cfg.selection

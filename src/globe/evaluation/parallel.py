@@ -1,0 +1,61 @@
+"""Independent CPU-bound work on several processes: cross-validation of each household.
+
+The main job's model selection (k-fold cross-validation per household and model family) is pure
+counting and scoring, independent across households and datasets, and most of the job's CPU
+time once LLM answers are cached. It runs here on ``evaluation.workers`` processes (default: the
+machine's cores), before the LLM is asked anything, so the two never compete for cores.
+Results are identical to running in one process: each task is deterministic and the parent
+stores them under its own cache keys.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from typing import Callable, Sequence, TypeVar
+
+from globe.config import GlobeConfig
+from globe.data.records import Household
+from globe.evaluation.tuning import selection_key, tuned_models
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def worker_count(requested: int | None) -> int:
+    """``requested`` processes, or one per available core."""
+    if requested:
+        return requested
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list[R]:
+    """``[fn(t) for t in tasks]`` on up to ``workers`` processes (in this one when 1 or a single
+    task). Processes are started by a fork server, never forked from a parent that may hold
+    llama.cpp threads."""
+    if workers <= 1 or len(tasks) <= 1:
+        return [fn(t) for t in tasks]
+    context = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=context) as pool:
+        return list(pool.map(fn, tasks))
+
+
+def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
+    household, config, family = task
+    return tuned_models(household, config, family, {})
+
+
+def precompute_selections(config: GlobeConfig, households: Sequence[tuple[Household, dict]], families: Sequence[str]) -> int:
+    """Run every (household, family) cross-validation missing from its household's cache (the
+    pairs ``households``: a household and the cache of its dataset) on
+    ``config.evaluation.workers`` processes, and store each result where
+    :func:`~globe.evaluation.tuning.tuned_models` looks for it. Returns how many ran."""
+    todo = [(h, cache, f) for h, cache in households for f in dict.fromkeys(families) if selection_key(h, config, f) not in cache]
+    results = run_parallel(_select, [(h, config, f) for h, _, f in todo], worker_count(config.evaluation.workers))
+    for (h, cache, f), result in zip(todo, results):
+        cache[selection_key(h, config, f)] = result
+    return len(todo)

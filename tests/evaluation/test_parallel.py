@@ -1,0 +1,32 @@
+"""Cross-validations on several processes give exactly what one process gives."""
+
+from dataclasses import replace
+
+from globe.config import GlobeConfig
+from globe.evaluation.parallel import precompute_selections, run_parallel, worker_count
+from globe.evaluation.tuning import selection_key, tuned_models
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def test_run_parallel_keeps_the_order_of_tasks():
+    assert run_parallel(_square, list(range(7)), 2) == [x * x for x in range(7)]
+    assert run_parallel(_square, [3], 2) == [9]  # one task: no pool
+    assert worker_count(3) == 3 and worker_count(None) >= 1
+
+
+def test_selections_computed_on_other_processes_equal_the_ones_computed_here(households):
+    config = GlobeConfig().with_overrides({"evaluation.workers": 2, "selection.folds": 3,
+                                           "selection.routine_orders": (2, 3), "selection.time_weights": (0.0, 1.0)})
+    small = [replace(h, train=h.train[:15], test=()) for h in households.values()][:2]
+    cache: dict = {}
+    ran = precompute_selections(config, [(h, cache) for h in small], ["routine"])
+    assert ran == 2 and len(cache) == 2
+    for h in small:
+        here = tuned_models(h, config, "routine", {})
+        there = cache[selection_key(h, config, "routine")]
+        assert there[0] == here[0]
+        assert [s.scores for s in there[1].values()] == [s.scores for s in here[1].values()]
+    assert precompute_selections(config, [(h, cache) for h in small], ["routine"]) == 0  # nothing left to run
