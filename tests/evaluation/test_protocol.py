@@ -88,3 +88,28 @@ def test_table1_rows_have_the_documented_columns(homer_runs, tmp_path):
         got = list(reader)
     assert {(r["method"], r["household"], r["average"]) for r in got} == {
         (m, h, a) for m in ("persistence", "ngram") for h in ("A", "B", "C", "mean") for a in ("weighted", "micro", "macro")}
+
+
+def test_rankings_shared_between_choosers_give_the_same_records(households, fitted):
+    """Gate candidates of a cross-validation fold share each event's n-gram ranking."""
+    from globe.reasoning.backends.base import Choice, LLMBackend
+    from globe.reasoning.gate import UncertaintyGate
+
+    class Last(LLMBackend):
+        name = "last"
+
+        def choose(self, context, candidates):
+            return Choice(sorted(candidates)[-1], {c: float(i) for i, c in enumerate(sorted(candidates))})
+
+    h, models = households["B"], fitted["B"]
+    days = h.test[:3]
+    plain = ObjectChooser(models.objects)
+    gate = UncertaintyGate(models.objects, Last(), threshold=0.6)
+    alone = [evaluate_days(h, days, models.activity, c) for c in (plain, gate)]
+    shared: dict = {}
+    together = [evaluate_days(h, days, models.activity, c, rankings=shared) for c in (plain, gate)]
+    assert len(shared) == len(alone[0].objects) > 0  # one ranking per movement event, computed once
+    for a, b in zip(alone, together):
+        assert [(r.day, r.step, r.predicted, r.confidence, r.asked) for r in a.objects] == \
+               [(r.day, r.step, r.predicted, r.confidence, r.asked) for r in b.objects]
+    assert any(r.asked for r in together[1].objects)  # the gate did ask, on shared rankings

@@ -16,7 +16,7 @@ from typing import Callable, Protocol, Sequence
 
 from globe.data.records import Day, Household
 from globe.reasoning.backends.base import LLMBackend, QuestionRecorder
-from globe.reasoning.choice import ContextFor, ObjectChoice, ObjectChooser, run_context
+from globe.reasoning.choice import ContextFor, ObjectChoice, ObjectChooser, Ranking, run_context
 from globe.sequences.movements import Alignment
 from globe.sequences.runs import activity_runs
 
@@ -123,6 +123,7 @@ def evaluate_days(
     oracle: bool = False,
     injected: Callable[[str, int, str], bool] | None = None,
     progress: Callable[[int], None] | None = None,
+    rankings: dict | None = None,
 ) -> Evaluation:
     """Run the protocol over ``days``; ``injected(day, step, obj)`` marks noise movements.
 
@@ -150,16 +151,28 @@ def evaluate_days(
                     injected(day.name, ev.step, ev.obj) if injected else False))
         if progress:
             progress(1)
+    # The n-gram ranking of each event is computed once: the dry pass below and the real one
+    # share it, and so do callers that pass ``rankings`` for several choosers over the same models.
+    memo: dict = {} if rankings is None else rankings
+
+    def ranking(q: _Query) -> Ranking | None:
+        if not chooser.uses_ranking:
+            return None
+        key = (household.name, q.day, q.step, q.true, oracle)
+        if key not in memo:
+            memo[key] = chooser.ngram_ranking(q.activity, q.belief, q.context_for)
+        return memo[key]
+
     backend = getattr(chooser, "backend", None)
     if isinstance(backend, LLMBackend) and backend.prefetches:
         recorder = QuestionRecorder(backend)
         dry = copy.copy(chooser)
         dry.backend = recorder  # type: ignore[attr-defined]
         for q in queries:
-            dry.choose_given(q.activity, q.belief, q.context_for)
+            dry.choose_given(q.activity, q.belief, q.context_for, ranking(q))
         backend.prefetch(recorder.questions)
     obj_records = [ObjectRecord(household=household.name, day=q.day, step=q.step, true_activity=q.true_activity,
                                 predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
-                                choice=chooser.choose_given(q.activity, q.belief, q.context_for), injected=q.injected)
+                                choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranking(q)), injected=q.injected)
                    for q in queries]
     return Evaluation(act_records, obj_records, time.perf_counter() - started)

@@ -148,7 +148,10 @@ def _object_fold(gate: GateConfig, backend: LLMBackend | None) -> Callable[[_Fol
     def predict(model: _FoldModels, days: Sequence[Day]) -> tuple[list[str], list[str]]:
         cfg = model.config
         chooser = assembly.object_chooser(model.objects, gate, backend, marginal=cfg.models.object_marginal)
-        ev = evaluate_days(model.household, days, model.activity, chooser, alignment=cfg.sequences.alignment)
+        # every gate candidate of a fold ranks the same events with the same models: once
+        rankings = model.memo.setdefault(("rankings", id(model.activity), id(model.objects)), {})
+        ev = evaluate_days(model.household, days, model.activity, chooser, alignment=cfg.sequences.alignment,
+                           rankings=rankings)
         return [r.true for r in ev.objects], [r.predicted for r in ev.objects]
 
     return predict

@@ -37,6 +37,8 @@ class ObjectChoice:
 
 
 ContextFor = Callable[[str], tuple[str, ...]]
+Ranking = tuple[list[str], dict[str, float]]
+"""The n-gram's objects, most probable first, and their probabilities."""
 
 
 def run_context(run_activity: str | None, objects: tuple[str, ...]) -> ContextFor:
@@ -70,22 +72,25 @@ class ObjectChooser:
 
     ``choose_given(activity, belief, context_for)`` gets the predicted activity, the activity
     model's whole distribution and, for any activity, the objects that count as context
-    (the current run's objects if that activity continues the run, else none).
+    (the current run's objects if that activity continues the run, else none); ``ranking``,
+    when given, is :meth:`ngram_ranking` of the same, computed once by an evaluation that asks
+    several choosers over the same models.
     """
 
     name = "ngram"
+    uses_ranking = True  # whether choose_given reads the n-gram ranking (precomputed rankings can be passed)
 
     def __init__(self, model: NextObjectModel, *, marginal: bool = False) -> None:
         self.model = model
         self.marginal = marginal
 
-    def ngram_ranking(self, activity: str, belief: Mapping[str, float] | None,
-                      context_for: ContextFor) -> tuple[list[str], dict[str, float]]:
+    def ngram_ranking(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> Ranking:
         dist = object_distribution(self.model, activity, belief, context_for, self.marginal)
         return self.model.ranked(activity, dist), dist
 
-    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
-        ranked, dist = self.ngram_ranking(activity, belief, context_for)
+    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
+                     ranking: Ranking | None = None) -> ObjectChoice:
+        ranked, dist = ranking or self.ngram_ranking(activity, belief, context_for)
         if not ranked:
             return ObjectChoice(None, 0.0)
         return ObjectChoice(ranked[0], dist[ranked[0]], ngram_choice=ranked[0])

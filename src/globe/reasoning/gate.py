@@ -8,7 +8,7 @@ from typing import Literal, Mapping
 
 from globe.errors import LLMError
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ContextFor, NextObjectModel, ObjectChoice, ObjectChooser
+from globe.reasoning.choice import ContextFor, NextObjectModel, ObjectChoice, ObjectChooser, Ranking
 from globe.reasoning.context import ChoiceContext
 
 GateMode = Literal["replace", "combine"]
@@ -42,8 +42,9 @@ class UncertaintyGate(ObjectChooser):
     def candidates_for(self, ranked: list[str], dist: dict[str, float]) -> tuple[str, ...]:
         return tuple(o for o in ranked[: self.top_k] if dist[o] > self.min_prob)
 
-    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
-        ranked, dist = self.ngram_ranking(activity, belief, context_for)
+    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
+                     ranking: Ranking | None = None) -> ObjectChoice:
+        ranked, dist = ranking or self.ngram_ranking(activity, belief, context_for)
         if not ranked:
             return ObjectChoice(None, 0.0)
         top = ranked[0]
@@ -75,12 +76,14 @@ class LLMOnlyChooser(ObjectChooser):
     """Zero-shot baseline: the LLM picks among all of O(â), with no learned statistics."""
 
     name = "llm_only"
+    uses_ranking = False
 
     def __init__(self, model: NextObjectModel, backend: LLMBackend) -> None:
         super().__init__(model)
         self.backend = backend
 
-    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> ObjectChoice:
+    def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
+                     ranking: Ranking | None = None) -> ObjectChoice:
         candidates = tuple(sorted(self.model.candidates(activity)))
         if not candidates:
             return ObjectChoice(None, 0.0)
