@@ -61,7 +61,7 @@ def test_routine_probabilities_sum_to_one_and_scan_matches(households):
     scanned = m.scan_proba(test)
     for t in range(len(test)):
         assert math.isclose(sum(scanned[t].values()), 1.0)
-        assert scanned[t] == pytest.approx(m.predict_proba(test[:t]))
+        assert scanned[t] == m.predict_proba(test[:t])  # the scan tracks the run match incrementally: the same bits
     assert m.predict_proba(test[:50])[test[49]] > 0  # staying is always possible
 
 

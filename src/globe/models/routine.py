@@ -94,13 +94,16 @@ class RoutineModel(ActivityModelBase):
             p = (self.stayed_[key] + k * p) / (self.seen_[key] + k)
         return p
 
-    def _distribution(self, runs: list[tuple[str, int, int]], step: int) -> dict[str, float]:
+    def _distribution(self, runs: list[tuple[str, int, int]], step: int,
+                      match: tuple[int, int] | None = None) -> dict[str, float]:
+        """The next step's distribution after ``runs`` (``match``: the run automaton's match of
+        them, if the caller tracks it)."""
         if not runs:
             total = sum(self.first_.values())
             return {a: c / total for a, c in self.first_.items()} if total else {}
         current, first, _ = runs[-1]
         stay = self.stay_probability(current, step - first, step)
-        state, matched = self.runs_.match((DAY_START, *(a for a, _, _ in runs)))
+        state, matched = match or self.runs_.match((DAY_START, *(a for a, _, _ in runs)))
         nxt = witten_bell_distribution(self.runs_, state, matched, self.order, self.classes_)
         nxt.pop(current, None)
         if self.time_weight > 0:
@@ -120,10 +123,12 @@ class RoutineModel(ActivityModelBase):
         self._check_fitted()
         out: list[dict[str, float]] = []
         runs: list[tuple[str, int, int]] = []
+        match = self.runs_.match((DAY_START,))
         for t in range(len(day)):
-            out.append(self._distribution(runs, t))
+            out.append(self._distribution(runs, t, match))
             if runs and runs[-1][0] == day[t]:
                 runs[-1] = (day[t], runs[-1][1], t)
             else:
                 runs.append((day[t], t, t))
+                match = self.runs_.step(*match, day[t])
         return out
