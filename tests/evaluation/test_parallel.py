@@ -30,3 +30,16 @@ def test_selections_computed_on_other_processes_equal_the_ones_computed_here(hou
         assert there[0] == here[0]
         assert [s.scores for s in there[1].values()] == [s.scores for s in here[1].values()]
     assert precompute_selections(config, [(h, cache) for h in small], ["routine"]) == 0  # nothing left to run
+
+
+def test_a_script_without_a_main_guard_runs_once(tmp_path):
+    """Workers must not import the caller's script again (it would run its work twice)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text("from globe.evaluation.parallel import run_parallel\n"
+                      "print('ran', run_parallel(abs, [-1, -2, -3], 2))\n", encoding="utf-8")
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == ["ran [1, 2, 3]"]

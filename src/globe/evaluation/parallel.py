@@ -35,11 +35,15 @@ def worker_count(requested: int | None) -> int:
 
 def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list[R]:
     """``[fn(t) for t in tasks]`` on up to ``workers`` processes (in this one when 1 or a single
-    task). Processes are started by a fork server, never forked from a parent that may hold
-    llama.cpp threads."""
+    task).
+
+    Workers are forked where the platform can: a fork server or spawned workers would import
+    the caller's main script again, so a user's script without an ``if __name__ ==
+    "__main__"`` guard would run twice. The forked workers only count and score; they never
+    call into llama.cpp, whose threads the parent may hold."""
     if workers <= 1 or len(tasks) <= 1:
         return [fn(t) for t in tasks]
-    context = multiprocessing.get_context("forkserver")
+    context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=context) as pool:
         return list(pool.map(fn, tasks))
 
