@@ -248,6 +248,11 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
     activities: list[str] = []
     states: list[tuple[str, ...]] = []
     lines: list[int] = []
+    # Rows repeat their location cells until something moves: each distinct run of cells is
+    # looked up once (the object columns are usually contiguous, so the key is one slice).
+    first = obj_idx[0] if obj_idx else 0
+    contiguous = obj_idx == list(range(first, first + len(obj_idx)))
+    known: dict[tuple[str, ...], tuple[str, ...]] = {}
     for lineno, row in rows[1:]:
         if len(row) != len(header):
             raise _ragged(source, lineno, row, header)
@@ -255,12 +260,15 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
         if minutes and minute <= minutes[-1]:
             raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source, line=lineno, field="minute")
         activity = _label(_clean(row[i_act]), source, lineno, "activity", "activity")
-        found = [shared.get(row[i].strip(_BLANKS)) for i in obj_idx]
-        if None in found:
-            k = found.index(None)
-            raise DataError(f"unknown location {_short(_clean(row[obj_idx[k]]))} (not in nodes.csv)",
-                            source=source, line=lineno, field=objects[k])
-        state = tuple(loc for loc in found if loc is not None)
+        cells = tuple(row[first: first + len(obj_idx)]) if contiguous else tuple(row[i] for i in obj_idx)
+        state = known.get(cells)
+        if state is None:
+            found = [shared.get(cell.strip(_BLANKS)) for cell in cells]
+            if None in found:
+                k = found.index(None)
+                raise DataError(f"unknown location {_short(_clean(cells[k]))} (not in nodes.csv)",
+                                source=source, line=lineno, field=objects[k])
+            state = known[cells] = tuple(loc for loc in found if loc is not None)
         if column_of and (not states or state != states[-1]) and not column_of.keys().isdisjoint(state):
             _check_nesting(state, objects, owners, column_of, source, lineno)
         minutes.append(minute)
