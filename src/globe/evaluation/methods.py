@@ -42,25 +42,33 @@ class Method:
     family: str | None = None  # the model family chosen by cross-validation, if any
 
 
-def _fit(h: Household, cfg: GlobeConfig, models: ModelConfig | None = None) -> FittedHousehold:
-    return assembly.fit_household(h, cfg if models is None else cfg.model_copy(update={"models": models}))
+def _fit(h: Household, cfg: GlobeConfig, cache: dict, models: ModelConfig | None = None) -> FittedHousehold:
+    """Both models of ``models`` (default ``cfg.models``) on ``h``'s training days, fitted once per
+    household and configuration in ``cache``: the n-gram rows, GLOBE's variants and every gate
+    threshold of the robustness suite train the same models (read-only afterwards)."""
+    cfg = cfg if models is None else cfg.model_copy(update={"models": models})
+    key = ("fit", h.name, cfg.models, cfg.sequences.alignment)
+    hit = cache.get(key)
+    if hit is None or hit[0] is not h:  # the very same household object, not another of its name
+        hit = cache[key] = (h, assembly.fit_household(h, cfg))
+    return hit[1]
 
 
 def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    fitted = _fit(h, cfg)
+    fitted = _fit(h, cfg, cache)
     t = time.perf_counter()
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, ObjectChooser(fitted.objects), time.perf_counter() - t + fitted.train_s)
 
 
 def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    fitted = _fit(h, cfg)
+    fitted = _fit(h, cfg, cache)
     return Prepared(fitted.activity, assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=cfg.models.object_marginal),
                     fitted.train_s)
 
 
 def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    fitted = _fit(h, cfg)
+    fitted = _fit(h, cfg, cache)
     chooser = assembly.object_chooser(fitted.objects, cfg.gate, backend, marginal=cfg.models.object_marginal)
     return Prepared(fitted.activity, chooser, fitted.train_s)
 
@@ -81,7 +89,7 @@ def _globe_personal(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, 
 def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
     if backend is None:
         raise ValueError("llm_only needs an LLM backend")
-    fitted = _fit(h, cfg)  # only O(a), the candidate lists, is taken from training
+    fitted = _fit(h, cfg, cache)  # only O(a), the candidate lists, is taken from training
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, LLMOnlyChooser(fitted.objects, backend), fitted.train_s)
 
@@ -94,7 +102,7 @@ def families(methods: Sequence[str]) -> list[str]:
 def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]:
     def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
         models, selection = tuned_models(h, cfg, family, cache)
-        fitted = _fit(h, cfg, models)
+        fitted = _fit(h, cfg, cache, models)
         gate_cfg = cfg.gate
         if with_gate and backend is not None:
             gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache, personal_examples(cfg))
