@@ -9,6 +9,7 @@ days, about 3 KB a day. Reading gives back :class:`Day` records equal to the one
 from __future__ import annotations
 
 from array import array
+from itertools import accumulate, chain
 from typing import Iterable, Iterator, Sequence, overload
 
 from globe.data.records import Day
@@ -20,36 +21,24 @@ class PackedDays(Sequence[Day]):
     __slots__ = ("_labels", "_meta", "_offsets", "_minutes", "_activities", "_rows", "_row_start", "_row_labels")
 
     def __init__(self, days: Iterable[Day] = ()) -> None:
-        ids: dict[str, int] = {}
-        rows: dict[tuple[str, ...], int] = {}
-        self._labels: list[str] = []  # number -> label (activities and locations)
-        self._meta: list[tuple[str, str]] = []  # (name, source) of each day
-        self._offsets = array("q", [0])  # day i is steps offsets[i] .. offsets[i + 1]
-        self._minutes = array("i")
-        self._activities = array("i")
-        self._rows = array("i")  # step -> distinct row of locations
-        self._row_start = array("i", [0])  # distinct row r is row_labels[row_start[r] .. row_start[r + 1]]
-        self._row_labels = array("i")
-
-        def number(label: str) -> int:
-            i = ids.get(label)
-            if i is None:
-                i = ids[label] = len(self._labels)
-                self._labels.append(label)
-            return i
-
-        for day in days:
-            self._meta.append((day.name, day.source))
-            self._minutes.extend(day.minutes)
-            self._activities.extend(map(number, day.activities))
-            for row in day.locations:
-                r = rows.get(row)
-                if r is None:
-                    r = rows[row] = len(rows)
-                    self._row_labels.extend(map(number, row))
-                    self._row_start.append(len(self._row_labels))
-                self._rows.append(r)
-            self._offsets.append(len(self._minutes))
+        days = tuple(days)
+        # distinct rows, first seen first: equal rows are mostly one object, so they are told apart
+        # by identity first and hashed (61 labels each for HOMER+) only once per object
+        objects = dict(zip(map(id, chain.from_iterable(d.locations for d in days)), chain.from_iterable(d.locations for d in days)))
+        rows = dict.fromkeys(objects.values())
+        row_ids = {row: i for i, row in enumerate(rows)}
+        by_id = {k: row_ids[row] for k, row in objects.items()}
+        labels = dict.fromkeys(chain(chain.from_iterable(d.activities for d in days), chain.from_iterable(rows)))
+        ids = {label: i for i, label in enumerate(labels)}
+        self._labels: list[str] = list(labels)  # number -> label (activities and locations)
+        self._meta: list[tuple[str, str]] = [(d.name, d.source) for d in days]  # (name, source) of each day
+        self._offsets = array("q", accumulate(map(len, days), initial=0))  # day i: steps offsets[i] .. offsets[i + 1]
+        self._minutes = array("i", chain.from_iterable(d.minutes for d in days))
+        self._activities = array("i", map(ids.__getitem__, chain.from_iterable(d.activities for d in days)))
+        self._rows = array("i", map(by_id.__getitem__, map(id, chain.from_iterable(d.locations for d in days))))  # step -> row
+        # distinct row r: labels _row_labels[_row_start[r] .. _row_start[r + 1]]
+        self._row_start = array("i", accumulate(map(len, rows), initial=0))
+        self._row_labels = array("i", map(ids.__getitem__, chain.from_iterable(rows)))
 
     def __len__(self) -> int:
         return len(self._meta)
