@@ -148,7 +148,8 @@ class DayParser:
         cells = tail.split(",")
         if len(cells) != len(self.objects):
             return None
-        found = [self._shared.get(_clean(c)) for c in cells]
+        blanks = " " in tail or "\t" in tail  # cells lose surrounding blanks (_clean); most rows have none
+        found = [self._shared.get(_clean(c)) for c in cells] if blanks else list(map(self._shared.get, cells))
         if None in found:
             return None
         row = tuple(found)
