@@ -2,6 +2,7 @@
 
 import math
 import random
+from array import array
 
 import pytest
 
@@ -190,10 +191,10 @@ def test_fitted_models_keep_their_automata_compact():
     activity = ActivityModel().fit(DAYS)
     objects = ObjectModel().fit(RUNS)
     for index in (activity.index_, *objects.indexes_.values()):
-        assert not index._tail and not index._thawed
+        assert not index._more and len(index._start) == len(index._len) + 1 and isinstance(index._label1, array)
     activity.partial_fit([("sleep", "tv")])
     # "<day> sleep" was followed by wake (days 1, 2), sleep (day 3) and tv (the day learned)
-    assert not activity.index_._tail and activity.predict_proba(["sleep"]) == {"wake": 0.5, "sleep": 0.25, "tv": 0.25}
+    assert not activity.index_._more and activity.predict_proba(["sleep"]) == {"wake": 0.5, "sleep": 0.25, "tv": 0.25}
 
 
 def test_packed_days_give_back_the_days_packed(seed):

@@ -12,9 +12,9 @@ Storage is compact because a service keeps one automaton per model and household
 the per-state numbers live in typed arrays, and so do the transitions: each state's first one
 beside it (most states have only one), the others in one flat table (compressed sparse rows).
 Every state keeps its transitions in insertion order, so each distribution comes out in the
-same order as with one dict per state. Appending works on dicts: for the states it creates, and
-for the states it changes; :meth:`compact` folds them back into the arrays (the models call it
-at the end of each fit).
+same order as with one dict per state. Appending keeps the further transitions of the states it
+creates or changes in dicts; :meth:`compact` folds them into the table (the models call it at
+the end of each fit).
 """
 
 from __future__ import annotations
@@ -34,25 +34,24 @@ class SuffixIndex:
     """Generalised suffix automaton with occurrence counts, built incrementally."""
 
     __slots__ = ("_ids", "_names", "_link", "_len", "_own", "_label1", "_target1", "_start", "_labels", "_targets",
-                 "_tail", "_thawed", "_last", "_counts", "_dist", "_derived", "_skip")
+                 "_more", "_last", "_counts", "_dist", "_derived", "_skip")
 
     def __init__(self, never_predicted: Iterable[str] = ()) -> None:
         self._skip = frozenset(never_predicted) | {END}
         self._ids: dict[str, int] = {}  # label -> its number here
         self._names: list[str] = []  # number -> label
-        # lists while a fit appends (faster), typed arrays once compacted (smaller)
+        # Per state; lists while a fit appends (faster), typed arrays once compacted (smaller).
         self._link: MutableSequence[int] = [-1]
         self._len: MutableSequence[int] = [0]
         self._own: MutableSequence[int] = [0]  # 1 for states created as a new end position
-        # Transitions of the compacted states 0 .. F-1 (F = len(_label1)): the first one
-        # (label -1: none), then rows _start[s] .. _start[s+1] of (_labels, _targets).
-        self._label1 = array(_INT)
-        self._target1 = array(_INT)
+        self._label1: MutableSequence[int] = [-1]  # the first transition: its label (-1: none) ...
+        self._target1: MutableSequence[int] = [-1]  # ... and target
+        # The further transitions of states 0 .. len(_start) - 2 as rows _start[s] .. _start[s + 1]
+        # of (_labels, _targets), unless the state is in _more (changed, or new, since compacted).
         self._start = array(_INT, [0])
         self._labels = array(_INT)
         self._targets = array(_INT)
-        self._tail: list[dict[int, int]] = [{}]  # transitions of states F.. (created since the last compact)
-        self._thawed: dict[int, dict[int, int]] = {}  # compacted states changed since then
+        self._more: dict[int, dict[int, int]] = {}
         self._last = 0
         self._counts: array | None = None
         self._dist: dict[int, dict[str, int]] = {}
@@ -61,52 +60,54 @@ class SuffixIndex:
     # -- transitions ------------------------------------------------------------------------
     def _get(self, state: int, label: int) -> int:
         """Target of ``state`` on label number ``label``, -1 if there is none."""
-        frozen = len(self._label1)
-        if state >= frozen:
-            return self._tail[state - frozen].get(label, -1)
-        edges = self._thawed.get(state)
-        if edges is not None:
-            return edges.get(label, -1)
         if self._label1[state] == label:
             return self._target1[state]
-        lo, hi = self._start[state], self._start[state + 1]
-        if lo == hi:
-            return -1
-        try:
-            return self._targets[self._labels.index(label, lo, hi)]
-        except ValueError:
-            return -1
+        more = self._more.get(state)
+        if more is not None:
+            return more.get(label, -1)
+        if state + 1 < len(self._start):
+            lo, hi = self._start[state], self._start[state + 1]
+            if lo < hi:
+                try:
+                    return self._targets[self._labels.index(label, lo, hi)]
+                except ValueError:
+                    pass
+        return -1
+
+    def _rest(self, state: int) -> dict[int, int]:
+        """A copy of the transitions of ``state`` after its first, in insertion order."""
+        more = self._more.get(state)
+        if more is not None:
+            return dict(more)
+        if state + 1 < len(self._start):
+            lo, hi = self._start[state], self._start[state + 1]
+            return dict(zip(self._labels[lo:hi], self._targets[lo:hi]))
+        return {}
 
     def _edges(self, state: int) -> dict[int, int]:
         """A copy of the transitions of ``state`` (label number -> target), in insertion order."""
-        frozen = len(self._label1)
-        if state >= frozen:
-            return dict(self._tail[state - frozen])
-        edges = self._thawed.get(state)
-        if edges is not None:
-            return dict(edges)
         first = self._label1[state]
-        out = {} if first == -1 else {first: self._target1[state]}
-        lo, hi = self._start[state], self._start[state + 1]
-        out.update(zip(self._labels[lo:hi], self._targets[lo:hi]))
-        return out
+        if first == -1:
+            return {}
+        return {first: self._target1[state], **self._rest(state)}
 
-    def _editable(self, state: int) -> dict[int, int]:
-        """The transitions of ``state`` as a dict that may be changed (folded in by :meth:`compact`)."""
-        frozen = len(self._label1)
-        if state >= frozen:
-            return self._tail[state - frozen]
-        edges = self._thawed.get(state)
-        if edges is None:
-            edges = self._thawed[state] = self._edges(state)
-        return edges
+    def _set(self, state: int, label: int, target: int) -> None:
+        """Add a transition, or redirect one (it keeps its place in the order)."""
+        first = self._label1[state]
+        if first == label or first == -1:
+            self._label1[state] = label
+            self._target1[state] = target
+            return
+        more = self._more.get(state)
+        if more is None:
+            more = self._more[state] = self._rest(state)
+        more[label] = target
 
     # -- building ---------------------------------------------------------------------------
     def add(self, sequence: Iterable[str]) -> None:
         """Append one training sequence (an :data:`END` label is added after it)."""
-        ids, names, tail = self._ids, self._names, self._tail
-        link, length, own = self._link, self._len, self._own
-        frozen = len(self._label1)
+        ids, names, more = self._ids, self._names, self._more
+        link, length, own, label1, target1 = self._link, self._len, self._own, self._label1, self._target1
         last = self._last
         for label in (*sequence, END):
             c = ids.get(label)
@@ -114,41 +115,41 @@ class SuffixIndex:
                 c = ids[label] = len(names)
                 names.append(label)
             cur = len(length)
-            tail.append({})
             length.append(length[last] + 1)
             link.append(0)
             own.append(1)
+            label1.append(-1)
+            target1.append(-1)
             p = last
             while p != -1:
-                if p >= frozen:  # the common case while a fit builds: a plain dict
-                    edges = tail[p - frozen]
-                    q = edges.get(c, -1)
+                first = label1[p]
+                if first == c:
+                    q = target1[p]
+                    break
+                if first == -1:  # the common case while a fit builds: a state's first transition
+                    label1[p] = c
+                    target1[p] = cur
                 else:
                     q = self._get(p, c)
-                    edges = self._editable(p) if q == -1 else {}
-                if q != -1:
-                    break
-                edges[c] = cur
+                    if q != -1:
+                        break
+                    self._set(p, c, cur)
                 p = link[p]
             if p != -1:
                 if length[p] + 1 == length[q]:
                     link[cur] = q
                 else:
                     clone = len(length)
-                    tail.append(dict(tail[q - frozen]) if q >= frozen else self._edges(q))
                     length.append(length[p] + 1)
                     link.append(link[q])
                     own.append(0)
-                    while p != -1:
-                        if p >= frozen:
-                            edges = tail[p - frozen]
-                            if edges.get(c) != q:
-                                break
-                        elif self._get(p, c) == q:
-                            edges = self._editable(p)
-                        else:
-                            break
-                        edges[c] = clone
+                    label1.append(label1[q])
+                    target1.append(target1[q])
+                    rest = self._rest(q)
+                    if rest:
+                        more[clone] = rest
+                    while p != -1 and self._get(p, c) == q:
+                        self._set(p, c, clone)
                         p = link[p]
                     link[q] = clone
                     link[cur] = clone
@@ -159,47 +160,37 @@ class SuffixIndex:
         self._derived.clear()
 
     def compact(self) -> None:
-        """Fold the states created or changed since the last call into the arrays (answers do
-        not change, memory does: about 14 bytes per state instead of 250)."""
-        if len(self._tail) == 0 and not self._thawed:
-            return
-        frozen, n = len(self._label1), len(self._len)
-        label1 = np.frombuffer(self._label1, dtype=np.int32)
-        has_first = np.flatnonzero(label1 >= 0)
-        start = np.frombuffer(self._start, dtype=np.int32)
-        rest_owner = np.repeat(np.arange(frozen, dtype=np.int32), start[1:] - start[:-1])
-        owner = np.concatenate([has_first.astype(np.int32), rest_owner])  # first transitions before the others
-        labels = np.concatenate([label1[has_first], np.frombuffer(self._labels, dtype=np.int32)])
-        targets = np.concatenate([np.frombuffer(self._target1, dtype=np.int32)[has_first],
-                                  np.frombuffer(self._targets, dtype=np.int32)])
-        keep = np.ones(frozen, dtype=bool)
-        keep[np.fromiter(self._thawed, dtype=np.int32, count=len(self._thawed))] = False
-        rows = keep[owner]
-        changed = sorted(self._thawed)
-        edges = [self._thawed[s] for s in changed] + self._tail
-        states = np.concatenate([np.asarray(changed, dtype=np.int32), np.arange(frozen, n, dtype=np.int32)])
-        new_owner = np.repeat(states, np.fromiter(map(len, edges), dtype=np.int32, count=len(edges)))
-        count = len(new_owner)
-        owner = np.concatenate([owner[rows], new_owner])
-        order = np.argsort(owner, kind="stable")  # by state; each state's transitions keep their order
-        owner = owner[order]
-        labels = np.concatenate([labels[rows], np.fromiter(chain.from_iterable(edges), dtype=np.int32, count=count)])[order]
-        targets = np.concatenate([targets[rows], np.fromiter(chain.from_iterable(map(dict.values, edges)),
-                                                             dtype=np.int32, count=count)])[order]
-        first = np.ones(len(owner), dtype=bool)
-        first[1:] = owner[1:] != owner[:-1]
-        label1 = np.full(n, -1, dtype=np.int32)
-        target1 = np.full(n, -1, dtype=np.int32)
-        label1[owner[first]] = labels[first]
-        target1[owner[first]] = targets[first]
-        start = np.zeros(n + 1, dtype=np.int32)
-        start[1:] = np.cumsum(np.bincount(owner[~first], minlength=n))
-        self._label1, self._target1 = array(_INT, label1.tobytes()), array(_INT, target1.tobytes())
-        self._start = array(_INT, start.tobytes())
-        self._labels, self._targets = array(_INT, labels[~first].tobytes()), array(_INT, targets[~first].tobytes())
-        self._tail, self._thawed = [], {}
+        """Fold the transitions kept in dicts since the last call into the table, and the
+        per-state lists into typed arrays (answers do not change, memory does: about 14 bytes per
+        state instead of 250)."""
+        n = len(self._len)
         if isinstance(self._len, list):
             self._len, self._link, self._own = array(_INT, self._len), array(_INT, self._link), array("b", self._own)
+            self._label1, self._target1 = array(_INT, self._label1), array(_INT, self._target1)
+        if not self._more and len(self._start) == n + 1:
+            return
+        start = np.frombuffer(self._start, dtype=np.int32)
+        old = len(start) - 1
+        owner = np.repeat(np.arange(old, dtype=np.int32), start[1:] - start[:-1])
+        keep = np.ones(old + 1, dtype=bool)
+        keep[[s for s in self._more if s < old]] = False
+        rows = keep[owner]
+        changed = sorted(self._more)
+        more = [self._more[s] for s in changed]
+        count = sum(map(len, more))
+        owner = np.concatenate([owner[rows], np.repeat(np.asarray(changed, dtype=np.int32),
+                                                       np.fromiter(map(len, more), dtype=np.int32, count=len(more)))])
+        order = np.argsort(owner, kind="stable")  # by state; each state's transitions keep their order
+        labels = np.concatenate([np.frombuffer(self._labels, dtype=np.int32)[rows],
+                                 np.fromiter(chain.from_iterable(more), dtype=np.int32, count=count)])
+        targets = np.concatenate([np.frombuffer(self._targets, dtype=np.int32)[rows],
+                                  np.fromiter(chain.from_iterable(map(dict.values, more)), dtype=np.int32, count=count)])
+        start = np.zeros(n + 1, dtype=np.int32)
+        start[1:] = np.cumsum(np.bincount(owner, minlength=n))
+        self._start = array(_INT, start.tobytes())
+        self._labels = array(_INT, labels[order].tobytes())
+        self._targets = array(_INT, targets[order].tobytes())
+        self._more = {}
 
     def _occurrences(self) -> array:
         """Number of end positions of each state (= occurrences of its contexts)."""
@@ -255,7 +246,7 @@ class SuffixIndex:
         """State and length of the longest suffix of ``history`` seen in training: :meth:`step`
         over every label, with the lookup of compacted transitions (:meth:`_get`) written out,
         as this is the inner loop of every prediction."""
-        if self._tail or self._thawed:
+        if self._more or len(self._start) != len(self._len) + 1:
             state, matched = 0, 0
             for label in history:
                 state, matched = self.step(state, matched, label)
