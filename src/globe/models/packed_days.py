@@ -9,7 +9,7 @@ days, about 3 KB a day. Reading gives back :class:`Day` records equal to the one
 from __future__ import annotations
 
 from array import array
-from itertools import accumulate, chain
+from itertools import accumulate, chain, groupby, repeat
 from typing import Iterable, Iterator, Sequence, overload
 
 from globe.data.records import Day
@@ -22,12 +22,11 @@ class PackedDays(Sequence[Day]):
 
     def __init__(self, days: Iterable[Day] = ()) -> None:
         days = tuple(days)
-        # distinct rows, first seen first: equal rows are mostly one object, so they are told apart
-        # by identity first and hashed (61 labels each for HOMER+) only once per object
-        objects = dict(zip(map(id, chain.from_iterable(d.locations for d in days)), chain.from_iterable(d.locations for d in days)))
-        rows = dict.fromkeys(objects.values())
-        row_ids = {row: i for i, row in enumerate(rows)}
-        by_id = {k: row_ids[row] for k, row in objects.items()}
+        rows: dict[tuple[str, ...], int] = {}  # distinct rows of locations, first seen first
+        steps = array("i")  # step -> its row
+        for d in days:  # rows mostly repeat the one before (objects rarely move): one lookup per run of equal rows
+            for row, run in groupby(d.locations):
+                steps.extend(repeat(rows.setdefault(row, len(rows)), sum(1 for _ in run)))
         labels = dict.fromkeys(chain(chain.from_iterable(d.activities for d in days), chain.from_iterable(rows)))
         ids = {label: i for i, label in enumerate(labels)}
         self._labels: list[str] = list(labels)  # number -> label (activities and locations)
@@ -35,7 +34,7 @@ class PackedDays(Sequence[Day]):
         self._offsets = array("q", accumulate(map(len, days), initial=0))  # day i: steps offsets[i] .. offsets[i + 1]
         self._minutes = array("i", chain.from_iterable(d.minutes for d in days))
         self._activities = array("i", map(ids.__getitem__, chain.from_iterable(d.activities for d in days)))
-        self._rows = array("i", map(by_id.__getitem__, map(id, chain.from_iterable(d.locations for d in days))))  # step -> row
+        self._rows = steps
         # distinct row r: labels _row_labels[_row_start[r] .. _row_start[r + 1]]
         self._row_start = array("i", accumulate(map(len, rows), initial=0))
         self._row_labels = array("i", map(ids.__getitem__, chain.from_iterable(rows)))
