@@ -1,8 +1,10 @@
 """The assistance service under load, over real loopback HTTP against a real ``globe serve``.
 
 Prints, with the targets of issue 10 (before: ~38 MB and ~0.8 s per household, ~6 ms per observation):
-- memory: RSS growth of the server process per created (and built) HOMER+ household (target <= 4 MB);
-- creation: time of ``POST /households`` with a HOMER+ map and its 65 training days (target <= 0.1 s);
+- memory: RSS growth of the server process per created HOMER+ household, after each was asked for a
+  prediction (target <= 4 MB), and right after creation;
+- creation: time of ``POST /households`` with a HOMER+ map and its 65 training days, its body encoded
+  beforehand (target <= 0.1 s), and the server's CPU time for it (steadier on a busy machine);
 - start-up: a database of 100 households with a month of observations each: time until the service
   answers (target <= 2 s), and until every household is built (replayed);
 - latency and throughput of observations and predictions at 1, 4 and 8 concurrent clients.
