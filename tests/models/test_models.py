@@ -1,14 +1,19 @@
 """Contract tests for both counting models (scikit-learn-style estimator checks)."""
 
 import math
+import random
+from array import array
 
 import pytest
 
+from globe.data.records import Day
 from globe.errors import ConfigError, ModelFileError, NotFittedError
 from globe.models.activity import ActivityModel
 from globe.models.io import load_model, save_model
 from globe.models.objects import ObjectModel
+from globe.models.packed_days import PackedDays
 from globe.models.routine import RoutineModel
+from globe.models.suffix_index import END, SuffixIndex
 
 DAYS = [("sleep", "wake", "eat", "eat", "work"), ("sleep", "wake", "eat", "work", "work"),
         ("sleep", "sleep", "wake", "eat", "tv")]
@@ -110,3 +115,102 @@ def test_confidence_is_the_top_probability():
     om = ObjectModel().fit(RUNS)
     assert om.confidence("eat", ("bowl",)) == 0.5
     assert om.confidence("dance") == 0.0
+
+
+class DictSuffixIndex:
+    """The suffix automaton as it was before it was compacted (one dict of transitions per
+    state): the reference the compact :class:`SuffixIndex` must answer exactly like."""
+
+    def __init__(self, never_predicted=()):
+        self.skip = set(never_predicted) | {END}
+        self.next, self.link, self.len, self.own, self.last = [{}], [-1], [0], [0], 0
+
+    def add(self, sequence):
+        nxt, link, length, own, last = self.next, self.link, self.len, self.own, self.last
+        for c in (*sequence, END):
+            cur = len(length)
+            nxt.append({}), length.append(length[last] + 1), link.append(0), own.append(1)
+            p = last
+            while p != -1 and c not in nxt[p]:
+                nxt[p][c] = cur
+                p = link[p]
+            if p != -1:
+                q = nxt[p][c]
+                if length[p] + 1 == length[q]:
+                    link[cur] = q
+                else:
+                    clone = len(length)
+                    nxt.append(nxt[q].copy()), length.append(length[p] + 1), link.append(link[q]), own.append(0)
+                    while p != -1 and nxt[p].get(c) == q:
+                        nxt[p][c] = clone
+                        p = link[p]
+                    link[q] = link[cur] = clone
+            last = cur
+        self.last = last
+
+    def successors(self, state):
+        counts = list(self.own)
+        for v in sorted(range(1, len(self.len)), key=self.len.__getitem__, reverse=True):
+            counts[self.link[v]] += counts[v]
+        return {c: counts[t] for c, t in self.next[state].items() if c not in self.skip}
+
+    def match(self, history):
+        state, matched = 0, 0
+        for label in history:
+            while state != -1 and label not in self.next[state]:
+                state = self.link[state]
+            state, matched = (0, 0) if state == -1 else (self.next[state][label], min(matched, self.len[state]) + 1)
+        return state, matched
+
+
+def test_compact_suffix_index_answers_exactly_like_one_dict_per_state(seed):
+    """Same states, links, counts and successor order (distributions are summed in that order),
+    whether sequences are added to a compacted index, an uncompacted one, or a mix."""
+    rng = random.Random(seed)
+    for _ in range(200):
+        alphabet = [f"a{i}" for i in range(rng.randint(1, 9))]
+        ref, got = DictSuffixIndex(["a0"]), SuffixIndex(["a0"])
+        for _ in range(rng.randint(1, 10)):
+            seq = [rng.choice(alphabet) for _ in range(rng.randint(0, 30))]
+            ref.add(seq)
+            got.add(seq)
+            if rng.random() < 0.6:
+                got.compact()
+        states = len(ref.len)
+        assert [got.length(s) for s in range(states)] == ref.len and [got.link(s) for s in range(states)] == ref.link
+        for s in range(states):
+            assert list(got.successors(s).items()) == list(ref.successors(s).items())
+        for _ in range(20):
+            history = [rng.choice([*alphabet, "unseen"]) for _ in range(rng.randint(0, 40))]
+            assert got.match(history) == ref.match(history)
+            assert list(got.scan(history)) == [ref.match(history[: i + 1]) for i in range(len(history))]
+
+
+def test_fitted_models_keep_their_automata_compact():
+    """Compaction is what makes a household small: after a fit nothing is left in dicts."""
+    activity = ActivityModel().fit(DAYS)
+    objects = ObjectModel().fit(RUNS)
+    for index in (activity.index_, *objects.indexes_.values()):
+        assert not index._more and len(index._start) == len(index._len) + 1 and isinstance(index._label1, array)
+    activity.partial_fit([("sleep", "tv")])
+    # "<day> sleep" was followed by wake (days 1, 2), sleep (day 3) and tv (the day learned)
+    assert not activity.index_._more and activity.predict_proba(["sleep"]) == {"wake": 0.5, "sleep": 0.25, "tv": 0.25}
+
+
+def test_packed_days_give_back_the_days_packed(seed):
+    """What the movement model keeps instead of its training days must read back as the same
+    days: every field, in order, also for rows shared between days and for negative indexes."""
+    rng = random.Random(seed)
+    places = ["table#1", "shelf#2", "sink#3", "bed#4"]
+    days = []
+    for d in range(6):
+        steps = rng.randint(1, 12)
+        minutes = tuple(sorted(rng.sample(range(360, 1440), steps)))
+        rows = [tuple(rng.choice(places[:2]) for _ in range(3)) for _ in range(steps)]
+        days.append(Day(f"train/{d:03d}", minutes, tuple(rng.choice(["eat", "sleep", "tv"]) for _ in range(steps)),
+                        tuple(rows), f"upload-{d}"))
+    packed = PackedDays(days)
+    assert len(packed) == len(days) and list(packed) == days and packed[-1] == days[-1] and packed[1:3] == tuple(days[1:3])
+    with pytest.raises(IndexError):
+        packed[len(days)]
+    assert list(PackedDays([])) == []

@@ -8,7 +8,7 @@ import pytest
 from globe.data.csv_logs import format_day, parse_day_text
 from globe.errors import DataError
 from globe.service.client import household_payload
-from globe.service.upload import household_from, parse_day, parse_nodes
+from globe.service.upload import DayParser, household_from, parse_day, parse_nodes
 
 
 def outcome(parse, *args):
@@ -48,6 +48,29 @@ def test_broken_rows_get_the_data_layers_messages(households, seed):
             text = "\n".join(lines[:k] + [",".join(cells)] + lines[k + 1:])
             assert outcome(parse_day, text, objects, locations, "d", owners) == \
                 outcome(parse_day_text, text, objects, locations, "d", "d", owners), (edit, k)
+
+
+def test_one_parser_for_many_days_answers_like_the_data_layer_on_each(households, seed):
+    """A DayParser remembers the rows, minutes and activities it accepted in earlier days: that
+    must change no later day's result or message (broken days among good ones, any order)."""
+    rng = random.Random(seed)
+    h = households["C"]
+    objects, locations = h.objects, frozenset(n.node for n in h.nodes)
+    owners = {n.cls: n.node for n in h.nodes if n.movable}
+    texts = [format_day(d, objects) for d in h.train[:6]]
+    broken = []
+    for text in texts[:4]:
+        lines = text.split("\n")
+        k = rng.randrange(2, len(lines) - 2)
+        cells = lines[k].split(",")
+        earlier = lines[k - 1].split(",")[0]  # a minute that does not increase
+        for col, value in ((3, "moon#1"), (0, earlier), (1, "idle\x07"), (4, f" {cells[4]}\t")):
+            changed = list(cells)
+            changed[col] = value
+            broken.append("\n".join(lines[:k] + [",".join(changed)] + lines[k + 1:]))
+    parser = DayParser(objects, locations, owners)
+    for text in rng.sample(texts + broken, len(texts + broken)) + texts:
+        assert outcome(parser.parse, text, "d") == outcome(parse_day_text, text, objects, locations, "d", "d", owners)
 
 
 def test_maps_follow_the_map_rules(households):

@@ -52,6 +52,7 @@ class ActivityModel(ActivityModelBase):
                 self.by_step_.append(Counter())
             for t, a in enumerate(day):
                 self.by_step_[t][a] += 1
+        self.index_.compact()
         self.classes_ = tuple(sorted(self.frequency_))
         return self
 

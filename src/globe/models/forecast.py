@@ -37,6 +37,7 @@ import numpy as np
 
 from globe.data.records import Day
 from globe.models.base import ActivityModelBase, CountingModel
+from globe.models.packed_days import PackedDays
 
 UNKNOWN = "<unknown>"
 
@@ -62,7 +63,7 @@ class MovementModel(CountingModel):
         self._reset()
         self._validate_params()
         days = tuple(days)
-        self.training_data_ = days
+        self.training_data_ = PackedDays(days)  # counted again when a day is learned; packed, a tenth of the memory
         self.objects_ = tuple(objects)
         self.activities_ = tuple(sorted(set().union(*(d.activities for d in days)))) + (UNKNOWN,)
         distinct: dict[tuple[str, ...], int] = {}  # a day's rows repeat until something moves

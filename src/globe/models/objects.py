@@ -51,6 +51,8 @@ class ObjectModel(CountingModel):
             index = self.indexes_.setdefault(activity, SuffixIndex(never_predicted=[RUN_START]))
             index.add(self._prefixed(objects))
             self.frequency_.setdefault(activity, Counter()).update(objects)
+        for index in self.indexes_.values():
+            index.compact()
         return self
 
     def _prefixed(self, objects: Sequence[str]) -> tuple[str, ...]:

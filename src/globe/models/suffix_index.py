@@ -6,58 +6,150 @@ the contexts that occur at exactly the same training positions, so they share on
 next-label distribution; its suffix link is the backoff to the next shorter context with
 different statistics. Matching a history label by label is amortised O(1), so scanning a test
 day yields the longest seen context at every step in linear time. Training is appending.
+
+Storage is compact because a service keeps one automaton per model and household in memory
+(tens of thousands of states each, a dict per state cost about 250 bytes): labels are numbered,
+the per-state numbers live in typed arrays, and so do the transitions: each state's first one
+beside it (most states have only one), the others in one flat table (compressed sparse rows).
+Every state keeps its transitions in insertion order, so each distribution comes out in the
+same order as with one dict per state. Appending keeps the further transitions of the states it
+creates or changes in dicts; :meth:`compact` folds them into the table (the models call it at
+the end of each fit).
 """
 
 from __future__ import annotations
 
-from typing import Callable, Hashable, Iterable, Iterator, Sequence
+from array import array
+from itertools import chain
+from typing import Callable, Hashable, Iterable, Iterator, MutableSequence
+
+import numpy as np
 
 END = "</s>"  # closes every training sequence; never predicted
+_INT = "i"  # 32-bit signed on every platform numpy and CPython support here
+assert array(_INT).itemsize == 4
 
 
 class SuffixIndex:
     """Generalised suffix automaton with occurrence counts, built incrementally."""
 
-    __slots__ = ("_next", "_link", "_len", "_own", "_last", "_counts", "_dist", "_derived", "_skip")
+    __slots__ = ("_ids", "_names", "_link", "_len", "_own", "_label1", "_target1", "_start", "_labels", "_targets",
+                 "_more", "_last", "_counts", "_dist", "_derived", "_skip")
 
     def __init__(self, never_predicted: Iterable[str] = ()) -> None:
         self._skip = frozenset(never_predicted) | {END}
-        self._next: list[dict[str, int]] = [{}]
-        self._link: list[int] = [-1]
-        self._len: list[int] = [0]
-        self._own: list[int] = [0]  # 1 for states created as a new end position
+        self._ids: dict[str, int] = {}  # label -> its number here
+        self._names: list[str] = []  # number -> label
+        # Per state; lists while a fit appends (faster), typed arrays once compacted (smaller).
+        self._link: MutableSequence[int] = [-1]
+        self._len: MutableSequence[int] = [0]
+        self._own: MutableSequence[int] = [0]  # 1 for states created as a new end position
+        self._label1: MutableSequence[int] = [-1]  # the first transition: its label (-1: none) ...
+        self._target1: MutableSequence[int] = [-1]  # ... and target
+        # The further transitions of states 0 .. len(_start) - 2 as rows _start[s] .. _start[s + 1]
+        # of (_labels, _targets), unless the state is in _more (changed, or new, since compacted).
+        self._start = array(_INT, [0])
+        self._labels = array(_INT)
+        self._targets = array(_INT)
+        self._more: dict[int, dict[int, int]] = {}
         self._last = 0
-        self._counts: list[int] | None = None
+        self._counts: array | None = None
         self._dist: dict[int, dict[str, int]] = {}
         self._derived: dict[Hashable, dict[str, float]] = {}  # estimators' results, see :meth:`derived`
+
+    # -- transitions ------------------------------------------------------------------------
+    def _get(self, state: int, label: int) -> int:
+        """Target of ``state`` on label number ``label``, -1 if there is none."""
+        if self._label1[state] == label:
+            return self._target1[state]
+        more = self._more.get(state)
+        if more is not None:
+            return more.get(label, -1)
+        if state + 1 < len(self._start):
+            lo, hi = self._start[state], self._start[state + 1]
+            if lo < hi:
+                try:
+                    return self._targets[self._labels.index(label, lo, hi)]
+                except ValueError:
+                    pass
+        return -1
+
+    def _rest(self, state: int) -> dict[int, int]:
+        """A copy of the transitions of ``state`` after its first, in insertion order."""
+        more = self._more.get(state)
+        if more is not None:
+            return dict(more)
+        if state + 1 < len(self._start):
+            lo, hi = self._start[state], self._start[state + 1]
+            return dict(zip(self._labels[lo:hi], self._targets[lo:hi]))
+        return {}
+
+    def _edges(self, state: int) -> dict[int, int]:
+        """A copy of the transitions of ``state`` (label number -> target), in insertion order."""
+        first = self._label1[state]
+        if first == -1:
+            return {}
+        return {first: self._target1[state], **self._rest(state)}
+
+    def _set(self, state: int, label: int, target: int) -> None:
+        """Add a transition, or redirect one (it keeps its place in the order)."""
+        first = self._label1[state]
+        if first == label or first == -1:
+            self._label1[state] = label
+            self._target1[state] = target
+            return
+        more = self._more.get(state)
+        if more is None:
+            more = self._more[state] = self._rest(state)
+        more[label] = target
 
     # -- building ---------------------------------------------------------------------------
     def add(self, sequence: Iterable[str]) -> None:
         """Append one training sequence (an :data:`END` label is added after it)."""
-        nxt, link, length, own = self._next, self._link, self._len, self._own
+        ids, names, more = self._ids, self._names, self._more
+        link, length, own, label1, target1 = self._link, self._len, self._own, self._label1, self._target1
         last = self._last
-        for c in (*sequence, END):
+        for label in (*sequence, END):
+            c = ids.get(label)
+            if c is None:
+                c = ids[label] = len(names)
+                names.append(label)
             cur = len(length)
-            nxt.append({})
             length.append(length[last] + 1)
             link.append(0)
             own.append(1)
+            label1.append(-1)
+            target1.append(-1)
             p = last
-            while p != -1 and c not in nxt[p]:
-                nxt[p][c] = cur
+            while p != -1:
+                first = label1[p]
+                if first == c:
+                    q = target1[p]
+                    break
+                if first == -1:  # the common case while a fit builds: a state's first transition
+                    label1[p] = c
+                    target1[p] = cur
+                else:
+                    q = self._get(p, c)
+                    if q != -1:
+                        break
+                    self._set(p, c, cur)
                 p = link[p]
             if p != -1:
-                q = nxt[p][c]
                 if length[p] + 1 == length[q]:
                     link[cur] = q
                 else:
                     clone = len(length)
-                    nxt.append(nxt[q].copy())
                     length.append(length[p] + 1)
                     link.append(link[q])
                     own.append(0)
-                    while p != -1 and nxt[p].get(c) == q:
-                        nxt[p][c] = clone
+                    label1.append(label1[q])
+                    target1.append(target1[q])
+                    rest = self._rest(q)
+                    if rest:
+                        more[clone] = rest
+                    while p != -1 and self._get(p, c) == q:
+                        self._set(p, c, clone)
                         p = link[p]
                     link[q] = clone
                     link[cur] = clone
@@ -67,13 +159,47 @@ class SuffixIndex:
         self._dist.clear()
         self._derived.clear()
 
-    def _occurrences(self) -> list[int]:
+    def compact(self) -> None:
+        """Fold the transitions kept in dicts since the last call into the table, and the
+        per-state lists into typed arrays (answers do not change, memory does: about 14 bytes per
+        state instead of 250)."""
+        n = len(self._len)
+        if isinstance(self._len, list):
+            self._len, self._link, self._own = array(_INT, self._len), array(_INT, self._link), array("b", self._own)
+            self._label1, self._target1 = array(_INT, self._label1), array(_INT, self._target1)
+        if not self._more and len(self._start) == n + 1:
+            return
+        start = np.frombuffer(self._start, dtype=np.int32)
+        old = len(start) - 1
+        owner = np.repeat(np.arange(old, dtype=np.int32), start[1:] - start[:-1])
+        keep = np.ones(old + 1, dtype=bool)
+        keep[[s for s in self._more if s < old]] = False
+        rows = keep[owner]
+        changed = sorted(self._more)
+        more = [self._more[s] for s in changed]
+        count = sum(map(len, more))
+        owner = np.concatenate([owner[rows], np.repeat(np.asarray(changed, dtype=np.int32),
+                                                       np.fromiter(map(len, more), dtype=np.int32, count=len(more)))])
+        order = np.argsort(owner, kind="stable")  # by state; each state's transitions keep their order
+        labels = np.concatenate([np.frombuffer(self._labels, dtype=np.int32)[rows],
+                                 np.fromiter(chain.from_iterable(more), dtype=np.int32, count=count)])
+        targets = np.concatenate([np.frombuffer(self._targets, dtype=np.int32)[rows],
+                                  np.fromiter(chain.from_iterable(map(dict.values, more)), dtype=np.int32, count=count)])
+        start = np.zeros(n + 1, dtype=np.int32)
+        start[1:] = np.cumsum(np.bincount(owner, minlength=n))
+        self._start = array(_INT, start.tobytes())
+        self._labels = array(_INT, labels[order].tobytes())
+        self._targets = array(_INT, targets[order].tobytes())
+        self._more = {}
+
+    def _occurrences(self) -> array:
         """Number of end positions of each state (= occurrences of its contexts)."""
         if self._counts is None:
-            counts = list(self._own)
-            order = sorted(range(1, len(self._len)), key=self._len.__getitem__, reverse=True)
+            counts = array(_INT, self._own)
+            length = np.array(self._len, dtype=np.int32)  # a copy: the index may grow later
+            order = np.argsort(-length[1:], kind="stable") + 1  # longest first
             link = self._link
-            for v in order:
+            for v in order.tolist():
                 counts[link[v]] += counts[v]
             self._counts = counts
         return self._counts
@@ -83,8 +209,12 @@ class SuffixIndex:
         """How often each label followed the contexts of ``state`` (END, start labels excluded)."""
         dist = self._dist.get(state)
         if dist is None:
-            counts = self._occurrences()
-            dist = {c: counts[t] for c, t in self._next[state].items() if c not in self._skip}
+            counts, names, skip = self._occurrences(), self._names, self._skip
+            dist = {}
+            for c, t in self._edges(state).items():
+                name = names[c]
+                if name not in skip:
+                    dist[name] = counts[t]
             self._dist[state] = dist
         return dist
 
@@ -104,20 +234,51 @@ class SuffixIndex:
 
     def step(self, state: int, matched: int, label: str) -> tuple[int, int]:
         """Extend a match (state, matched length) by one label; unknown labels reset to root."""
-        nxt, link = self._next, self._link
-        while state != -1 and label not in nxt[state]:
-            state = link[state]
-        if state == -1:
-            return 0, 0
-        if matched > self._len[state]:
-            matched = self._len[state]
-        return nxt[state][label], matched + 1
+        c = self._ids.get(label)
+        while c is not None and state != -1:
+            target = self._get(state, c)
+            if target != -1:
+                return target, min(matched, self._len[state]) + 1
+            state = self._link[state]
+        return 0, 0
 
-    def match(self, history: Sequence[str]) -> tuple[int, int]:
-        """State and length of the longest suffix of ``history`` seen in training."""
+    def match(self, history: Iterable[str]) -> tuple[int, int]:
+        """State and length of the longest suffix of ``history`` seen in training: :meth:`step`
+        over every label, with the lookup of compacted transitions (:meth:`_get`) written out,
+        as this is the inner loop of every prediction."""
+        if self._more or len(self._start) != len(self._len) + 1:
+            state, matched = 0, 0
+            for label in history:
+                state, matched = self.step(state, matched, label)
+            return state, matched
+        ids, link, length = self._ids, self._link, self._len
+        label1, target1, start, labels, targets = self._label1, self._target1, self._start, self._labels, self._targets
         state, matched = 0, 0
         for label in history:
-            state, matched = self.step(state, matched, label)
+            c = ids.get(label)
+            if c is None:  # never seen: nothing matches
+                state, matched = 0, 0
+                continue
+            while state != -1:
+                if label1[state] == c:  # most states have one transition
+                    target = target1[state]
+                else:
+                    lo, hi = start[state], start[state + 1]
+                    if lo == hi:
+                        target = -1
+                    else:
+                        try:
+                            target = targets[labels.index(c, lo, hi)]
+                        except ValueError:
+                            target = -1
+                if target != -1:
+                    if matched > length[state]:
+                        matched = length[state]
+                    state, matched = target, matched + 1
+                    break
+                state = link[state]
+            else:
+                state, matched = 0, 0
         return state, matched
 
     def scan(self, sequence: Iterable[str]) -> Iterator[tuple[int, int]]:

@@ -96,7 +96,8 @@ class OnlineAssistant:
         self._target_counts: dict[tuple[str, str], Counter[str]] = defaultdict(Counter)
         # the training days are counted, then dropped: keep the map only (memory per household stays small)
         self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
-        self._count_targets(self._runs(household.train))
+        if fetch_policy is None:  # only the threshold rule reads where objects are taken (the policy forecasts it)
+            self._count_targets(self._runs(household.train))
         self.days_learned = len(household.train)
         self._last_instant: dt.datetime | None = None
         self._reset_day(None)
@@ -291,7 +292,8 @@ class OnlineAssistant:
             self.emission.partial_fit(days, self.household.objects)
         if self.fetch_policy is not None:
             self.fetch_policy.learn(days)
-        self._count_targets(runs)
+        if self.fetch_policy is None:
+            self._count_targets(runs)
         self.days_learned += len(days)
 
     def _runs(self, days: Sequence[Day]) -> list[ActivityRun]:

@@ -27,7 +27,7 @@ from globe.reasoning.backends.base import LLMBackend
 from globe.service import timepolicy
 from globe.service.assistant import Observation, OnlineAssistant
 from globe.service.store import HouseholdRow, Store, legacy_day
-from globe.service.upload import parse_day
+from globe.service.upload import DayParser
 
 log = logging.getLogger(__name__)
 
@@ -114,9 +114,10 @@ class Registry:
         locations = frozenset(n.node for n in nodes)
         owners = {n.cls: n.node for n in nodes if n.movable}
         days = []
+        parser = DayParser(objects, locations, owners)
         for i, text in enumerate(self.store.training_days(row.name)):
             try:
-                days.append(legacy_day(text) if text.startswith("{") else parse_day(text, objects, locations, f"days[{i}]", owners)[0])
+                days.append(legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0])
             except (GlobeError, ValueError, KeyError) as err:
                 log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
         household = Household(row.name, nodes, objects, tuple(days), (), f"sqlite:{self.store.path}")

@@ -76,68 +76,86 @@ def _renamed(err: DataError) -> DataError:
 
 def parse_day(text: str, objects: tuple[str, ...], locations: frozenset[str], name: str,
               owners: dict[str, str] | None = None) -> tuple[Day, tuple[int, ...]]:
-    """One day file's text (and each row's line), validated exactly like a file on disk.
+    """One day file's text (and each row's line), validated exactly like a file on disk (see
+    :class:`DayParser`, which parses many days of one household faster)."""
+    return DayParser(objects, locations, owners).parse(text, name)
+
+
+class DayParser:
+    """Parses the day texts of one household (and each row's line), validated exactly like files
+    on disk.
 
     Day files as GLOBE writes them (header ``minute,activity,<objects in map order>``, no quotes,
     no carriage returns, no blank lines) take a fast path that applies the same rules with the
-    data layer's own helpers, but checks each distinct row of locations once (objects rarely
-    move, so most rows repeat the previous one); any other text, and any row the fast path
+    data layer's own helpers, but checks each distinct row of locations, minute and activity
+    cell once for all the household's days (objects rarely move, every day starts where the
+    last one ended, and the minutes repeat daily); any other text, and any row the fast path
     would reject, goes through :func:`parse_day_text` itself, so the result and the message are
     the data layer's."""
-    header = text[: text.find("\n")] if "\n" in text else text
-    plain = (header.split(",") == ["minute", "activity", *objects] and '"' not in text and "\r" not in text
-             and "\n\n" not in text and not text.startswith("\ufeff"))
-    if plain:
-        day = _fast_day(text, objects, locations, name, owners or {})
-        if day is not None:
-            return day
-    return parse_day_text(text, objects, locations, name, name, owners)
 
+    def __init__(self, objects: tuple[str, ...], locations: frozenset[str], owners: dict[str, str] | None = None) -> None:
+        self.objects, self.locations, self.owners = objects, locations, owners or {}
+        self._shared = {loc: loc for loc in locations}  # one string per label, whatever text it came from
+        self._column_of = {label: k for k, label in enumerate(self.owners.get(o, "") for o in objects) if label}
+        self._header = ["minute", "activity", *objects]
+        self._rows: dict[str, tuple[str, ...]] = {}  # cells of a valid row of locations -> the row
+        self._minutes: dict[str, int] = {}
+        self._activities: dict[str, str] = {}
 
-def _fast_day(text: str, objects: tuple[str, ...], locations: frozenset[str], name: str,
-              owners: dict[str, str]) -> tuple[Day, tuple[int, ...]] | None:
-    """The fast path of :func:`parse_day`; None as soon as a row needs the full reader."""
-    shared = {loc: loc for loc in locations}
-    column_of = {label: k for k, label in enumerate(owners.get(o, "") for o in objects) if label}
-    seen: dict[str, tuple[str, ...]] = {}
-    width = len(objects) + 2
-    minutes: list[int] = []
-    activities: list[str] = []
-    states: list[tuple[str, ...]] = []
-    lines = text.split("\n")
-    if lines and not lines[-1]:
-        lines.pop()
-    try:
-        for lineno, line in enumerate(lines[1:], start=2):
-            i1 = line.find(",")
-            i2 = line.find(",", i1 + 1)
-            if i1 < 0 or i2 < 0:
-                return None
-            tail = line[i2 + 1:]
-            state = seen.get(tail)
-            if state is None:
-                cells = tail.split(",")
-                if len(cells) != width - 2:
+    def parse(self, text: str, name: str) -> tuple[Day, tuple[int, ...]]:
+        header = text[: text.find("\n")] if "\n" in text else text
+        plain = (header.split(",") == self._header and '"' not in text and "\r" not in text
+                 and "\n\n" not in text and not text.startswith("\ufeff"))
+        if plain:
+            day = self._fast_day(text, name)
+            if day is not None:
+                return day
+        return parse_day_text(text, self.objects, self.locations, name, name, self.owners)
+
+    def _fast_day(self, text: str, name: str) -> tuple[Day, tuple[int, ...]] | None:
+        """The fast path of :meth:`parse`; None as soon as a row needs the full reader (which
+        reports it, with its own message and line). Rows are split and looked up in bulk; only
+        the cells not seen in an earlier row or day are checked."""
+        lines = text.split("\n")
+        if lines and not lines[-1]:
+            lines.pop()
+        parts = [line.split(",", 2) for line in lines[1:]]
+        if not parts or min(map(len, parts)) < 3:
+            return None
+        raw_minutes, raw_activities, tails = zip(*parts)
+        rows, minute_of, activity_of = self._rows, self._minutes, self._activities
+        try:
+            for tail in set(tails).difference(rows):
+                row = self._row(tail, name)
+                if row is None:
                     return None
-                found = [shared.get(_clean(c)) for c in cells]
-                if None in found:
-                    return None
-                state = tuple(found)  # type: ignore[arg-type]
-                if column_of and not column_of.keys().isdisjoint(state):
-                    _check_nesting(state, objects, owners, column_of, name, lineno)
-                seen[tail] = state
-            minute = _parse_minute(_clean(line[:i1]), name, lineno)
-            if minutes and minute <= minutes[-1]:
-                return None
-            activity = _label(_clean(line[i1 + 1:i2]), name, lineno, "activity", "activity")
-            minutes.append(minute)
-            activities.append(sys.intern(activity))
-            states.append(state)
-    except DataError:
-        return None  # the full reader reports it, with its own message
-    if not minutes:
-        return None
-    return Day(name, tuple(minutes), tuple(activities), tuple(states), name), tuple(range(2, 2 + len(minutes)))
+                rows[tail] = row
+            for raw in set(raw_minutes).difference(minute_of):
+                minute_of[raw] = _parse_minute(_clean(raw), name, 0)
+            for raw in set(raw_activities).difference(activity_of):
+                activity_of[raw] = sys.intern(_label(_clean(raw), name, 0, "activity", "activity"))
+        except DataError:
+            return None
+        minutes = tuple(map(minute_of.__getitem__, raw_minutes))
+        if not all(map(int.__lt__, minutes, minutes[1:])):
+            return None
+        day = Day(name, minutes, tuple(map(activity_of.__getitem__, raw_activities)), tuple(map(rows.__getitem__, tails)), name)
+        return day, tuple(range(2, 2 + len(minutes)))
+
+    def _row(self, tail: str, name: str) -> tuple[str, ...] | None:
+        """The locations of one row's object cells, if they are valid (DataError if an object is
+        inside itself)."""
+        cells = tail.split(",")
+        if len(cells) != len(self.objects):
+            return None
+        blanks = " " in tail or "\t" in tail  # cells lose surrounding blanks (_clean); most rows have none
+        found = [self._shared.get(_clean(c)) for c in cells] if blanks else list(map(self._shared.get, cells))
+        if None in found:
+            return None
+        row = tuple(found)
+        if self._column_of and not self._column_of.keys().isdisjoint(row):
+            _check_nesting(row, self.objects, self.owners, self._column_of, name, 0)  # type: ignore[arg-type]
+        return row  # type: ignore[return-value]
 
 
 def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str], *, max_label: int = 128,
@@ -147,12 +165,13 @@ def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str],
     objects = tuple(n.cls for n in nodes if n.movable)
     owners = {n.cls: n.node for n in nodes if n.movable}
     locations = frozenset(n.node for n in nodes)
-    parsed = [parse_day(text, objects, locations, f"days[{i}]", owners) for i, text in enumerate(day_texts)]
+    parser = DayParser(objects, locations, owners)
+    parsed = [parser.parse(text, f"days[{i}]") for i, text in enumerate(day_texts)]
     step = step_minutes or household_step(d for d, _ in parsed)
     days = tuple(check_step(d, lines, step) if step else d for d, lines in parsed)
     for i, d in enumerate(days):
-        for lineno, activity in zip(parsed[i][1], d.activities):
-            if len(activity) > max_label:
-                raise LimitError(f"activity longer than {max_label} characters", source=f"days[{i}]", line=lineno, field="activity")
-    days = tuple(Day(d.name, d.minutes, tuple(sys.intern(a) for a in d.activities), d.locations, d.source) for d in days)
+        if max(map(len, set(d.activities)), default=0) > max_label:  # which line: only when one is too long
+            lineno = next(n for n, a in zip(parsed[i][1], d.activities) if len(a) > max_label)
+            raise LimitError(f"activity longer than {max_label} characters", source=f"days[{i}]", line=lineno, field="activity")
+    days = tuple(Day(d.name, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source) for d in days)
     return Household(name, nodes, objects, days, (), "upload")
