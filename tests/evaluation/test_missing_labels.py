@@ -13,10 +13,10 @@ from globe.errors import ConfigError
 from globe.evaluation import lookahead as lk
 from globe.evaluation.missing_labels import (
     FilterSetup,
-    _FilteredForecaster,
     check_fractions,
     day_mask,
     evaluate_fraction,
+    filtered_lookahead,
     missing_label_rows,
     write_missing_label_results,
 )
@@ -64,15 +64,17 @@ def test_lookahead_through_the_filter_with_all_labels_is_the_plain_forecast(hous
     fc = assembly.forecaster(h, config, models=setup.models).forecaster
     day = h.test[0]
     plain = lk.forecast_days(fc, [day], 3, 30, 45)
-    wrapped = lk.forecast_days(_FilteredForecaster(fc, day, [True] * len(day), h.objects, setup, config.filter),  # type: ignore[arg-type]
-                               [day], 3, 30, 45)
+    wrapped = filtered_lookahead(fc, setup, config.filter, [day], {day.name: [True] * len(day)}, 3, 30, 45)
     for a, b in zip(plain.pairs, wrapped.pairs):
-        np.testing.assert_allclose(np.concatenate(a.probability), np.concatenate(b.probability), atol=1e-9)
-    hidden = lk.forecast_days(_FilteredForecaster(fc, day, [False] * len(day), h.objects, setup, config.filter),  # type: ignore[arg-type]
-                              [day], 3, 30, 45)
+        np.testing.assert_array_equal(np.concatenate(a.probability), np.concatenate(b.probability))
+        np.testing.assert_array_equal(np.concatenate(a.hit), np.concatenate(b.hit))
+    assert wrapped.activity_correct.tolist() == plain.activity_correct.tolist()
+    hidden = filtered_lookahead(fc, setup, config.filter, [day], {day.name: [False] * len(day)}, 3, 30, 45)
     assert hidden.activity_total.sum() == plain.activity_total.sum()
     for p in hidden.pairs:
         assert np.all(np.concatenate(p.probability) <= 1 + 1e-9)
+    assert any(not np.array_equal(np.concatenate(a.probability), np.concatenate(b.probability))
+               for a, b in zip(plain.pairs, hidden.pairs))
 
 
 def test_masks_are_per_day_and_fractions_are_checked(households):

@@ -27,7 +27,6 @@ activity a movement tells about, and how much to trust it) is chosen by cross-va
 from __future__ import annotations
 
 import copy
-import dataclasses
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -46,6 +45,7 @@ from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_day
 from globe.evaluation.tuning import Selection, grid, select, tuned_models
 from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
 from globe.models.base import ActivityModelBase
+from globe.models.forecast import Forecaster, first_locations
 
 Progress = Callable[[str], None]
 METHOD = "routine"
@@ -212,43 +212,79 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
 
 # -- lookahead through the filter -------------------------------------------------------------
 
-class _FilteredForecaster:
-    """Duck-types :class:`globe.models.forecast.Forecaster` for one day whose labels are partly
-    hidden: the forecast at reference r mixes the forecaster's own forecasts from the filter's
-    most probable histories a_0..a_{r-1} (given the visible labels and every movement up to r),
-    weighted by their posterior. With every label visible it is the plain forecast."""
+def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: Sequence[bool], horizons: int,
+                        first: int, last: int) -> list[tuple[int, list[tuple[tuple[str, ...], float]]]]:
+    """Per reference step r of ``day``: the filter's most probable histories a_0..a_{r-1} (at most
+    ``forecast_hypotheses``, given the visible labels and every movement up to r) and their
+    posterior weights, renormalised over those kept. With every label visible there is one, the
+    true history."""
+    from globe.evaluation.lookahead import reference_steps
 
-    def __init__(self, inner: Any, day: Day, mask: Sequence[bool], objects: Sequence[str], setup: FilterSetup,
-                 fcfg: FilterConfig) -> None:
-        self.inner, self.day, self.mask, self.fcfg = inner, day, mask, fcfg
-        self.movements, self.activity = inner.movements, inner.activity
-        self.moved = moved_objects(day, objects)
-        self.filter = assembly.activity_filter(setup.activity, setup.emission, fcfg)
-
-    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]], horizon: int) -> Any:
-        r = len(locations) - 1
-        flt = self.filter
+    moved = moved_objects(day, setup.household.objects)
+    flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
+    out = []
+    for r in reference_steps(day, horizons, first, last):
         while flt.step < r - 1:  # labels and movements of steps 0..r-1
             t = flt.step + 1
-            flt.update(t, self.day.activities[t] if self.mask[t] else None, self.moved[t])
+            flt.update(t, day.activities[t] if mask[t] else None, moved[t])
         peek = copy.copy(flt)
-        peek.update(r, None, self.moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
+        peek.update(r, None, moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
         prefixes: dict[tuple[str, ...], float] = {}
         for hyp in peek.hypotheses():
             prefixes[hyp.history[:r]] = prefixes.get(hyp.history[:r], 0.0) + hyp.weight
-        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: self.fcfg.forecast_hypotheses]
+        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: fcfg.forecast_hypotheses]
         total = sum(w for _, w in top)
-        parts = [(w / total, self.inner.forecast(prefix, locations, horizon)) for prefix, w in top]
-        if len(parts) == 1:
-            return parts[0][1]
-        first = parts[0][1]
-        acts: list[dict[str, float]] = [dict() for _ in first.activity]
-        for w, fc in parts:
-            for k, dist in enumerate(fc.activity):
-                for a, p in dist.items():
-                    acts[k][a] = acts[k].get(a, 0.0) + w * p
-        return dataclasses.replace(first, activity=tuple(acts), departure=sum(w * fc.departure for w, fc in parts),
-                                   destination=sum(w * fc.destination for w, fc in parts))
+        out.append((r, [(prefix, w / total) for prefix, w in top]))
+    return out
+
+
+def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
+                       masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int = 102,
+                       chunk: int = 512) -> Any:
+    """The lookahead's pairs (:class:`globe.evaluation.lookahead.LookaheadRun`) when labels are
+    partly hidden: the forecast at reference r mixes ``forecaster``'s forecasts from the filter's
+    most probable histories (:func:`filtered_references`), weighted by their posterior. With
+    every label visible it is the plain forecast."""
+    from globe.evaluation import lookahead as lk
+
+    run = lk.LookaheadRun(horizons, [lk.HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int),
+                          np.zeros(horizons, int))
+    refs: list[tuple[Day, int]] = []
+    parts: list[list[tuple[tuple[str, ...], float]]] = []
+    for day in days:
+        for r, mix in filtered_references(setup, fcfg, day, masks[day.name], horizons, first, last):
+            refs.append((day, r))
+            parts.append(mix)
+    rows: dict = {}
+    lo = 0
+    while lo < len(refs):
+        hi, size = lo, 0
+        while hi < len(refs) and (size + len(parts[hi]) <= chunk or hi == lo):
+            size += len(parts[hi])
+            hi += 1
+        queries, owner, weight, rank = [], [], [], []
+        for i in range(lo, hi):
+            day, r = refs[i]
+            for k, (prefix, w) in enumerate(parts[i]):
+                queries.append((prefix, day.locations[: r + 1]))
+                owner.append(i - lo)
+                weight.append(w)
+                rank.append(k)
+        fcs = forecaster.forecast_many(queries, horizons - 1)
+        n = hi - lo
+        owners, weights, ranks = np.array(owner), np.array(weight), np.array(rank)
+        acts = fcs.trees.activity_matrix()
+        destination = np.zeros((n,) + fcs.destination.shape[1:])
+        activity = np.zeros((n,) + acts.shape[1:])
+        for k in range(int(ranks.max(initial=-1)) + 1):  # mixed in order, as a running sum would
+            mine = ranks == k
+            destination[owners[mine]] += weights[mine][:, None, None, None] * fcs.destination[mine]
+            activity[owners[mine]] += weights[mine][:, None, None] * acts[mine]
+        best, prob = first_locations(destination, fcs.targets, horizons)
+        top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
+        lk.score_arrays(run, refs[lo:hi], best, prob, top, fcs.trees.names, fcs.locations, rows)
+        lo = hi
+    return run
 
 
 def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
@@ -256,21 +292,21 @@ def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
     """Relocation F1 and activity accuracy per horizon through the filter, or None when the
     lookahead module is not available."""
     try:
-        from globe.evaluation import lookahead as lk
+        from globe.evaluation import lookahead as lk  # noqa: F401
     except ImportError:  # pragma: no cover - the lookahead part ships separately
         return None
     h, la = setup.household, config.lookahead
     threshold = _lookahead_threshold(setup, config, cache)
-    fitted = assembly.forecaster(h, config, models=setup.models)
-    counts = [lk.RelocationCounts() for _ in range(la.horizons)]
-    correct, total = np.zeros(la.horizons), np.zeros(la.horizons)
-    for day in days:
-        wrapper = _FilteredForecaster(fitted.forecaster, day, masks[day.name], h.objects, setup, config.filter)
-        run = lk.forecast_days(wrapper, [day], la.horizons, la.first_reference, la.last_reference)  # type: ignore[arg-type]
-        counts = [c + p.counts(threshold) for c, p in zip(counts, run.pairs)]
-        correct += run.activity_correct
-        total += run.activity_total
-    return tuple(c.f1 for c in counts), tuple(float(c / t) if t else 0.0 for c, t in zip(correct, total))
+    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la)
+    forecaster = cache.get(key)
+    if forecaster is None:  # over the filter's own activity model (its distributions are shared)
+        movements = assembly.movement_model(la, True, False).fit(h.train, h.objects)
+        forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
+                                             max_paths=la.max_paths)
+    run = filtered_lookahead(forecaster, setup, config.filter, days, masks, la.horizons, la.first_reference,
+                             la.last_reference)
+    counts = [p.counts(threshold) for p in run.pairs]
+    return tuple(c.f1 for c in counts), tuple(float(a) for a in run.activity_accuracy())
 
 
 def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict) -> float:
@@ -279,7 +315,7 @@ def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict) -
 
     key = ("lookahead_threshold", setup.household.name, setup.models, config.lookahead)
     if key not in cache:
-        cache[key] = float(lk.choose_threshold(setup.household, config, setup.models).best["threshold"])
+        cache[key] = float(lk.choose_threshold(setup.household, config, setup.models, cache=cache).best["threshold"])
     return cache[key]
 
 

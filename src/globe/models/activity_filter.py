@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import math
+import weakref
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Callable, Collection, Hashable, Protocol, Sequence
@@ -35,7 +36,9 @@ from globe.data.records import Day
 from globe.errors import ConfigError
 from globe.models.activity import DAY_START as NGRAM_DAY_START
 from globe.models.activity import ActivityModel
-from globe.models.base import CountingModel
+from globe.models.backoff import witten_bell_distribution
+from globe.models.base import CountingModel, windowed_prior
+from globe.models.baselines import PersistenceModel
 from globe.models.routine import DAY_START as RUN_DAY_START
 from globe.models.routine import RoutineModel
 
@@ -180,58 +183,106 @@ class MovementEmission(CountingModel):
 # -- dynamics: how each kind of activity model extends a history ---------------------------------
 
 class _Dynamics:
-    """Any model with ``predict_proba``: the state is the whole history (nothing merges)."""
+    """Any model with ``predict_proba``: the state is the whole history (nothing merges).
+
+    A *cursor* summarises a history a_0..a_{step-1}; ``key(cursor)`` is equal for histories with
+    the same future (merged exactly), and ``distribution(cursor, step)`` is the model's
+    P(a_step | the history), memoised by (key, step)."""
 
     def __init__(self, model: NextActivityModel) -> None:
         self.model = model
         self._memo: dict[Hashable, dict[str, float]] = {}
+        self.version = model_version(model)
 
     def start(self) -> Hashable:
         return ()
 
-    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
-        return history + (activity,)
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
+        """The cursor of the history ``cursor`` (``step`` activities long) followed by ``activity``."""
+        return cursor + (activity,)
 
-    def key(self, cursor: Any, history: tuple[str, ...]) -> Hashable:
-        """Histories with equal keys have the same future (merged exactly)."""
+    def key(self, cursor: Any) -> Hashable:
+        """Histories with equal keys (and lengths) have the same future (merged exactly)."""
         return cursor
 
-    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
-        return self.model.predict_proba(history)
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
+        return self.model.predict_proba(cursor)
 
-    def distribution(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
-        key = (self.key(cursor, history), len(history))
+    def distribution(self, cursor: Any, step: int) -> dict[str, float]:
+        key = (self.key(cursor), step)
         dist = self._memo.get(key)
         if dist is None:
             if len(self._memo) >= 200_000:
                 self._memo.clear()
-            dist = self._memo[key] = self._compute(cursor, history)
+            dist = self._memo[key] = self._compute(cursor, step)
         return dist
+
+
+class _PersistenceDynamics(_Dynamics):
+    """Persistence: the future depends only on the last activity."""
+
+    def start(self) -> Hashable:
+        return None
+
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
+        return activity
+
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
+        return self.model.predict_proba(() if cursor is None else (cursor,))
 
 
 class _RoutineDynamics(_Dynamics):
     """Routine model: the state is the runs so far; the future depends only on the last ``order``
-    run labels (with the day-start token) and when the current run began."""
+    run labels (with the day-start token) and when the current run began. The cursor also
+    carries the match of the runs in the model's run index, so a step costs O(1); the
+    distribution is :meth:`RoutineModel._distribution` with its parts (stay probability, run
+    n-gram, time-of-day prior) memoised (the same numbers, tested)."""
 
     model: RoutineModel
 
-    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
-        runs: tuple[tuple[str, int, int], ...] = cursor
-        t = len(history)
-        if runs and runs[-1][0] == activity:
-            return runs[:-1] + ((activity, runs[-1][1], t),)
-        return runs + ((activity, t, t),)
+    def __init__(self, model: RoutineModel) -> None:
+        super().__init__(model)
+        self._stay: dict[tuple[str, int, int], float] = {}
+        self._prior: dict[int, dict[str, float]] = {}
 
-    def key(self, cursor: Any, history: tuple[str, ...]) -> Hashable:
-        runs: tuple[tuple[str, int, int], ...] = cursor
+    def start(self) -> Hashable:
+        return (), *self.model.runs_.match((RUN_DAY_START,))
+
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
+        runs, state, matched = cursor
+        if runs and runs[-1][0] == activity:
+            return runs[:-1] + ((activity, runs[-1][1], step),), state, matched
+        return (runs + ((activity, step, step),), *self.model.runs_.step(state, matched, activity))
+
+    def key(self, cursor: Any) -> Hashable:
+        runs: tuple[tuple[str, int, int], ...] = cursor[0]
         order = self.model.order
         tokens = tuple(a for a, _, _ in runs[-order:])
         if len(runs) < order:
             tokens = ((RUN_DAY_START,) + tokens)[-order:]
         return tokens, runs[-1][1] if runs else -1
 
-    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
-        return self.model._distribution(list(cursor), len(history))
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
+        runs, state, matched = cursor
+        model = self.model
+        if not runs:
+            return model._distribution([], step)
+        current, first, _ = runs[-1]
+        skey = (current, step - first, step)
+        stay = self._stay.get(skey)
+        if stay is None:
+            stay = self._stay[skey] = model.stay_probability(current, step - first, step)
+        nxt = witten_bell_distribution(model.runs_, state, matched, model.order, model.classes_)
+        nxt.pop(current, None)
+        if model.time_weight > 0:
+            prior = self._prior.get(step)
+            if prior is None:
+                prior = self._prior[step] = windowed_prior(model.starts_, step, model.time_window, model.classes_)
+            nxt = {b: p * prior[b] ** model.time_weight for b, p in nxt.items()}
+        z = sum(nxt.values())
+        dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}
+        dist[current] = stay if z > 0 else 1.0
+        return dist
 
 
 class _NgramDynamics(_Dynamics):
@@ -242,21 +293,46 @@ class _NgramDynamics(_Dynamics):
     def start(self) -> Hashable:
         return self.model.index_.match((NGRAM_DAY_START,))
 
-    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
         state, matched = cursor
         return self.model.index_.step(state, matched, activity)
 
-    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
         state, matched = cursor
-        return self.model._distribution(state, matched, len(history))
+        return self.model._distribution(state, matched, step)
+
+
+def model_version(model: Any) -> tuple[int, int]:
+    """Changes when the model is fitted again or learns more days (memos over it are then stale)."""
+    data = getattr(model, "training_data_", ())
+    return id(data), len(data)
+
+
+_SHARED: "weakref.WeakKeyDictionary[Any, _Dynamics]" = weakref.WeakKeyDictionary()
 
 
 def dynamics_for(model: NextActivityModel) -> _Dynamics:
+    """The dynamics of ``model``, shared by every filter and forecaster over the same fitted
+    model (their memos of the model's distributions too); rebuilt when the model learns."""
+    try:
+        dyn = _SHARED.get(model)
+    except TypeError:  # not weakly referenceable: a private one
+        dyn = None
+    if dyn is not None and dyn.version == model_version(model):
+        return dyn
     if isinstance(model, RoutineModel):
-        return _RoutineDynamics(model)
-    if isinstance(model, ActivityModel):
-        return _NgramDynamics(model)
-    return _Dynamics(model)
+        dyn = _RoutineDynamics(model)
+    elif isinstance(model, ActivityModel):
+        dyn = _NgramDynamics(model)
+    elif isinstance(model, PersistenceModel):
+        dyn = _PersistenceDynamics(model)
+    else:
+        dyn = _Dynamics(model)
+    try:
+        _SHARED[model] = dyn
+    except TypeError:
+        pass
+    return dyn
 
 
 # -- the filter ----------------------------------------------------------------------------------
@@ -298,7 +374,7 @@ class ActivityFilter:
         self._beam = [Hypothesis(1.0, (), self._dynamics.start())]
 
     def _next(self, h: Hypothesis) -> dict[str, float]:
-        dist = self._dynamics.distribution(h.cursor, h.history)
+        dist = self._dynamics.distribution(h.cursor, len(h.history))
         if not dist and h.history:  # a model with nothing to say: the activity stays the same
             return {h.history[-1]: 1.0}
         return dist
@@ -373,8 +449,8 @@ class ActivityFilter:
 
     def _add(self, merged: dict[Hashable, list], h: Hypothesis, a: str, w: float) -> None:
         history = h.history + (a,)
-        cursor = self._dynamics.advance(h.cursor, h.history, a)
-        key = self._dynamics.key(cursor, history)
+        cursor = self._dynamics.advance(h.cursor, len(h.history), a)
+        key = self._dynamics.key(cursor)
         slot = merged.get(key)
         if slot is None:
             merged[key] = [w, history, cursor, w]
