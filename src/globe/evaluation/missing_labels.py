@@ -96,7 +96,10 @@ class _FoldFilter:
             chooser = assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=self.models.object_marginal)
             self.memo[("models", fold)] = fitted.activity, chooser
         self.activity, self.chooser = self.memo[("models", fold)]
-        self.emission = assembly.movement_emission(self.config.filter, **self.params).fit(days, self.household.objects)
+        if ("emission", fold) not in self.memo:  # the counts do not depend on the candidate
+            self.memo[("emission", fold)] = assembly.movement_emission(self.config.filter, **self.params).fit(
+                days, self.household.objects)
+        self.emission = self.memo[("emission", fold)].with_params(**self.params)
         return self
 
 

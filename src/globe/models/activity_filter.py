@@ -123,7 +123,32 @@ class MovementEmission(CountingModel):
         self.rate_ = {o: (self.overall_[o] + 1) / (self.transitions_ + 2) for o in self.objects_}
         self._base: dict[tuple, float] = {}
         self._memo: dict[tuple, float] = {}
+        self._evidence: dict[tuple, tuple[float, dict]] = {}
         return self
+
+    def with_params(self, **params: Any) -> "MovementEmission":
+        """The same counts with other ``weight``, ``previous_share`` or ``boundary`` (the counts do
+        not depend on them): cross-validation counts each fold once for every candidate."""
+        self._check_fitted()
+        other = copy.copy(self)
+        for name, value in params.items():
+            if name not in ("weight", "previous_share", "boundary"):
+                raise ConfigError(f"MovementEmission.with_params: {name!r} changes the counts; fit a new one")
+            setattr(other, name, value)
+        other._validate_params()
+        other._base, other._memo, other._evidence = {}, {}, {}
+        return other
+
+    def evidence(self, activities: Collection[str], moved: frozenset[str]) -> tuple[float, dict]:
+        """(:meth:`upper_bound` over ``activities``, a memo of likelihoods relative to it) for
+        the set ``moved``: the same sets recur (mostly "nothing moved"), across steps and days."""
+        key = (tuple(activities), moved)
+        out = self._evidence.get(key)
+        if out is None:
+            if len(self._evidence) >= 20_000:
+                self._evidence.clear()
+            out = self._evidence[key] = (self.upper_bound(activities, moved), {})
+        return out
 
     def probability(self, activity: str, obj: str, part: int = 0, changed: bool | None = None) -> float:
         """p(activity, obj): the chance that ``obj`` moves at a step credited to ``activity``
@@ -192,6 +217,7 @@ class _Dynamics:
     def __init__(self, model: NextActivityModel) -> None:
         self.model = model
         self._memo: dict[Hashable, dict[str, float]] = {}
+        self._child_keys: dict[Hashable, Hashable] = {}
         self.version = model_version(model)
 
     def start(self) -> Hashable:
@@ -207,6 +233,17 @@ class _Dynamics:
 
     def _compute(self, cursor: Any, step: int) -> dict[str, float]:
         return self.model.predict_proba(cursor)
+
+    def child_key(self, cursor: Any, key: Hashable, step: int, activity: str) -> Hashable:
+        """``key(advance(cursor, step, activity))``, memoised: equal keys have equal futures, so
+        the key of a history and the next activity determine the next key."""
+        memo_key = (key, step, activity)
+        out = self._child_keys.get(memo_key)
+        if out is None:
+            if len(self._child_keys) >= 200_000:
+                self._child_keys.clear()
+            out = self._child_keys[memo_key] = self.key(self.advance(cursor, step, activity))
+        return out
 
     def distribution(self, cursor: Any, step: int) -> dict[str, float]:
         key = (self.key(cursor), step)
@@ -371,7 +408,9 @@ class ActivityFilter:
     def reset(self) -> None:
         """Start a new day: one empty history."""
         self.step = -1
-        self._beam = [Hypothesis(1.0, (), self._dynamics.start())]
+        start = self._dynamics.start()
+        self._beam = [Hypothesis(1.0, (), start)]
+        self._keys: list[Hashable] = [self._dynamics.key(start)]
 
     def _next(self, h: Hypothesis) -> dict[str, float]:
         dist = self._dynamics.distribution(h.cursor, len(h.history))
@@ -413,59 +452,84 @@ class ActivityFilter:
         first = self.step == 0
         evidence = self._evidence(moved) if moved is not None and not first else None
         merged: dict[Hashable, list] = {}
-        grown: list[tuple[float, Hypothesis, str]] = []
-        for h in self._beam:
+        grown: list[tuple[float, Hypothesis, Hashable, str]] = []
+        # The evidence is at most 1 (relative to its upper bound), so an extension already below
+        # min_weight of the best one so far cannot reach the floor below: it is not scored.
+        best, lowest = 0.0, self.min_weight
+        bounded = self._bounded()
+        for h, key in zip(self._beam, self._keys):
             dist = self._next(h)
             if label is not None:
                 dist = {label: dist.get(label, 0.0)}
             prev = h.history[-1] if h.history else None
             for a, p in dist.items():
                 w = h.weight * p
+                if w < lowest * best and (evidence is None or (a in bounded and (prev is None or prev in bounded))):
+                    continue
                 if evidence is not None and w > 0.0:
                     w *= evidence(prev, a)
                 if w > 0.0:
-                    grown.append((w, h, a))
+                    grown.append((w, h, key, a))
+                    if w > best:
+                        best = w
         # Extensions far below the best cannot reach min_weight of the total: skip building them.
-        floor = self.min_weight * max((w for w, _, _ in grown), default=0.0)
-        for w, h, a in grown:
+        floor = self.min_weight * max((g[0] for g in grown), default=0.0)
+        for w, h, key, a in grown:
             if w >= floor:
-                self._add(merged, h, a, w)
+                self._add(merged, h, key, a, w)
         if not merged:
             # Nothing kept: the label (or movement) is impossible under the model. The evidence
             # wins over the model: keep the histories' weights and extend them as observed.
-            for h in self._beam:
+            for h, key in zip(self._beam, self._keys):
                 dist = self._next(h)
                 guess = max(dist, key=lambda k: dist[k]) if dist else (h.history[-1] if h.history else None)
                 chosen = label if label is not None else guess
                 if chosen is not None:
-                    self._add(merged, h, chosen, h.weight)
+                    self._add(merged, h, key, chosen, h.weight)
         if not merged:
             raise ValueError("the activity model predicts nothing for the first step; is it fitted?")
-        kept = sorted(merged.values(), key=lambda m: (-m[0], m[1]))[: self.max_hypotheses]
-        total = sum(m[0] for m in kept)
-        kept = [m for m in kept if m[0] >= self.min_weight * total] or kept[:1]
-        total = sum(m[0] for m in kept)
-        self._beam = [Hypothesis(w / total, hist, cur) for w, hist, cur, _ in kept]
+        # most probable first; ties by the history (all as long, so by the parent's, then the activity)
+        kept = sorted(merged.items(), key=lambda kv: (-kv[1][0], kv[1][1].history, kv[1][2]))[: self.max_hypotheses]
+        total = sum(m[0] for _, m in kept)
+        kept = [km for km in kept if km[1][0] >= self.min_weight * total] or kept[:1]
+        total = sum(m[0] for _, m in kept)
+        dyn = self._dynamics
+        self._beam = [Hypothesis(w / total, h.history + (a,), dyn.advance(h.cursor, len(h.history), a))
+                      for _, (w, h, a, _) in kept]
+        self._keys = [key for key, _ in kept]
 
-    def _add(self, merged: dict[Hashable, list], h: Hypothesis, a: str, w: float) -> None:
-        history = h.history + (a,)
-        cursor = self._dynamics.advance(h.cursor, len(h.history), a)
-        key = self._dynamics.key(cursor)
-        slot = merged.get(key)
+    def _bounded(self) -> frozenset[str]:
+        """Activities whose movement evidence is at most 1 (those its upper bound covers)."""
+        em = self.emission
+        if not isinstance(em, MovementEmission):
+            return frozenset()
+        if getattr(self, "_bounded_for", None) is not em:
+            self._bounded_set = frozenset(getattr(self.model, "classes_", ())) | frozenset(em.activities_)
+            self._bounded_for = em
+        return self._bounded_set
+
+    def _add(self, merged: dict[Hashable, list], h: Hypothesis, key: Hashable, a: str, w: float) -> None:
+        """Merge the extension of ``h`` (whose state is ``key``) by ``a`` into its next state; the
+        most probable member represents it (the first among equals)."""
+        child = self._dynamics.child_key(h.cursor, key, len(h.history), a)
+        slot = merged.get(child)
         if slot is None:
-            merged[key] = [w, history, cursor, w]
+            merged[child] = [w, h, a, w]
         else:
             slot[0] += w
-            if w > slot[3]:  # the most probable member represents the merged state
-                slot[1], slot[2], slot[3] = history, cursor, w
+            if w > slot[3]:
+                slot[1], slot[2], slot[3] = h, a, w
 
     def _evidence(self, moved: frozenset[str]) -> Callable[[str | None, str], float] | None:
         em = self.emission
         if em is None:
             return None
-        cache: dict[tuple[str | None, str], float] = {}
+        activities = getattr(self.model, "classes_", ())
         # Relative to an upper bound so that weights stay in floating-point range.
-        top = em.upper_bound(getattr(self.model, "classes_", ()), moved)
+        if isinstance(em, MovementEmission):
+            top, cache = em.evidence(activities, moved)
+        else:
+            top, cache = em.upper_bound(activities, moved), {}
 
         def likelihood(prev: str | None, current: str) -> float:
             v = cache.get((prev, current))
