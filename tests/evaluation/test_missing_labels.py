@@ -104,3 +104,28 @@ def test_results_table_and_plot(households, tmp_path):
     with open(tmp_path / "missing_labels.csv", newline="") as f:
         got = list(csv.DictReader(f))
     assert [g["labels_pct"] for g in got] == ["0", "100", "0", "100"]
+
+
+def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(monkeypatch, households):
+    """With labels missing, the threshold is the best on held-out training days masked the same
+    way (ties to the first listed); with every label, or with the option off, the labelled one."""
+    from globe.evaluation import missing_labels as ml
+
+    h, config = households["A"], GlobeConfig().with_overrides({"filter.threshold_per_fraction": True})
+    setup = _setup(h, config, previous_share=0.5)
+    seen: list[float] = []
+
+    def fake_hidden(setup_, cfg, fraction, cache=None):
+        seen.append(fraction)
+        # a change at every pair, found with p = 0.35: thresholds <= 0.35 score F1 1, higher 0
+        pairs = [lk.HorizonPairs([np.array([0.35])], [np.array([True])], [np.array([True])]) for _ in range(6)]
+        return lk.LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int))
+
+    monkeypatch.setattr(ml, "hidden_cv_run", fake_hidden)
+    monkeypatch.setattr(lk, "choose_threshold", lambda *a, **k: Selection({"threshold": 0.5}))
+    assert ml._lookahead_threshold(setup, config, {}, 0.0) == 0.3  # first listed of 0.3, 0.25, 0.2, 0.15
+    assert seen == [0.0]
+    assert ml._lookahead_threshold(setup, config, {}, 1.0) == 0.5
+    off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
+    assert ml._lookahead_threshold(setup, off, {}, 0.25) == 0.5
+    assert seen == [0.0]

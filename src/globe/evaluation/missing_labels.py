@@ -42,7 +42,7 @@ from globe.errors import ConfigError
 from globe.evaluation import report
 from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
-from globe.evaluation.tuning import Selection, grid, select, tuned_models
+from globe.evaluation.tuning import Selection, folds, grid, select, tuned_models
 from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
 from globe.models.base import ActivityModelBase
 from globe.models.forecast import Forecaster, first_locations
@@ -206,7 +206,7 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
         res.objects.extend(ev.objects)
         res.hidden_steps += sum(not v for v in mask)
     if lookahead:
-        la = _lookahead(setup, config, days, masks, {} if cache is None else cache)
+        la = _lookahead(setup, config, days, masks, {} if cache is None else cache, fraction)
         if la is not None:
             res.lookahead_f1, res.lookahead_accuracy = la
     res.seconds = time.perf_counter() - started
@@ -216,7 +216,7 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
 # -- lookahead through the filter -------------------------------------------------------------
 
 def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: Sequence[bool], horizons: int,
-                        first: int, last: int) -> list[tuple[int, list[tuple[tuple[str, ...], float]]]]:
+                        first: int, last: int, stride: int = 1) -> list[tuple[int, list[tuple[tuple[str, ...], float]]]]:
     """Per reference step r of ``day``: the filter's most probable histories a_0..a_{r-1} (at most
     ``forecast_hypotheses``, given the visible labels and every movement up to r) and their
     posterior weights, renormalised over those kept. With every label visible there is one, the
@@ -226,7 +226,7 @@ def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: 
     moved = moved_objects(day, setup.household.objects)
     flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
     out = []
-    for r in reference_steps(day, horizons, first, last):
+    for r in reference_steps(day, horizons, first, last, stride):
         while flt.step < r - 1:  # labels and movements of steps 0..r-1
             t = flt.step + 1
             flt.update(t, day.activities[t] if mask[t] else None, moved[t])
@@ -243,7 +243,7 @@ def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: 
 
 def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
                        masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int = 102,
-                       chunk: int = 512) -> Any:
+                       chunk: int = 512, stride: int = 1) -> Any:
     """The lookahead's pairs (:class:`globe.evaluation.lookahead.LookaheadRun`) when labels are
     partly hidden: the forecast at reference r mixes ``forecaster``'s forecasts from the filter's
     most probable histories (:func:`filtered_references`), weighted by their posterior. With
@@ -255,7 +255,7 @@ def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterC
     refs: list[tuple[Day, int]] = []
     parts: list[list[tuple[tuple[str, ...], float]]] = []
     for day in days:
-        for r, mix in filtered_references(setup, fcfg, day, masks[day.name], horizons, first, last):
+        for r, mix in filtered_references(setup, fcfg, day, masks[day.name], horizons, first, last, stride):
             refs.append((day, r))
             parts.append(mix)
     rows: dict = {}
@@ -290,8 +290,8 @@ def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterC
     return run
 
 
-def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
-               masks: dict[str, list[bool]], cache: dict) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day], masks: dict[str, list[bool]], cache: dict,
+               fraction: float = 1.0) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
     """Relocation F1 and activity accuracy per horizon through the filter, or None when the
     lookahead module is not available."""
     try:
@@ -299,7 +299,7 @@ def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
     except ImportError:  # pragma: no cover - the lookahead part ships separately
         return None
     h, la = setup.household, config.lookahead
-    threshold = _lookahead_threshold(setup, config, cache)
+    threshold = _lookahead_threshold(setup, config, cache, fraction)
     key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la)
     forecaster = cache.get(key)
     if forecaster is None:  # over the filter's own activity model (its distributions are shared)
@@ -312,14 +312,55 @@ def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
     return tuple(c.f1 for c in counts), tuple(float(a) for a in run.activity_accuracy())
 
 
-def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict) -> float:
-    """The lookahead's change threshold, chosen on fully labelled training days (memoised)."""
+def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict, fraction: float = 1.0) -> float:
+    """The lookahead's change threshold at label share ``fraction`` (memoised): chosen on fully
+    labelled training days, or, with ``filter.threshold_per_fraction`` and labels missing, on
+    held-out training days with the same share of labels visible (a forecast mixed over hidden
+    histories is less sure, so its best threshold may be lower); ties go to the first listed."""
     from globe.evaluation import lookahead as lk
 
-    key = ("lookahead_threshold", setup.household.name, setup.models, config.lookahead)
+    h, la = setup.household, config.lookahead
+    if fraction >= 1.0 or not config.filter.threshold_per_fraction:
+        key: tuple = ("lookahead_threshold", h.name, setup.models, la)
+        if key not in cache:
+            cache[key] = float(lk.choose_threshold(h, config, setup.models, cache=cache).best["threshold"])
+        return cache[key]
+    key = ("lookahead_threshold_hidden", h.name, hash(h.train), setup.models, la, config.filter, config.selection.folds,
+           tuple(sorted(setup.selection.best.items())), fraction)
     if key not in cache:
-        cache[key] = float(lk.choose_threshold(setup.household, config, setup.models, cache=cache).best["threshold"])
+        run = hidden_cv_run(setup, config, fraction, cache)
+        scores = [(t, float(np.mean(run.f1s(t)))) for t in la.thresholds]
+        cache[key] = float(max(scores, key=lambda ts: ts[1])[0])
     return cache[key]
+
+
+def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None = None) -> Any:
+    """The lookahead's pairs through the filter on held-out *training* days (contiguous folds,
+    every ``cv_stride``-th reference) with ``fraction`` of their labels visible; each fold's
+    activity model, movement model (run end, no memory) and emission (the chosen evidence) are
+    fitted on the other folds."""
+    from globe.evaluation import lookahead as lk
+
+    h, la = setup.household, config.lookahead
+    runs = []
+    data = (h.name, hash(h.train), h.objects)
+    for train_idx, val_idx in folds(len(h.train), config.selection.folds):
+        train, val = [h.train[i] for i in train_idx], [h.train[i] for i in val_idx]
+        key = ("hidden_cv_fold", data, tuple(train_idx), setup.models, config.filter, tuple(sorted(setup.selection.best.items())))
+        if cache is not None and key in cache:
+            activity, emission = cache[key]
+        else:
+            activity = assembly.activity_model(setup.models).fit([d.activities for d in train])
+            emission = assembly.movement_emission(config.filter, **setup.selection.best).fit(train, h.objects)
+            if cache is not None:
+                cache[key] = activity, emission
+        movements = lk._movements(h, la, train, (True, False), cache, (data, tuple(train_idx)))
+        fold = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
+        forecaster = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
+        masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in val}
+        runs.append(filtered_lookahead(forecaster, fold, config.filter, val, masks, la.horizons, la.first_reference,
+                                       la.last_reference, stride=la.cv_stride))
+    return lk._pool(runs, la.horizons)
 
 
 # -- the whole run ------------------------------------------------------------------------------
