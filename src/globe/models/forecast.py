@@ -383,7 +383,7 @@ class ActivityPaths:
         self._ext_best = np.full(64, -1, dtype=int)
         self._ext_done = np.zeros(64, dtype=bool)
         self._root = self._state(self._dyn.start(), 0, None)
-        self._last: tuple[tuple[str, ...], int] = ((), self._root)
+        self._histories: dict[tuple[str, ...], int] = {}
 
     def check(self) -> None:
         """Forget every memo when the model has been fitted again or has learnt more days."""
@@ -422,15 +422,21 @@ class ActivityPaths:
         return out
 
     def state(self, history: tuple[str, ...]) -> int:
-        """The state id after ``history`` (incremental when it extends the last one asked)."""
-        last, sid = self._last
-        if len(history) >= len(last) and history[: len(last)] == last:
-            rest = history[len(last):]
-        else:
-            sid, rest = self._root, history
-        for a in rest:
+        """The state id after ``history`` (memoised per history; a history is usually one
+        activity longer than one asked before, so it is walked from there)."""
+        known = self._histories
+        sid = known.get(history)
+        if sid is not None:
+            return sid
+        start = len(history) - 1
+        while start > 0 and history[:start] not in known:
+            start -= 1
+        sid = known.get(history[:start], self._root) if start > 0 else self._root
+        for a in history[max(start, 0):]:
             sid = self._child(sid, self.local(a))
-        self._last = (history, sid)
+        if len(known) >= self.memo_size:
+            known.clear()
+        known[history] = sid
         return sid
 
     def _ensure(self, sids: np.ndarray) -> None:
@@ -506,7 +512,11 @@ class ActivityPaths:
             ka, parent = ca[kept], row[kept]
             ranks = self._ranks()
             lex = _rank_in_group(kq, np.lexsort((ranks[ka], lex[parent], kq)))
-            child = np.array([self._child(s, a) for s, a in zip(sid[parent].tolist(), ka.tolist())], dtype=int)
+            pairs = list(zip(sid[parent].tolist(), ka.tolist()))
+            known = self._children
+            child = np.array([known.get(pa, -1) for pa in pairs], dtype=int)
+            for i in np.nonzero(child < 0)[0].tolist():
+                child[i] = self._child(*pairs[i])
             levels.append(_BeamLevel(kq, kp, ka, parent, lex, child))
             query, p, sid = kq, kp, child
         return levels
