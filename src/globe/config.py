@@ -243,6 +243,10 @@ class FilterConfig(_Section):
     forecast_hypotheses: int = Field(
         4, ge=1, le=1000, description="most probable filtered histories mixed in a lookahead forecast with missing labels"
     )
+    threshold_per_fraction: bool = Field(
+        False, description="choose the missing-label lookahead's change threshold by CV on training days with the same "
+        "share of labels visible (else: on fully labelled days; costs a filter pass over every training day per share)"
+    )
 
 
 class GlobeConfig(_Section):

@@ -7,6 +7,7 @@ import pytest
 from globe.data.records import Day, Household, Node
 from globe.evaluation.fetch import (
     FetchReport,
+    day_candidates,
     evaluate_fetch,
     fetch_rows,
     lead_time_rows,
@@ -80,3 +81,16 @@ def test_pooled_adds_counts():
     b = FetchReport(steps=5, fetches=6, useful_fetches=3, used_objects=10, used_fetched_in_advance=6, lead_minutes=[30])
     p = pooled([a, b])
     assert p.precision == pytest.approx(0.6) and p.recall == pytest.approx(0.4) and p.median_lead_min == 20.0
+
+
+def test_batched_candidates_are_the_one_step_candidates(households, config):
+    from globe import assembly
+
+    h = households["A"]
+    fc = assembly.forecaster(h, config).forecaster
+    policy = FetchPolicy(fc, min_lead_steps=1, window_steps=6)
+    day = h.test[0]
+    batched = day_candidates(policy, day)
+    assert len(batched) == len(day) - 1
+    for t in (0, 20, 50):
+        assert batched[t] == policy.candidates(day.activities[: t + 1], day.locations[: t + 1])

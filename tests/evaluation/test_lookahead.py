@@ -117,12 +117,12 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
     and each horizon takes the first listed threshold among equals."""
     from globe.evaluation import lookahead as lk
 
-    def fake_run(household, cfg, models, run_end, run_memory=False):
+    def fake_runs(household, cfg, models, settings, cache=None):
         pairs = [HorizonPairs([np.array([0.9, 0.45])], [np.array([True, True])], [np.array([True, True])])
                  for _ in range(cfg.lookahead.horizons)]
-        return LookaheadRun(cfg.lookahead.horizons, pairs, np.zeros(6, int), np.zeros(6, int))
+        return {s: LookaheadRun(cfg.lookahead.horizons, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}
 
-    monkeypatch.setattr(lk, "_cv_run", fake_run)
+    monkeypatch.setattr(lk, "_cv_runs", fake_runs)
     cfg = config.model_copy(update={"lookahead": config.lookahead.model_copy(update={
         "run_end": (False, True), "run_memory": (False, True), "thresholds": (0.5, 0.4, 0.3)})})
     chosen = lk.choose_settings(households["A"], cfg, cfg.models)

@@ -13,10 +13,10 @@ from globe.errors import ConfigError
 from globe.evaluation import lookahead as lk
 from globe.evaluation.missing_labels import (
     FilterSetup,
-    _FilteredForecaster,
     check_fractions,
     day_mask,
     evaluate_fraction,
+    filtered_lookahead,
     missing_label_rows,
     write_missing_label_results,
 )
@@ -64,15 +64,17 @@ def test_lookahead_through_the_filter_with_all_labels_is_the_plain_forecast(hous
     fc = assembly.forecaster(h, config, models=setup.models).forecaster
     day = h.test[0]
     plain = lk.forecast_days(fc, [day], 3, 30, 45)
-    wrapped = lk.forecast_days(_FilteredForecaster(fc, day, [True] * len(day), h.objects, setup, config.filter),  # type: ignore[arg-type]
-                               [day], 3, 30, 45)
+    wrapped = filtered_lookahead(fc, setup, config.filter, [day], {day.name: [True] * len(day)}, 3, 30, 45)
     for a, b in zip(plain.pairs, wrapped.pairs):
-        np.testing.assert_allclose(np.concatenate(a.probability), np.concatenate(b.probability), atol=1e-9)
-    hidden = lk.forecast_days(_FilteredForecaster(fc, day, [False] * len(day), h.objects, setup, config.filter),  # type: ignore[arg-type]
-                              [day], 3, 30, 45)
+        np.testing.assert_array_equal(np.concatenate(a.probability), np.concatenate(b.probability))
+        np.testing.assert_array_equal(np.concatenate(a.hit), np.concatenate(b.hit))
+    assert wrapped.activity_correct.tolist() == plain.activity_correct.tolist()
+    hidden = filtered_lookahead(fc, setup, config.filter, [day], {day.name: [False] * len(day)}, 3, 30, 45)
     assert hidden.activity_total.sum() == plain.activity_total.sum()
     for p in hidden.pairs:
         assert np.all(np.concatenate(p.probability) <= 1 + 1e-9)
+    assert any(not np.array_equal(np.concatenate(a.probability), np.concatenate(b.probability))
+               for a, b in zip(plain.pairs, hidden.pairs))
 
 
 def test_masks_are_per_day_and_fractions_are_checked(households):
@@ -102,3 +104,28 @@ def test_results_table_and_plot(households, tmp_path):
     with open(tmp_path / "missing_labels.csv", newline="") as f:
         got = list(csv.DictReader(f))
     assert [g["labels_pct"] for g in got] == ["0", "100", "0", "100"]
+
+
+def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(monkeypatch, households):
+    """With labels missing, the threshold is the best on held-out training days masked the same
+    way (ties to the first listed); with every label, or with the option off, the labelled one."""
+    from globe.evaluation import missing_labels as ml
+
+    h, config = households["A"], GlobeConfig().with_overrides({"filter.threshold_per_fraction": True})
+    setup = _setup(h, config, previous_share=0.5)
+    seen: list[float] = []
+
+    def fake_hidden(setup_, cfg, fraction, cache=None):
+        seen.append(fraction)
+        # a change at every pair, found with p = 0.35: thresholds <= 0.35 score F1 1, higher 0
+        pairs = [lk.HorizonPairs([np.array([0.35])], [np.array([True])], [np.array([True])]) for _ in range(6)]
+        return lk.LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int))
+
+    monkeypatch.setattr(ml, "hidden_cv_run", fake_hidden)
+    monkeypatch.setattr(lk, "choose_threshold", lambda *a, **k: Selection({"threshold": 0.5}))
+    assert ml._lookahead_threshold(setup, config, {}, 0.0) == 0.3  # first listed of 0.3, 0.25, 0.2, 0.15
+    assert seen == [0.0]
+    assert ml._lookahead_threshold(setup, config, {}, 1.0) == 0.5
+    off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
+    assert ml._lookahead_threshold(setup, off, {}, 0.25) == 0.5
+    assert seen == [0.0]

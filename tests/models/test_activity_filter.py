@@ -216,3 +216,21 @@ def test_online_filter_for_the_service_matches_the_offline_scan(households):
         online.update(t, None, moved[t])
     online.reset()
     _close(online.predictive(), model.predict_proba(()))
+
+
+def test_routine_dynamics_give_the_models_own_distributions(households):
+    """The filter's (and forecaster's) routine state, stepped run by run with its parts memoised,
+    gives exactly RoutineModel.predict_proba of the whole history."""
+    from globe.models.activity_filter import dynamics_for
+
+    h = households["A"]
+    model = RoutineModel(order=2, time_weight=1.0).fit([d.activities for d in h.train])
+    dyn = dynamics_for(model)
+    assert dynamics_for(model) is dyn  # shared by every filter over the model
+    for day in h.test[:2]:
+        cursor = dyn.start()
+        for t, a in enumerate(day.activities):
+            assert dyn.distribution(cursor, t) == model.predict_proba(day.activities[:t])
+            cursor = dyn.advance(cursor, t, a)
+    model.partial_fit([h.test[0].activities])  # learning makes a fresh one
+    assert dynamics_for(model) is not dyn

@@ -168,3 +168,38 @@ def test_run_memory_hazards_follow_what_came_out():
     assert mv.hazards("a", 2, table, ends=True, moved=~came_out)[0] == pytest.approx(0.0, abs=1e-6)
     pooled = MovementModel(hazard_shrinkage=1e-9, run_end=True, run_memory=False).fit(days, OBJECTS)
     assert pooled.hazards("a", 2, table, ends=True, moved=came_out)[0] == pytest.approx(0.5, abs=1e-6)
+
+
+def test_beam_cut_to_max_paths_keeps_the_most_probable_and_renormalises():
+    """max_paths = 2: after two steps aa 0.36, ab 0.24, bb 0.40 are cut to bb and aa, renormalised."""
+    movements = MovementModel(hazard_shrinkage=1e-9, destination_shrinkage=1e-9).fit(TOY_DAYS, OBJECTS)
+    f = Forecaster(ChainModel().fit([]), movements, min_path_probability=0.0, max_paths=2)
+    paths = f.paths(("a",), 2)
+    assert [path for _, path in paths] == [("b", "b"), ("a", "a")]
+    assert [p for p, _ in paths] == pytest.approx([0.4 / 0.76, 0.36 / 0.76])
+
+
+@pytest.mark.parametrize("estimator", ["routine", "longest"])
+@pytest.mark.parametrize("memory", [False, True])
+def test_a_batch_of_forecasts_is_each_forecast_alone(households, config, estimator, memory):
+    """forecast_many over many histories gives exactly the numbers of one forecast at a time,
+    whether the activity at m is known or not."""
+    h = households["B"]
+    models = config.models.model_copy(update={"activity_estimator": estimator})
+    batch_fc = assembly.forecaster(h, config, models=models, run_end=True, run_memory=memory).forecaster
+    day = h.test[1]
+    for known in (0, 1):
+        queries = [(day.activities[: r + known], day.locations[: r + 1]) for r in range(0, 60, 3)]
+        batch = batch_fc.forecast_many(queries, 5)
+        alone = assembly.forecaster(h, config, models=models, run_end=True, run_memory=memory).forecaster
+        for q, (acts, locs) in enumerate(queries):
+            one = alone.forecast(acts, locs, 5)
+            assert np.array_equal(batch[q].departure, one.departure)
+            assert np.array_equal(batch[q].destination, one.destination)
+            assert batch[q].activity == one.activity
+        where, p = batch.first_locations(6)
+        for q in (0, len(queries) - 1):
+            for s in range(6):
+                names, prob = batch[q].first_location(s)
+                assert np.array_equal(prob, p[q, s])
+                assert [n for n, pp in zip(names, prob) if pp > 0] == [batch.locations[x] for x, pp in zip(where[q, s], p[q, s]) if pp > 0]

@@ -52,17 +52,20 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
     for h in homes:
         for method in config.lookahead.methods:
             say(f"lookahead: {method}, household {h.name}")
-            look.append(evaluate_lookahead(h, config, method_models(method, h, config, cache), method))
+            look.append(evaluate_lookahead(h, config, method_models(method, h, config, cache), method, cache))
         say(f"fetch policy: household {h.name}")
         models = method_models(config.policy.method, h, config, cache)
         same = next((r for r in look if r.household == h.name and r.method == config.policy.method), None)
-        if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
-            best = choose_settings(h, config, models).best
-            run_end, run_memory = bool(best["run_end"]), bool(best["run_memory"])
+        if same is not None and same.forecaster is not None:  # the lookahead's forecaster (its paths are shared)
+            forecaster = same.forecaster
         else:
-            run_end, run_memory = same.run_end, same.run_memory
-        fitted = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory)
-        policy = assembly.fetch_policy(fitted.forecaster, config.policy, config.service.step_minutes)
+            if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
+                best = choose_settings(h, config, models, cache=cache).best
+                run_end, run_memory = bool(best["run_end"]), bool(best["run_memory"])
+            else:
+                run_end, run_memory = same.run_end, same.run_memory
+            forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory).forecaster
+        policy = assembly.fetch_policy(forecaster, config.policy, config.service.step_minutes)
         fetch.append(evaluate_fetch(policy, h, h.test, config.policy.curve_ratios))
     return AnticipationResult(tuple(look), tuple(fetch), config)
 

@@ -47,8 +47,12 @@ class FetchReport:
 
 
 def day_candidates(policy: FetchPolicy, day: Day) -> list[list[FetchCandidate]]:
-    """The policy's candidates after each step t = 0..T-2 of ``day`` (most likely useful first)."""
-    return [policy.candidates(day.activities[: t + 1], day.locations[: t + 1]) for t in range(len(day) - 1)]
+    """The policy's candidates after each step t = 0..T-2 of ``day`` (most likely useful first;
+    every step's forecast computed in one batch)."""
+    queries = [(day.activities[: t + 1], day.locations[: t + 1]) for t in range(len(day) - 1)]
+    if not queries:
+        return []
+    return policy.candidates_many(policy.forecaster.forecast_many(queries, policy.window_steps - 1))
 
 
 def use_steps(household: Household, day: Day) -> dict[str, list[int]]:

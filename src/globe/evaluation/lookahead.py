@@ -17,15 +17,16 @@ ends are chosen by cross-validation on training days (the listed first values wi
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from globe import assembly
-from globe.config import GlobeConfig, ModelConfig
+from globe.config import GlobeConfig, LookaheadConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.evaluation.tuning import Selection, folds
-from globe.models.forecast import Forecaster
+from globe.models.base import ActivityModelBase
+from globe.models.forecast import Forecaster, Forecasts, MovementModel
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,49 +112,172 @@ def reference_steps(day: Day, horizons: int, first: int, last: int, stride: int 
     return range(max(first, 1), min(last, len(day) - 1 - horizons) + 1, stride)
 
 
+def reference_queries(days: Sequence[Day], horizons: int, first: int = 1, last: int = 102,
+                      stride: int = 1) -> list[tuple[Day, int]]:
+    """Every (day, reference step r) scored, in order."""
+    return [(day, r) for day in days for r in reference_steps(day, horizons, first, last, stride)]
+
+
+def score_forecasts(run: LookaheadRun, forecasts: Forecasts, refs: Sequence[tuple[Day, int]], model: ActivityModelBase,
+                    location_rows: dict) -> None:
+    """Add the pairs of ``forecasts`` (one per reference of ``refs``) to ``run``. ``location_rows``
+    caches each day's location indices (of the forecaster's movement model)."""
+    best, prob = forecasts.first_locations(run.horizons)
+    top = top_activities(forecasts.trees.activity_matrix(), forecasts.trees.names, model, run.horizons)
+    score_arrays(run, refs, best, prob, top, forecasts.trees.names, forecasts.locations, location_rows)
+
+
+def score_arrays(run: LookaheadRun, refs: Sequence[tuple[Day, int]], best: np.ndarray, prob: np.ndarray, top: np.ndarray,
+                 names: Sequence[str], locations: tuple[str, ...], location_rows: dict) -> None:
+    """Add pairs to ``run``: per reference, horizon and object the predicted first new place
+    (``best``, location indices of ``locations``) and its probability, and the top activity
+    per horizon (``top``: ids of ``names``, -1 for none)."""
+    horizons = run.horizons
+    if not refs:
+        return
+    coded = [_locations_of(location_rows, locations, day) for day, _ in refs]
+    future = np.stack([ids[r + 1: r + 1 + horizons] for (_, r), (ids, _) in zip(refs, coded)])
+    here = np.stack([ids[r] for (_, r), (ids, _) in zip(refs, coded)])
+    window = future != here[:, None, :]  # (refs, horizons, objects): somewhere else than at r
+    moved_any = window.any(axis=1)
+    first_step = window.argmax(axis=1)
+    later = np.stack([index[r + 1: r + 1 + horizons] for (_, r), (_, index) in zip(refs, coded)])
+    true_loc = np.take_along_axis(later, first_step[:, None, :], axis=1)[:, 0, :]
+    for s in range(horizons):
+        true = moved_any & (first_step <= s)
+        pairs = run.pairs[s]
+        pairs.probability.append(prob[:, s].ravel())
+        pairs.hit.append((true & (best[:, s] == true_loc)).ravel())
+        pairs.true.append(true.ravel())
+        run.activity_total[s] += len(refs)
+        run.activity_correct[s] += sum(1 for (day, r), a in zip(refs, top[:, s].tolist())
+                                       if a >= 0 and names[a] == day.activities[r + s])
+
+
+_CODED: dict[int, tuple[Day, np.ndarray, list[str]]] = {}
+
+
+def _coded(day: Day) -> tuple[np.ndarray, list[str]]:
+    """(steps x objects) ids of ``day``'s places (one per distinct name) and the names (memoised)."""
+    hit = _CODED.get(id(day))
+    if hit is not None and hit[0] is day:
+        return hit[1], hit[2]
+    if len(_CODED) > 4096:
+        _CODED.clear()
+    names: dict[str, int] = {}
+    rows: dict[tuple[str, ...], list[int]] = {}
+    ids = np.array([rows.get(row) or rows.setdefault(row, [names.setdefault(x, len(names)) for x in row])
+                    for row in day.locations], dtype=int).reshape(len(day), -1)
+    _CODED[id(day)] = (day, ids, list(names))
+    return ids, list(names)
+
+
+def _locations_of(cache: dict, locations: tuple[str, ...], day: Day) -> tuple[np.ndarray, np.ndarray]:
+    """(steps x objects) of ``day``: an id per distinct place name, and the movement model's
+    location index (places it never saw share one)."""
+    out = cache.get(day.name)
+    if out is None:
+        ids, names = _coded(day)
+        index = {x: i for i, x in enumerate(locations)}
+        unknown = len(locations) - 1
+        inv = np.array([index.get(x, unknown) for x in names], dtype=int)
+        out = cache[day.name] = (ids, inv[ids])
+    return out
+
+
+def top_activities(dense: np.ndarray, names: Sequence[str], model: ActivityModelBase, horizons: int) -> np.ndarray:
+    """(queries x horizons): the id of ``model.ranked(...)[0]`` of each activity distribution
+    of ``dense`` (queries x steps x names; most probable, ties: training frequency, then name),
+    -1 when empty."""
+    dense = dense[:, :horizons]
+    frequency = getattr(model, "frequency_", {})
+    tiebreak = np.empty(len(names), dtype=int)
+    tiebreak[sorted(range(len(names)), key=lambda i: (-frequency.get(names[i], 0), str(names[i])))] = np.arange(len(names))
+    top = dense.max(axis=2, initial=0.0)
+    candidate = (dense == top[..., None]) & (dense > 0)
+    score = np.where(candidate, tiebreak[None, None, :], len(names))
+    out = score.argmin(axis=2) if len(names) else np.zeros(dense.shape[:2], dtype=int)
+    return np.where(candidate.any(axis=2), out, -1)
+
+
 def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, first: int = 1, last: int = 102,
-                  stride: int = 1) -> LookaheadRun:
+                  stride: int = 1, chunk: int = 256) -> LookaheadRun:
     """Forecast every reference step of ``days`` and collect the pairs of each horizon."""
-    mv = forecaster.movements
     run = LookaheadRun(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int), np.zeros(horizons, int))
-    for day in days:
-        locs = np.array([[mv.location_index(x) for x in row] for row in day.locations], dtype=int).reshape(len(day), -1)
-        for r in reference_steps(day, horizons, first, last, stride):
-            fc = forecaster.forecast(day.activities[:r], day.locations[: r + 1], horizons - 1)
-            window = np.array(day.locations[r + 1: r + 1 + horizons], dtype=object) != np.array(day.locations[r], dtype=object)
-            moved_any = window.any(axis=0)
-            first_step = window.argmax(axis=0)
-            true_loc = locs[r + 1 + first_step, np.arange(locs.shape[1])]
-            joint = np.cumsum(fc.destination, axis=0)
-            best = joint.argmax(axis=2)
-            prob = np.take_along_axis(joint, best[:, :, None], axis=2)[:, :, 0]
-            for s in range(horizons):
-                true = moved_any & (first_step <= s)
-                pairs = run.pairs[s]
-                pairs.probability.append(prob[s])
-                pairs.hit.append(true & (best[s] == true_loc))
-                pairs.true.append(true)
-                ranked = forecaster.activity.ranked(fc.activity[s])
-                run.activity_total[s] += 1
-                run.activity_correct[s] += bool(ranked) and ranked[0] == day.activities[r + s]
+    refs = reference_queries(days, horizons, first, last, stride)
+    rows: dict = {}
+    for lo in range(0, len(refs), chunk):
+        part = refs[lo: lo + chunk]
+        fcs = forecaster.forecast_many([(day.activities[:r], day.locations[: r + 1]) for day, r in part], horizons - 1)
+        score_forecasts(run, fcs, part, forecaster.activity, rows)
     return run
 
 
-def _cv_run(household: Household, config: GlobeConfig, models: ModelConfig, run_end: bool,
-            run_memory: bool = False) -> LookaheadRun:
-    """Pairs of every held-out *training* day (contiguous folds, every ``cv_stride``-th reference)."""
+def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> list[tuple[bool, bool]]:
     la = config.lookahead
-    runs = []
+    return [(e, mem) for e in (la.run_end if run_ends is None else run_ends) for mem in la.run_memory if e or not mem]
+
+
+def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[tuple[bool, bool]],
+             cache: dict | None = None) -> dict[tuple[bool, bool], LookaheadRun]:
+    """Pairs of every held-out *training* day (contiguous folds, every ``cv_stride``-th reference)
+    for each movement setting (run end, run memory): each fold's activity model is fitted once
+    and its activity paths are shared by every setting. Memoised in ``cache``."""
+    la = config.lookahead
+    out: dict[tuple[bool, bool], LookaheadRun] = {}
+    todo = []
+    for setting in dict.fromkeys(settings):
+        key = ("lookahead_cv", household.name, hash(household.train), household.objects, models, la, config.selection.folds,
+               setting)
+        if cache is not None and key in cache:
+            out[setting] = cache[key]
+        else:
+            todo.append((setting, key))
+    if not todo:
+        return out
+    runs: dict[tuple[bool, bool], list[LookaheadRun]] = {setting: [] for setting, _ in todo}
+    data = (household.name, hash(household.train), household.objects)
     for train_idx, val_idx in folds(len(household.train), config.selection.folds):
-        fitted = assembly.forecaster(household, config, days=[household.train[i] for i in train_idx], models=models,
-                                     run_end=run_end, run_memory=run_memory)
-        runs.append(forecast_days(fitted.forecaster, [household.train[i] for i in val_idx], la.horizons,
-                                  la.first_reference, la.last_reference, la.cv_stride))
-    return _pool(runs, la.horizons)
+        train = [household.train[i] for i in train_idx]
+        activity = assembly.activity_model(models).fit([d.activities for d in train])
+        refs = reference_queries([household.train[i] for i in val_idx], la.horizons, la.first_reference,
+                                 la.last_reference, la.cv_stride)
+        queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
+        trees = None
+        for setting, _ in todo:
+            movements = _movements(household, la, train, setting, cache, (data, tuple(train_idx)))
+            fc = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
+            if trees is None:
+                trees = fc.trees([tuple(a) for a, _ in queries], [r for _, r in refs], la.horizons - 1)
+            run = LookaheadRun(la.horizons, [HorizonPairs() for _ in range(la.horizons)], np.zeros(la.horizons, int),
+                               np.zeros(la.horizons, int))
+            score_forecasts(run, fc.forecast_many(queries, la.horizons - 1, trees=trees), refs, activity, {})
+            runs[setting].append(run)
+    for setting, key in todo:
+        out[setting] = _pool(runs[setting], la.horizons)
+        if cache is not None:
+            cache[key] = out[setting]
+    return out
+
+
+def _movements(household: Household, la: LookaheadConfig, days: Sequence[Day], setting: tuple[bool, bool],
+               cache: dict | None, data_key: Any = None) -> MovementModel:
+    """The movement model of ``setting`` fitted on ``days`` (memoised in ``cache`` under
+    ``data_key``, which names the days: every activity model of a cross-validation shares the
+    folds' movement models)."""
+    key = ("lookahead_movements", data_key, la.hazard_shrinkage, la.duration_cap, la.destination_shrinkage, setting)
+    if data_key is None:
+        cache = None
+    if cache is not None and key in cache:
+        return cache[key]
+    model = assembly.movement_model(la, *setting).fit(days, household.objects)
+    if cache is not None:
+        cache[key] = model
+    return model
 
 
 def choose_settings(household: Household, config: GlobeConfig, models: ModelConfig,
-                    run_ends: Sequence[bool] | None = None) -> Selection:
+                    run_ends: Sequence[bool] | None = None, cache: dict | None = None) -> Selection:
     """The movement model's settings (run end of ``run_ends``, default ``lookahead.run_end``;
     run memory of ``lookahead.run_memory``, only with the run end) and a change threshold per
     horizon, by F1 on held-out *training* days. The setting with the best mean over horizons of
@@ -161,12 +285,13 @@ def choose_settings(household: Household, config: GlobeConfig, models: ModelConf
     listed values (the simpler model, the higher threshold).
     ``best``: ``{"run_end": bool, "run_memory": bool, "thresholds": (one per horizon)}``."""
     la = config.lookahead
-    settings = [(e, mem) for e in (la.run_end if run_ends is None else run_ends) for mem in la.run_memory if e or not mem]
+    settings = _settings(config, run_ends)
+    pooled_runs = _cv_runs(household, config, models, settings, cache)
     scores: list[tuple[dict, float]] = []
     best: dict | None = None
     best_score = -1.0
     for run_end, run_memory in settings:
-        pooled = _cv_run(household, config, models, run_end, run_memory)
+        pooled = pooled_runs[(run_end, run_memory)]
         per = [[p.counts(t).f1 for t in la.thresholds] for p in pooled.pairs]
         scores.extend(({"run_end": run_end, "run_memory": run_memory, "horizon": s, "threshold": t}, f)
                       for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
@@ -178,11 +303,12 @@ def choose_settings(household: Household, config: GlobeConfig, models: ModelConf
     return Selection(best or {"run_end": True, "run_memory": False, "thresholds": (0.5,) * la.horizons}, scores)
 
 
-def choose_threshold(household: Household, config: GlobeConfig, models: ModelConfig, run_end: bool = True) -> Selection:
+def choose_threshold(household: Household, config: GlobeConfig, models: ModelConfig, run_end: bool = True,
+                     cache: dict | None = None) -> Selection:
     """One change threshold for every horizon (best mean F1 over horizons on held-out training
     days, ties to the first listed), for a forecaster built with ``run_end`` (the default of
     :func:`globe.assembly.forecaster`). ``best``: ``{"threshold": t}``."""
-    pooled = _cv_run(household, config, models, run_end)
+    pooled = _cv_runs(household, config, models, [(run_end, False)], cache)[(run_end, False)]
     scores = [({"threshold": t}, float(np.mean(pooled.f1s(t)))) for t in config.lookahead.thresholds]
     return Selection(dict(max(scores, key=lambda ps: ps[1])[0]), scores)
 
@@ -211,18 +337,20 @@ class LookaheadResult:
     selection: Selection
     run_end: bool = True
     run_memory: bool = False
+    forecaster: Forecaster | None = field(default=None, compare=False, repr=False)  # fitted on every training day
 
 
-def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelConfig, method: str) -> LookaheadResult:
+def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelConfig, method: str,
+                       cache: dict | None = None) -> LookaheadResult:
     """Choose the settings on training days, fit on all of them, score the test days."""
     la = config.lookahead
-    chosen = choose_settings(household, config, models)
+    chosen = choose_settings(household, config, models, cache=cache)
     run_end, run_memory = bool(chosen.best["run_end"]), bool(chosen.best["run_memory"])
     fitted = assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory)
     run = forecast_days(fitted.forecaster, household.test, la.horizons, la.first_reference, la.last_reference)
     ts = tuple(float(t) for t in chosen.best["thresholds"])
     return LookaheadResult(method, household.name, ts, tuple(p.counts(t) for p, t in zip(run.pairs, ts)),
-                           tuple(run.activity_accuracy()), fitted.train_s, chosen, run_end, run_memory)
+                           tuple(run.activity_accuracy()), fitted.train_s, chosen, run_end, run_memory, fitted.forecaster)
 
 
 LOOKAHEAD_COLUMNS = ("method", "household", "horizon_min", "precision", "recall", "f1", "activity_accuracy")

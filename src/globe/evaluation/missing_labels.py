@@ -27,7 +27,6 @@ activity a movement tells about, and how much to trust it) is chosen by cross-va
 from __future__ import annotations
 
 import copy
-import dataclasses
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -43,9 +42,10 @@ from globe.errors import ConfigError
 from globe.evaluation import report
 from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
-from globe.evaluation.tuning import Selection, grid, select, tuned_models
+from globe.evaluation.tuning import Selection, folds, grid, select, tuned_models
 from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
 from globe.models.base import ActivityModelBase
+from globe.models.forecast import Forecaster, first_locations
 
 Progress = Callable[[str], None]
 METHOD = "routine"
@@ -96,7 +96,10 @@ class _FoldFilter:
             chooser = assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=self.models.object_marginal)
             self.memo[("models", fold)] = fitted.activity, chooser
         self.activity, self.chooser = self.memo[("models", fold)]
-        self.emission = assembly.movement_emission(self.config.filter, **self.params).fit(days, self.household.objects)
+        if ("emission", fold) not in self.memo:  # the counts do not depend on the candidate
+            self.memo[("emission", fold)] = assembly.movement_emission(self.config.filter, **self.params).fit(
+                days, self.household.objects)
+        self.emission = self.memo[("emission", fold)].with_params(**self.params)
         return self
 
 
@@ -203,7 +206,7 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
         res.objects.extend(ev.objects)
         res.hidden_steps += sum(not v for v in mask)
     if lookahead:
-        la = _lookahead(setup, config, days, masks, {} if cache is None else cache)
+        la = _lookahead(setup, config, days, masks, {} if cache is None else cache, fraction)
         if la is not None:
             res.lookahead_f1, res.lookahead_accuracy = la
     res.seconds = time.perf_counter() - started
@@ -212,75 +215,152 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
 
 # -- lookahead through the filter -------------------------------------------------------------
 
-class _FilteredForecaster:
-    """Duck-types :class:`globe.models.forecast.Forecaster` for one day whose labels are partly
-    hidden: the forecast at reference r mixes the forecaster's own forecasts from the filter's
-    most probable histories a_0..a_{r-1} (given the visible labels and every movement up to r),
-    weighted by their posterior. With every label visible it is the plain forecast."""
+def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: Sequence[bool], horizons: int,
+                        first: int, last: int, stride: int = 1) -> list[tuple[int, list[tuple[tuple[str, ...], float]]]]:
+    """Per reference step r of ``day``: the filter's most probable histories a_0..a_{r-1} (at most
+    ``forecast_hypotheses``, given the visible labels and every movement up to r) and their
+    posterior weights, renormalised over those kept. With every label visible there is one, the
+    true history."""
+    from globe.evaluation.lookahead import reference_steps
 
-    def __init__(self, inner: Any, day: Day, mask: Sequence[bool], objects: Sequence[str], setup: FilterSetup,
-                 fcfg: FilterConfig) -> None:
-        self.inner, self.day, self.mask, self.fcfg = inner, day, mask, fcfg
-        self.movements, self.activity = inner.movements, inner.activity
-        self.moved = moved_objects(day, objects)
-        self.filter = assembly.activity_filter(setup.activity, setup.emission, fcfg)
-
-    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]], horizon: int) -> Any:
-        r = len(locations) - 1
-        flt = self.filter
+    moved = moved_objects(day, setup.household.objects)
+    flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
+    out = []
+    for r in reference_steps(day, horizons, first, last, stride):
         while flt.step < r - 1:  # labels and movements of steps 0..r-1
             t = flt.step + 1
-            flt.update(t, self.day.activities[t] if self.mask[t] else None, self.moved[t])
+            flt.update(t, day.activities[t] if mask[t] else None, moved[t])
         peek = copy.copy(flt)
-        peek.update(r, None, self.moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
+        peek.update(r, None, moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
         prefixes: dict[tuple[str, ...], float] = {}
         for hyp in peek.hypotheses():
             prefixes[hyp.history[:r]] = prefixes.get(hyp.history[:r], 0.0) + hyp.weight
-        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: self.fcfg.forecast_hypotheses]
+        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: fcfg.forecast_hypotheses]
         total = sum(w for _, w in top)
-        parts = [(w / total, self.inner.forecast(prefix, locations, horizon)) for prefix, w in top]
-        if len(parts) == 1:
-            return parts[0][1]
-        first = parts[0][1]
-        acts: list[dict[str, float]] = [dict() for _ in first.activity]
-        for w, fc in parts:
-            for k, dist in enumerate(fc.activity):
-                for a, p in dist.items():
-                    acts[k][a] = acts[k].get(a, 0.0) + w * p
-        return dataclasses.replace(first, activity=tuple(acts), departure=sum(w * fc.departure for w, fc in parts),
-                                   destination=sum(w * fc.destination for w, fc in parts))
+        out.append((r, [(prefix, w / total) for prefix, w in top]))
+    return out
 
 
-def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day],
-               masks: dict[str, list[bool]], cache: dict) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
+                       masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int = 102,
+                       chunk: int = 512, stride: int = 1) -> Any:
+    """The lookahead's pairs (:class:`globe.evaluation.lookahead.LookaheadRun`) when labels are
+    partly hidden: the forecast at reference r mixes ``forecaster``'s forecasts from the filter's
+    most probable histories (:func:`filtered_references`), weighted by their posterior. With
+    every label visible it is the plain forecast."""
+    from globe.evaluation import lookahead as lk
+
+    run = lk.LookaheadRun(horizons, [lk.HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int),
+                          np.zeros(horizons, int))
+    refs: list[tuple[Day, int]] = []
+    parts: list[list[tuple[tuple[str, ...], float]]] = []
+    for day in days:
+        for r, mix in filtered_references(setup, fcfg, day, masks[day.name], horizons, first, last, stride):
+            refs.append((day, r))
+            parts.append(mix)
+    rows: dict = {}
+    lo = 0
+    while lo < len(refs):
+        hi, size = lo, 0
+        while hi < len(refs) and (size + len(parts[hi]) <= chunk or hi == lo):
+            size += len(parts[hi])
+            hi += 1
+        queries, owner, weight, rank = [], [], [], []
+        for i in range(lo, hi):
+            day, r = refs[i]
+            for k, (prefix, w) in enumerate(parts[i]):
+                queries.append((prefix, day.locations[: r + 1]))
+                owner.append(i - lo)
+                weight.append(w)
+                rank.append(k)
+        fcs = forecaster.forecast_many(queries, horizons - 1)
+        n = hi - lo
+        owners, weights, ranks = np.array(owner), np.array(weight), np.array(rank)
+        acts = fcs.trees.activity_matrix()
+        destination = np.zeros((n,) + fcs.destination.shape[1:])
+        activity = np.zeros((n,) + acts.shape[1:])
+        for k in range(int(ranks.max(initial=-1)) + 1):  # mixed in order, as a running sum would
+            mine = ranks == k
+            destination[owners[mine]] += weights[mine][:, None, None, None] * fcs.destination[mine]
+            activity[owners[mine]] += weights[mine][:, None, None] * acts[mine]
+        best, prob = first_locations(destination, fcs.targets, horizons)
+        top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
+        lk.score_arrays(run, refs[lo:hi], best, prob, top, fcs.trees.names, fcs.locations, rows)
+        lo = hi
+    return run
+
+
+def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day], masks: dict[str, list[bool]], cache: dict,
+               fraction: float = 1.0) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
     """Relocation F1 and activity accuracy per horizon through the filter, or None when the
     lookahead module is not available."""
     try:
-        from globe.evaluation import lookahead as lk
+        from globe.evaluation import lookahead as lk  # noqa: F401
     except ImportError:  # pragma: no cover - the lookahead part ships separately
         return None
     h, la = setup.household, config.lookahead
-    threshold = _lookahead_threshold(setup, config, cache)
-    fitted = assembly.forecaster(h, config, models=setup.models)
-    counts = [lk.RelocationCounts() for _ in range(la.horizons)]
-    correct, total = np.zeros(la.horizons), np.zeros(la.horizons)
-    for day in days:
-        wrapper = _FilteredForecaster(fitted.forecaster, day, masks[day.name], h.objects, setup, config.filter)
-        run = lk.forecast_days(wrapper, [day], la.horizons, la.first_reference, la.last_reference)  # type: ignore[arg-type]
-        counts = [c + p.counts(threshold) for c, p in zip(counts, run.pairs)]
-        correct += run.activity_correct
-        total += run.activity_total
-    return tuple(c.f1 for c in counts), tuple(float(c / t) if t else 0.0 for c, t in zip(correct, total))
+    threshold = _lookahead_threshold(setup, config, cache, fraction)
+    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la)
+    forecaster = cache.get(key)
+    if forecaster is None:  # over the filter's own activity model (its distributions are shared)
+        movements = assembly.movement_model(la, True, False).fit(h.train, h.objects)
+        forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
+                                             max_paths=la.max_paths)
+    run = filtered_lookahead(forecaster, setup, config.filter, days, masks, la.horizons, la.first_reference,
+                             la.last_reference)
+    counts = [p.counts(threshold) for p in run.pairs]
+    return tuple(c.f1 for c in counts), tuple(float(a) for a in run.activity_accuracy())
 
 
-def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict) -> float:
-    """The lookahead's change threshold, chosen on fully labelled training days (memoised)."""
+def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict, fraction: float = 1.0) -> float:
+    """The lookahead's change threshold at label share ``fraction`` (memoised): chosen on fully
+    labelled training days, or, with ``filter.threshold_per_fraction`` and labels missing, on
+    held-out training days with the same share of labels visible (a forecast mixed over hidden
+    histories is less sure, so its best threshold may be lower); ties go to the first listed."""
     from globe.evaluation import lookahead as lk
 
-    key = ("lookahead_threshold", setup.household.name, setup.models, config.lookahead)
+    h, la = setup.household, config.lookahead
+    if fraction >= 1.0 or not config.filter.threshold_per_fraction:
+        key: tuple = ("lookahead_threshold", h.name, setup.models, la)
+        if key not in cache:
+            cache[key] = float(lk.choose_threshold(h, config, setup.models, cache=cache).best["threshold"])
+        return cache[key]
+    key = ("lookahead_threshold_hidden", h.name, hash(h.train), setup.models, la, config.filter, config.selection.folds,
+           tuple(sorted(setup.selection.best.items())), fraction)
     if key not in cache:
-        cache[key] = float(lk.choose_threshold(setup.household, config, setup.models).best["threshold"])
+        run = hidden_cv_run(setup, config, fraction, cache)
+        scores = [(t, float(np.mean(run.f1s(t)))) for t in la.thresholds]
+        cache[key] = float(max(scores, key=lambda ts: ts[1])[0])
     return cache[key]
+
+
+def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None = None) -> Any:
+    """The lookahead's pairs through the filter on held-out *training* days (contiguous folds,
+    every ``cv_stride``-th reference) with ``fraction`` of their labels visible; each fold's
+    activity model, movement model (run end, no memory) and emission (the chosen evidence) are
+    fitted on the other folds."""
+    from globe.evaluation import lookahead as lk
+
+    h, la = setup.household, config.lookahead
+    runs = []
+    data = (h.name, hash(h.train), h.objects)
+    for train_idx, val_idx in folds(len(h.train), config.selection.folds):
+        train, val = [h.train[i] for i in train_idx], [h.train[i] for i in val_idx]
+        key = ("hidden_cv_fold", data, tuple(train_idx), setup.models, config.filter, tuple(sorted(setup.selection.best.items())))
+        if cache is not None and key in cache:
+            activity, emission = cache[key]
+        else:
+            activity = assembly.activity_model(setup.models).fit([d.activities for d in train])
+            emission = assembly.movement_emission(config.filter, **setup.selection.best).fit(train, h.objects)
+            if cache is not None:
+                cache[key] = activity, emission
+        movements = lk._movements(h, la, train, (True, False), cache, (data, tuple(train_idx)))
+        fold = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
+        forecaster = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
+        masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in val}
+        runs.append(filtered_lookahead(forecaster, fold, config.filter, val, masks, la.horizons, la.first_reference,
+                                       la.last_reference, stride=la.cv_stride))
+    return lk._pool(runs, la.horizons)
 
 
 # -- the whole run ------------------------------------------------------------------------------

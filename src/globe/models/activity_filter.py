@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import math
+import weakref
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Callable, Collection, Hashable, Protocol, Sequence
@@ -35,7 +36,9 @@ from globe.data.records import Day
 from globe.errors import ConfigError
 from globe.models.activity import DAY_START as NGRAM_DAY_START
 from globe.models.activity import ActivityModel
-from globe.models.base import CountingModel
+from globe.models.backoff import witten_bell_distribution
+from globe.models.base import CountingModel, windowed_prior
+from globe.models.baselines import PersistenceModel
 from globe.models.routine import DAY_START as RUN_DAY_START
 from globe.models.routine import RoutineModel
 
@@ -120,7 +123,32 @@ class MovementEmission(CountingModel):
         self.rate_ = {o: (self.overall_[o] + 1) / (self.transitions_ + 2) for o in self.objects_}
         self._base: dict[tuple, float] = {}
         self._memo: dict[tuple, float] = {}
+        self._evidence: dict[tuple, tuple[float, dict]] = {}
         return self
+
+    def with_params(self, **params: Any) -> "MovementEmission":
+        """The same counts with other ``weight``, ``previous_share`` or ``boundary`` (the counts do
+        not depend on them): cross-validation counts each fold once for every candidate."""
+        self._check_fitted()
+        other = copy.copy(self)
+        for name, value in params.items():
+            if name not in ("weight", "previous_share", "boundary"):
+                raise ConfigError(f"MovementEmission.with_params: {name!r} changes the counts; fit a new one")
+            setattr(other, name, value)
+        other._validate_params()
+        other._base, other._memo, other._evidence = {}, {}, {}
+        return other
+
+    def evidence(self, activities: Collection[str], moved: frozenset[str]) -> tuple[float, dict]:
+        """(:meth:`upper_bound` over ``activities``, a memo of likelihoods relative to it) for
+        the set ``moved``: the same sets recur (mostly "nothing moved"), across steps and days."""
+        key = (tuple(activities), moved)
+        out = self._evidence.get(key)
+        if out is None:
+            if len(self._evidence) >= 20_000:
+                self._evidence.clear()
+            out = self._evidence[key] = (self.upper_bound(activities, moved), {})
+        return out
 
     def probability(self, activity: str, obj: str, part: int = 0, changed: bool | None = None) -> float:
         """p(activity, obj): the chance that ``obj`` moves at a step credited to ``activity``
@@ -180,58 +208,118 @@ class MovementEmission(CountingModel):
 # -- dynamics: how each kind of activity model extends a history ---------------------------------
 
 class _Dynamics:
-    """Any model with ``predict_proba``: the state is the whole history (nothing merges)."""
+    """Any model with ``predict_proba``: the state is the whole history (nothing merges).
+
+    A *cursor* summarises a history a_0..a_{step-1}; ``key(cursor)`` is equal for histories with
+    the same future (merged exactly), and ``distribution(cursor, step)`` is the model's
+    P(a_step | the history), memoised by (key, step)."""
 
     def __init__(self, model: NextActivityModel) -> None:
         self.model = model
         self._memo: dict[Hashable, dict[str, float]] = {}
+        self._child_keys: dict[Hashable, Hashable] = {}
+        self.version = model_version(model)
 
     def start(self) -> Hashable:
         return ()
 
-    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
-        return history + (activity,)
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
+        """The cursor of the history ``cursor`` (``step`` activities long) followed by ``activity``."""
+        return cursor + (activity,)
 
-    def key(self, cursor: Any, history: tuple[str, ...]) -> Hashable:
-        """Histories with equal keys have the same future (merged exactly)."""
+    def key(self, cursor: Any) -> Hashable:
+        """Histories with equal keys (and lengths) have the same future (merged exactly)."""
         return cursor
 
-    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
-        return self.model.predict_proba(history)
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
+        return self.model.predict_proba(cursor)
 
-    def distribution(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
-        key = (self.key(cursor, history), len(history))
+    def child_key(self, cursor: Any, key: Hashable, step: int, activity: str) -> Hashable:
+        """``key(advance(cursor, step, activity))``, memoised: equal keys have equal futures, so
+        the key of a history and the next activity determine the next key."""
+        memo_key = (key, step, activity)
+        out = self._child_keys.get(memo_key)
+        if out is None:
+            if len(self._child_keys) >= 200_000:
+                self._child_keys.clear()
+            out = self._child_keys[memo_key] = self.key(self.advance(cursor, step, activity))
+        return out
+
+    def distribution(self, cursor: Any, step: int) -> dict[str, float]:
+        key = (self.key(cursor), step)
         dist = self._memo.get(key)
         if dist is None:
             if len(self._memo) >= 200_000:
                 self._memo.clear()
-            dist = self._memo[key] = self._compute(cursor, history)
+            dist = self._memo[key] = self._compute(cursor, step)
         return dist
+
+
+class _PersistenceDynamics(_Dynamics):
+    """Persistence: the future depends only on the last activity."""
+
+    def start(self) -> Hashable:
+        return None
+
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
+        return activity
+
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
+        return self.model.predict_proba(() if cursor is None else (cursor,))
 
 
 class _RoutineDynamics(_Dynamics):
     """Routine model: the state is the runs so far; the future depends only on the last ``order``
-    run labels (with the day-start token) and when the current run began."""
+    run labels (with the day-start token) and when the current run began. The cursor also
+    carries the match of the runs in the model's run index, so a step costs O(1); the
+    distribution is :meth:`RoutineModel._distribution` with its parts (stay probability, run
+    n-gram, time-of-day prior) memoised (the same numbers, tested)."""
 
     model: RoutineModel
 
-    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
-        runs: tuple[tuple[str, int, int], ...] = cursor
-        t = len(history)
-        if runs and runs[-1][0] == activity:
-            return runs[:-1] + ((activity, runs[-1][1], t),)
-        return runs + ((activity, t, t),)
+    def __init__(self, model: RoutineModel) -> None:
+        super().__init__(model)
+        self._stay: dict[tuple[str, int, int], float] = {}
+        self._prior: dict[int, dict[str, float]] = {}
 
-    def key(self, cursor: Any, history: tuple[str, ...]) -> Hashable:
-        runs: tuple[tuple[str, int, int], ...] = cursor
+    def start(self) -> Hashable:
+        return (), *self.model.runs_.match((RUN_DAY_START,))
+
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
+        runs, state, matched = cursor
+        if runs and runs[-1][0] == activity:
+            return runs[:-1] + ((activity, runs[-1][1], step),), state, matched
+        return (runs + ((activity, step, step),), *self.model.runs_.step(state, matched, activity))
+
+    def key(self, cursor: Any) -> Hashable:
+        runs: tuple[tuple[str, int, int], ...] = cursor[0]
         order = self.model.order
         tokens = tuple(a for a, _, _ in runs[-order:])
         if len(runs) < order:
             tokens = ((RUN_DAY_START,) + tokens)[-order:]
         return tokens, runs[-1][1] if runs else -1
 
-    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
-        return self.model._distribution(list(cursor), len(history))
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
+        runs, state, matched = cursor
+        model = self.model
+        if not runs:
+            return model._distribution([], step)
+        current, first, _ = runs[-1]
+        skey = (current, step - first, step)
+        stay = self._stay.get(skey)
+        if stay is None:
+            stay = self._stay[skey] = model.stay_probability(current, step - first, step)
+        nxt = witten_bell_distribution(model.runs_, state, matched, model.order, model.classes_)
+        nxt.pop(current, None)
+        if model.time_weight > 0:
+            prior = self._prior.get(step)
+            if prior is None:
+                prior = self._prior[step] = windowed_prior(model.starts_, step, model.time_window, model.classes_)
+            nxt = {b: p * prior[b] ** model.time_weight for b, p in nxt.items()}
+        z = sum(nxt.values())
+        dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}
+        dist[current] = stay if z > 0 else 1.0
+        return dist
 
 
 class _NgramDynamics(_Dynamics):
@@ -242,21 +330,46 @@ class _NgramDynamics(_Dynamics):
     def start(self) -> Hashable:
         return self.model.index_.match((NGRAM_DAY_START,))
 
-    def advance(self, cursor: Any, history: tuple[str, ...], activity: str) -> Hashable:
+    def advance(self, cursor: Any, step: int, activity: str) -> Hashable:
         state, matched = cursor
         return self.model.index_.step(state, matched, activity)
 
-    def _compute(self, cursor: Any, history: tuple[str, ...]) -> dict[str, float]:
+    def _compute(self, cursor: Any, step: int) -> dict[str, float]:
         state, matched = cursor
-        return self.model._distribution(state, matched, len(history))
+        return self.model._distribution(state, matched, step)
+
+
+def model_version(model: Any) -> tuple[int, int]:
+    """Changes when the model is fitted again or learns more days (memos over it are then stale)."""
+    data = getattr(model, "training_data_", ())
+    return id(data), len(data)
+
+
+_SHARED: "weakref.WeakKeyDictionary[Any, _Dynamics]" = weakref.WeakKeyDictionary()
 
 
 def dynamics_for(model: NextActivityModel) -> _Dynamics:
+    """The dynamics of ``model``, shared by every filter and forecaster over the same fitted
+    model (their memos of the model's distributions too); rebuilt when the model learns."""
+    try:
+        dyn = _SHARED.get(model)
+    except TypeError:  # not weakly referenceable: a private one
+        dyn = None
+    if dyn is not None and dyn.version == model_version(model):
+        return dyn
     if isinstance(model, RoutineModel):
-        return _RoutineDynamics(model)
-    if isinstance(model, ActivityModel):
-        return _NgramDynamics(model)
-    return _Dynamics(model)
+        dyn = _RoutineDynamics(model)
+    elif isinstance(model, ActivityModel):
+        dyn = _NgramDynamics(model)
+    elif isinstance(model, PersistenceModel):
+        dyn = _PersistenceDynamics(model)
+    else:
+        dyn = _Dynamics(model)
+    try:
+        _SHARED[model] = dyn
+    except TypeError:
+        pass
+    return dyn
 
 
 # -- the filter ----------------------------------------------------------------------------------
@@ -295,10 +408,12 @@ class ActivityFilter:
     def reset(self) -> None:
         """Start a new day: one empty history."""
         self.step = -1
-        self._beam = [Hypothesis(1.0, (), self._dynamics.start())]
+        start = self._dynamics.start()
+        self._beam = [Hypothesis(1.0, (), start)]
+        self._keys: list[Hashable] = [self._dynamics.key(start)]
 
     def _next(self, h: Hypothesis) -> dict[str, float]:
-        dist = self._dynamics.distribution(h.cursor, h.history)
+        dist = self._dynamics.distribution(h.cursor, len(h.history))
         if not dist and h.history:  # a model with nothing to say: the activity stays the same
             return {h.history[-1]: 1.0}
         return dist
@@ -337,59 +452,84 @@ class ActivityFilter:
         first = self.step == 0
         evidence = self._evidence(moved) if moved is not None and not first else None
         merged: dict[Hashable, list] = {}
-        grown: list[tuple[float, Hypothesis, str]] = []
-        for h in self._beam:
+        grown: list[tuple[float, Hypothesis, Hashable, str]] = []
+        # The evidence is at most 1 (relative to its upper bound), so an extension already below
+        # min_weight of the best one so far cannot reach the floor below: it is not scored.
+        best, lowest = 0.0, self.min_weight
+        bounded = self._bounded()
+        for h, key in zip(self._beam, self._keys):
             dist = self._next(h)
             if label is not None:
                 dist = {label: dist.get(label, 0.0)}
             prev = h.history[-1] if h.history else None
             for a, p in dist.items():
                 w = h.weight * p
+                if w < lowest * best and (evidence is None or (a in bounded and (prev is None or prev in bounded))):
+                    continue
                 if evidence is not None and w > 0.0:
                     w *= evidence(prev, a)
                 if w > 0.0:
-                    grown.append((w, h, a))
+                    grown.append((w, h, key, a))
+                    if w > best:
+                        best = w
         # Extensions far below the best cannot reach min_weight of the total: skip building them.
-        floor = self.min_weight * max((w for w, _, _ in grown), default=0.0)
-        for w, h, a in grown:
+        floor = self.min_weight * max((g[0] for g in grown), default=0.0)
+        for w, h, key, a in grown:
             if w >= floor:
-                self._add(merged, h, a, w)
+                self._add(merged, h, key, a, w)
         if not merged:
             # Nothing kept: the label (or movement) is impossible under the model. The evidence
             # wins over the model: keep the histories' weights and extend them as observed.
-            for h in self._beam:
+            for h, key in zip(self._beam, self._keys):
                 dist = self._next(h)
                 guess = max(dist, key=lambda k: dist[k]) if dist else (h.history[-1] if h.history else None)
                 chosen = label if label is not None else guess
                 if chosen is not None:
-                    self._add(merged, h, chosen, h.weight)
+                    self._add(merged, h, key, chosen, h.weight)
         if not merged:
             raise ValueError("the activity model predicts nothing for the first step; is it fitted?")
-        kept = sorted(merged.values(), key=lambda m: (-m[0], m[1]))[: self.max_hypotheses]
-        total = sum(m[0] for m in kept)
-        kept = [m for m in kept if m[0] >= self.min_weight * total] or kept[:1]
-        total = sum(m[0] for m in kept)
-        self._beam = [Hypothesis(w / total, hist, cur) for w, hist, cur, _ in kept]
+        # most probable first; ties by the history (all as long, so by the parent's, then the activity)
+        kept = sorted(merged.items(), key=lambda kv: (-kv[1][0], kv[1][1].history, kv[1][2]))[: self.max_hypotheses]
+        total = sum(m[0] for _, m in kept)
+        kept = [km for km in kept if km[1][0] >= self.min_weight * total] or kept[:1]
+        total = sum(m[0] for _, m in kept)
+        dyn = self._dynamics
+        self._beam = [Hypothesis(w / total, h.history + (a,), dyn.advance(h.cursor, len(h.history), a))
+                      for _, (w, h, a, _) in kept]
+        self._keys = [key for key, _ in kept]
 
-    def _add(self, merged: dict[Hashable, list], h: Hypothesis, a: str, w: float) -> None:
-        history = h.history + (a,)
-        cursor = self._dynamics.advance(h.cursor, h.history, a)
-        key = self._dynamics.key(cursor, history)
-        slot = merged.get(key)
+    def _bounded(self) -> frozenset[str]:
+        """Activities whose movement evidence is at most 1 (those its upper bound covers)."""
+        em = self.emission
+        if not isinstance(em, MovementEmission):
+            return frozenset()
+        if getattr(self, "_bounded_for", None) is not em:
+            self._bounded_set = frozenset(getattr(self.model, "classes_", ())) | frozenset(em.activities_)
+            self._bounded_for = em
+        return self._bounded_set
+
+    def _add(self, merged: dict[Hashable, list], h: Hypothesis, key: Hashable, a: str, w: float) -> None:
+        """Merge the extension of ``h`` (whose state is ``key``) by ``a`` into its next state; the
+        most probable member represents it (the first among equals)."""
+        child = self._dynamics.child_key(h.cursor, key, len(h.history), a)
+        slot = merged.get(child)
         if slot is None:
-            merged[key] = [w, history, cursor, w]
+            merged[child] = [w, h, a, w]
         else:
             slot[0] += w
-            if w > slot[3]:  # the most probable member represents the merged state
-                slot[1], slot[2], slot[3] = history, cursor, w
+            if w > slot[3]:
+                slot[1], slot[2], slot[3] = h, a, w
 
     def _evidence(self, moved: frozenset[str]) -> Callable[[str | None, str], float] | None:
         em = self.emission
         if em is None:
             return None
-        cache: dict[tuple[str | None, str], float] = {}
+        activities = getattr(self.model, "classes_", ())
         # Relative to an upper bound so that weights stay in floating-point range.
-        top = em.upper_bound(getattr(self.model, "classes_", ()), moved)
+        if isinstance(em, MovementEmission):
+            top, cache = em.evidence(activities, moved)
+        else:
+            top, cache = em.upper_bound(activities, moved), {}
 
         def likelihood(prev: str | None, current: str) -> float:
             v = cache.get((prev, current))

@@ -29,13 +29,15 @@ Training is counting only.
 
 from __future__ import annotations
 
+import weakref
 from collections import Counter, defaultdict
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from globe.data.records import Day
+from globe.models.activity_filter import dynamics_for, model_version
 from globe.models.base import ActivityModelBase, CountingModel
 from globe.models.packed_days import PackedDays
 
@@ -246,6 +248,366 @@ class Forecast:
         return [self.locations[x] if joint[j, x] > 0 else None for j, x in enumerate(best)]
 
 
+def _rank_in_group(groups: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Position of each element within its group, in ``order`` (which sorts by group first)."""
+    ranked = groups[order]
+    pos = np.arange(len(order)) - np.searchsorted(ranked, ranked)
+    out = np.empty(len(order), dtype=int)
+    out[order] = pos
+    return out
+
+
+def _first_seen(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the distinct keys in the order they first appear, each element's index into them)."""
+    uniq, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(len(uniq), dtype=int)
+    rank[order] = np.arange(len(uniq))
+    return uniq[order], rank[inverse.reshape(-1)]
+
+
+@dataclass(frozen=True, slots=True)
+class _BeamLevel:
+    """The kept paths after one more step, for every query of a batch (grouped by query, in the
+    order the forward pass keeps them): probability, last activity (local id), the entry of the
+    level before it extends, its rank among its query's paths in lexicographic order, state."""
+
+    query: np.ndarray
+    p: np.ndarray
+    act: np.ndarray
+    parent: np.ndarray
+    lex: np.ndarray
+    sid: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class TreeLevel:
+    """The activities at step m + i of every kept prefix of every query (nodes grouped by query,
+    in the order the query's paths, most likely first, first name them). For i >= 1 each node
+    also carries what the hazard of the step into it reads: its parent node, the parent's
+    activity, how long the parent's run had lasted, whether the parent's run is the one under
+    way at m-1 (``first_up``) and whether the run ends (``ends``); ``group`` numbers the
+    distinct (query, parent activity) in the order they first appear (``group_query``,
+    ``group_act``)."""
+
+    query: np.ndarray
+    act: np.ndarray
+    weight: np.ndarray
+    dur: np.ndarray
+    first: np.ndarray
+    parent: np.ndarray
+    up: np.ndarray
+    dur_up: np.ndarray
+    first_up: np.ndarray
+    ends: np.ndarray
+    group: np.ndarray
+    group_query: np.ndarray
+    group_act: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class TreeBatch:
+    """The weighted activity prefixes of several forecasts (levels i = 0..horizon+1); activity
+    ids are local to ``names`` (:class:`ActivityPaths`)."""
+
+    size: int
+    horizon: int
+    levels: tuple[TreeLevel, ...]
+    names: tuple[str, ...]
+
+    def activity(self, q: int) -> tuple[dict[str, float], ...]:
+        """P(activity at m + k) for k = 0..horizon of query ``q``."""
+        out: list[dict[str, float]] = []
+        for level in self.levels[: self.horizon + 1]:
+            lo, hi = np.searchsorted(level.query, [q, q + 1])
+            marg: dict[str, float] = {}
+            for a, w in zip(level.act[lo:hi].tolist(), level.weight[lo:hi].tolist()):
+                name = self.names[a]
+                marg[name] = marg.get(name, 0.0) + w
+            out.append(marg)
+        return tuple(out)
+
+    def activity_matrix(self) -> np.ndarray:
+        """(queries x horizon+1 x names): the same distributions, dense."""
+        width = len(self.names)
+        out = np.zeros((self.size, self.horizon + 1, width))
+        for k, level in enumerate(self.levels[: self.horizon + 1]):
+            out[:, k] = np.bincount(level.query * width + level.act, weights=level.weight,
+                                    minlength=self.size * width).reshape(self.size, width)
+        return out
+
+
+class ActivityPaths:
+    """The forward pass over activity paths of one fitted activity model (see module doc), for
+    many histories at once.
+
+    Histories are summarised by the model's own state (:func:`globe.models.activity_filter.dynamics_for`:
+    for the routine model the last runs and when the current one began), so each state's
+    next-step distribution is computed once; every forecaster over the same model object shares
+    one instance (:meth:`shared`), whatever its movement model. The paths of all histories of a
+    batch are extended together, step by step, as arrays; the result is exactly the one-history
+    forward pass (same order of operations)."""
+
+    _registry: "weakref.WeakKeyDictionary[Any, dict[tuple[float, int], ActivityPaths]]" = weakref.WeakKeyDictionary()
+
+    def __init__(self, model: ActivityModelBase, *, min_path_probability: float = 3e-3, max_paths: int = 24,
+                 memo_size: int = 200_000) -> None:
+        self.model = model
+        self.min_path_probability = min_path_probability
+        self.max_paths = max_paths
+        self.memo_size = memo_size
+        self.names: dict[str, int] = {}  # activity -> local id (kept across resets)
+        self._name_list: list[str] = []
+        self._strrank = np.zeros(0, dtype=int)
+        self._reset()
+
+    @classmethod
+    def shared(cls, model: ActivityModelBase, *, min_path_probability: float = 3e-3, max_paths: int = 24,
+               memo_size: int = 200_000) -> "ActivityPaths":
+        try:
+            mine = cls._registry.setdefault(model, {})
+        except TypeError:  # not weakly referenceable
+            return cls(model, min_path_probability=min_path_probability, max_paths=max_paths, memo_size=memo_size)
+        key = (min_path_probability, max_paths)
+        if key not in mine:
+            mine[key] = cls(model, min_path_probability=min_path_probability, max_paths=max_paths, memo_size=memo_size)
+        return mine[key]
+
+    def _reset(self) -> None:
+        self._dyn = dynamics_for(self.model)
+        self._version = model_version(self.model)
+        self._states: list[tuple[Any, int, str | None]] = []  # id -> (cursor, step, last activity)
+        self._ids: dict[tuple, int] = {}
+        self._children: dict[tuple[int, int], int] = {}
+        self._ext_act = np.zeros((64, 4), dtype=int)  # per state: next activities in the model's order
+        self._ext_p = np.zeros((64, 4))
+        self._ext_best = np.full(64, -1, dtype=int)
+        self._ext_done = np.zeros(64, dtype=bool)
+        self._root = self._state(self._dyn.start(), 0, None)
+        self._histories: dict[tuple[str, ...], int] = {}
+
+    def check(self) -> None:
+        """Forget every memo when the model has been fitted again or has learnt more days."""
+        if model_version(self.model) != self._version or len(self._states) > self.memo_size:
+            self._reset()
+
+    def local(self, activity: str) -> int:
+        i = self.names.get(activity)
+        if i is None:
+            i = self.names[activity] = len(self._name_list)
+            self._name_list.append(activity)
+        return i
+
+    def _ranks(self) -> np.ndarray:
+        """Rank of every local id's name in sorted order (paths tie-break lexicographically)."""
+        if len(self._strrank) != len(self._name_list):
+            order = sorted(range(len(self._name_list)), key=lambda i: self._name_list[i])
+            self._strrank = np.empty(len(order), dtype=int)
+            self._strrank[order] = np.arange(len(order))
+        return self._strrank
+
+    def _state(self, cursor: Any, step: int, last: str | None) -> int:
+        key = (self._dyn.key(cursor), step, last)
+        sid = self._ids.get(key)
+        if sid is None:
+            sid = self._ids[key] = len(self._states)
+            self._states.append((cursor, step, last))
+        return sid
+
+    def _child(self, sid: int, act: int) -> int:
+        out = self._children.get((sid, act))
+        if out is None:
+            cursor, step, _ = self._states[sid]
+            name = self._name_list[act]
+            out = self._children[(sid, act)] = self._state(self._dyn.advance(cursor, step, name), step + 1, name)
+        return out
+
+    def state(self, history: tuple[str, ...]) -> int:
+        """The state id after ``history`` (memoised per history; a history is usually one
+        activity longer than one asked before, so it is walked from there)."""
+        known = self._histories
+        sid = known.get(history)
+        if sid is not None:
+            return sid
+        start = len(history) - 1
+        while start > 0 and history[:start] not in known:
+            start -= 1
+        sid = known.get(history[:start], self._root) if start > 0 else self._root
+        for a in history[max(start, 0):]:
+            sid = self._child(sid, self.local(a))
+        if len(known) >= self.memo_size:
+            known.clear()
+        known[history] = sid
+        return sid
+
+    def _ensure(self, sids: np.ndarray) -> None:
+        """Fill the next-step table of every state in ``sids``: the activities with probability
+        > 0 in the model's order (a model with nothing to say keeps the activity) and which of
+        them is the most probable (ties: the larger name)."""
+        n = len(self._states)
+        if len(self._ext_done) < n:
+            grow = max(n, 2 * len(self._ext_done)) - len(self._ext_done)
+            self._ext_act = np.vstack([self._ext_act, np.zeros((grow, self._ext_act.shape[1]), dtype=int)])
+            self._ext_p = np.vstack([self._ext_p, np.zeros((grow, self._ext_p.shape[1]))])
+            self._ext_best = np.concatenate([self._ext_best, np.full(grow, -1, dtype=int)])
+            self._ext_done = np.concatenate([self._ext_done, np.zeros(grow, dtype=bool)])
+        todo = np.unique(sids[~self._ext_done[sids]])
+        for sid in todo.tolist():
+            cursor, step, last = self._states[sid]
+            dist = self._dyn.distribution(cursor, step)
+            if not dist:
+                dist = {last: 1.0} if last is not None else {}
+            best = max(dist, key=lambda a: (dist[a], a), default=None)
+            acts = [self.local(a) for a, q in dist.items() if q > 0]
+            probs = [q for q in dist.values() if q > 0]
+            width = self._ext_act.shape[1]
+            if len(acts) > width:
+                more = len(acts) - width
+                self._ext_act = np.hstack([self._ext_act, np.zeros((len(self._ext_act), more), dtype=int)])
+                self._ext_p = np.hstack([self._ext_p, np.zeros((len(self._ext_p), more))])
+            self._ext_act[sid, : len(acts)] = acts
+            self._ext_p[sid, : len(probs)] = probs
+            if best is not None and dist[best] > 0:
+                self._ext_best[sid] = acts.index(self.names[best])
+            self._ext_done[sid] = True
+
+    def _beams(self, roots: np.ndarray, steps: int) -> list[_BeamLevel]:
+        """The forward pass from every root state at once: level t holds the kept paths of t
+        activities (grouped by root, renormalised; a root whose model predicts nothing has none)."""
+        nq = len(roots)
+        minp, most = self.min_path_probability, self.max_paths
+        query, p, sid = np.arange(nq), np.ones(nq), np.asarray(roots, dtype=int)
+        lex = np.zeros(nq, dtype=int)
+        levels: list[_BeamLevel] = []
+        for _ in range(steps):
+            self._ensure(sid)
+            probs = self._ext_p[sid]
+            pq = p[:, None] * probs
+            cols = np.arange(probs.shape[1])
+            chosen = (probs > 0) & ((pq >= minp) | (cols[None, :] == self._ext_best[sid][:, None]))
+            row, col = np.nonzero(chosen)  # the forward pass's order: path by path, the model's order
+            cq, cp, ca = query[row], pq[row, col], self._ext_act[sid[row], col]
+            keep = cp >= minp
+            lacking = ~(np.bincount(cq, weights=keep.astype(float), minlength=nq) > 0)[cq]
+            if lacking.any():  # nothing above the floor: the most probable extension (first of ties)
+                idx = np.nonzero(lacking)[0]
+                order = idx[np.lexsort((idx, -cp[idx], cq[idx]))]
+                starts = np.r_[True, cq[order][1:] != cq[order][:-1]]
+                keep[order[starts]] = True
+            kept = np.nonzero(keep)[0]
+            kq = cq[kept]
+            over = np.bincount(kq, minlength=nq) > most
+            if over.any():  # most probable first, then lexicographically by path
+                ranks = self._ranks()
+                order = np.lexsort((ranks[ca[kept]], lex[row[kept]], -cp[kept], kq))
+                rank = _rank_in_group(kq, order)
+                wide = over[kq]
+                position = np.where(wide, rank, np.arange(len(kept)))
+                final = np.lexsort((position, kq))
+                final = final[~(wide & (rank >= most))[final]]
+                kept = kept[final]
+                kq = cq[kept]
+            kp = cp[kept]
+            z = np.bincount(kq, weights=kp, minlength=nq)  # summed in the kept order
+            kp = kp / z[kq]
+            ka, parent = ca[kept], row[kept]
+            ranks = self._ranks()
+            lex = _rank_in_group(kq, np.lexsort((ranks[ka], lex[parent], kq)))
+            pairs = list(zip(sid[parent].tolist(), ka.tolist()))
+            known = self._children
+            child = np.array([known.get(pa, -1) for pa in pairs], dtype=int)
+            for i in np.nonzero(child < 0)[0].tolist():
+                child[i] = self._child(*pairs[i])
+            levels.append(_BeamLevel(kq, kp, ka, parent, lex, child))
+            query, p, sid = kq, kp, child
+        return levels
+
+    def paths(self, history: Sequence[str], steps: int) -> list[tuple[float, tuple[str, ...]]]:
+        """The next ``steps`` activities after ``history``: (probability, path), most likely first."""
+        self.check()
+        levels = self._beams(np.array([self.state(tuple(history))]), steps)
+        if not levels or not len(levels[-1].p):
+            return []
+        out = []
+        for e in range(len(levels[-1].p)):
+            path, i = [], e
+            for level in reversed(levels):
+                path.append(self._name_list[int(level.act[i])])
+                i = int(level.parent[i])
+            out.append((float(levels[-1].p[e]), tuple(reversed(path))))
+        return sorted(out, key=lambda item: (-item[0], item[1]))
+
+    def trees(self, histories: Sequence[tuple[str, ...]], starts: Sequence[int], horizon: int) -> TreeBatch:
+        """The prefix trees of the activities at steps m..m+horizon+1 after each history
+        (a_0..a_{n-1} with n = m or m + 1, the same for all), weighted by the final paths."""
+        self.check()
+        nq = len(histories)
+        heads = {len(h) - m for h, m in zip(histories, starts)}
+        if len(heads) > 1 or not heads <= {0, 1}:
+            raise ValueError("every history of a batch must end at m - 1 or every one at m")
+        head = heads.pop() if heads else 0
+        roots = np.array([self.state(h) for h in histories], dtype=int)
+        prev = np.full(nq, -1, dtype=int)
+        dur0 = np.full(nq, -1, dtype=int)
+        for q, (h, m) in enumerate(zip(histories, starts)):
+            if 1 <= m <= len(h):
+                a, d = h[m - 1], 0
+                while d < m - 1 and h[m - 2 - d] == a:
+                    d += 1
+                prev[q], dur0[q] = self.local(a), d
+        steps = horizon + 2 - head
+        beams = self._beams(roots, steps)
+        final = beams[-1] if beams else _BeamLevel(*(np.zeros(0, dtype=int),) * 6)
+        order = np.lexsort((final.lex, -final.p, final.query))  # each query's paths, most likely first
+        fq, fw = final.query[order], final.p[order]
+        dead = np.bincount(fq, minlength=nq) == 0  # the model predicts nothing: one empty path
+        anc = [order]
+        for t in range(len(beams) - 1, 0, -1):
+            anc.append(beams[t].parent[anc[-1]])
+        anc.reverse()  # anc[t-1]: the entry of beam level t each sorted final path goes through
+        levels: list[TreeLevel] = []
+        up_act, up_dur, up_first = prev, dur0, np.ones(nq, dtype=bool)
+        up_node_of: np.ndarray | None = None  # entry of the beam level before -> node index
+        head_act = np.array([self.local(h[m]) for h, m in zip(histories, starts)] if head else [], dtype=int)
+        width = len(self._name_list)
+        for i in range(horizon + 2):
+            if head and i == 0:
+                query = np.arange(nq)
+                act = head_act
+                weight = np.bincount(fq, weights=fw, minlength=nq)
+                weight[dead] = 1.0
+                parent = np.arange(nq)
+                node_of_entry = None
+            else:
+                t = i + 1 - head
+                if t > len(anc):
+                    break
+                entries, node_of_path = _first_seen(anc[t - 1])
+                query = beams[t - 1].query[entries]
+                act = beams[t - 1].act[entries]
+                weight = np.bincount(node_of_path, weights=fw, minlength=len(entries))
+                node_of_entry = np.full(len(beams[t - 1].p), -1, dtype=int)
+                node_of_entry[entries] = np.arange(len(entries))
+                if i == 0:
+                    parent = query.copy()
+                elif up_node_of is None:  # the level before is the known head
+                    parent = query.copy()
+                else:
+                    parent = up_node_of[beams[t - 1].parent[entries]]
+            if not len(query):
+                break
+            up, dur_up, first_up = up_act[parent], up_dur[parent], up_first[parent]
+            same = act == up
+            dur = np.where(same, dur_up + 1, 0)
+            first = first_up & same
+            keys = query * (width + 1) + up + 1
+            gkeys, group = _first_seen(keys)
+            levels.append(TreeLevel(query, act, weight, dur, first, parent, up, dur_up, first_up, ~same, group,
+                                    gkeys // (width + 1), gkeys % (width + 1) - 1))
+            up_act, up_dur, up_first, up_node_of = act, dur, first, node_of_entry
+        return TreeBatch(nq, horizon, tuple(levels), tuple(self._name_list))
+
+
 class Forecaster:
     """An activity model and a movement model, propagated together (see module doc)."""
 
@@ -256,118 +618,232 @@ class Forecaster:
         self.min_path_probability = min_path_probability
         self.max_paths = max_paths
         self.memo_size = memo_size
-        self._memo: dict[tuple[str, ...], dict[str, float]] = {}
-        self._dest_memo: dict[tuple[str, bytes], np.ndarray] = {}
-        self._version = self._models_version()
+        self._paths = ActivityPaths.shared(activity, min_path_probability=min_path_probability, max_paths=max_paths,
+                                           memo_size=memo_size)
+        self._version: tuple = ()
+        self._check_version()
 
-    def _models_version(self) -> tuple[int, int]:
+    def _models_version(self) -> tuple:
         """Changes when either model learns (an online assistant adds days): memos are then stale."""
-        return len(getattr(self.activity, "training_data_", ())), id(getattr(self.movements, "hazard_", None))
+        return model_version(self.activity), id(getattr(self.movements, "hazard_", None))
 
     def _check_version(self) -> None:
         version = self._models_version()
         if version != self._version:
-            self._memo.clear()
-            self._dest_memo.clear()
+            self._source_memo: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+            self._translate = np.zeros(0, dtype=int)
+            self._rows = _Rows(np.zeros(0, dtype=int), np.zeros((0, 0)))
+            self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
             self._version = version
-
-    def _destinations(self, activity: str, sources: np.ndarray) -> np.ndarray:
-        key = (activity, sources.tobytes())
-        out = self._dest_memo.get(key)
-        if out is None:
-            if len(self._dest_memo) >= 4096:
-                self._dest_memo.clear()
-            out = self._dest_memo[key] = self.movements.destination_matrix(activity, sources)
-        return out
-
-    def _next(self, history: tuple[str, ...]) -> dict[str, float]:
-        dist = self._memo.get(history)
-        if dist is None:
-            if len(self._memo) >= self.memo_size:
-                self._memo.clear()
-            dist = self._memo[history] = self.activity.predict_proba(history)
-        return dist
+        if self._paths.model is not self.activity:  # the activity model was replaced
+            self._paths = ActivityPaths.shared(self.activity, min_path_probability=self.min_path_probability,
+                                               max_paths=self.max_paths, memo_size=self.memo_size)
 
     def paths(self, history: Sequence[str], steps: int) -> list[tuple[float, tuple[str, ...]]]:
         """The next ``steps`` activities after ``history``: (probability, path), most likely first,
         probabilities summing to 1 (the forward pass; pruned as configured)."""
-        history = tuple(history)
-        beam: list[tuple[float, tuple[str, ...]]] = [(1.0, ())]
-        for _ in range(steps):
-            grown: list[tuple[float, tuple[str, ...]]] = []
-            for p, path in beam:
-                dist = self._next(history + path)
-                if not dist:  # a model with nothing to say: the activity stays the same
-                    dist = {(history + path)[-1]: 1.0} if history or path else {}
-                best = max(dist, key=lambda a: (dist[a], a), default=None)
-                grown.extend((p * q, path + (a,)) for a, q in dist.items()
-                             if q > 0 and (p * q >= self.min_path_probability or a == best))
-            if not grown:
-                return []
-            kept = [item for item in grown if item[0] >= self.min_path_probability]
-            kept = kept or [max(grown, key=lambda item: item[0])]
-            if len(kept) > self.max_paths:
-                kept = sorted(kept, key=lambda item: (-item[0], item[1]))[: self.max_paths]
-            z = sum(p for p, _ in kept)
-            beam = [(p / z, path) for p, path in kept]
-        return sorted(beam, key=lambda item: (-item[0], item[1]))
+        return self._paths.paths(history, steps)
+
+    def _sources(self, row: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Location indices of ``row``, their (object, place) cells and whether each was seen."""
+        key = tuple(row)
+        out = self._source_memo.get(key)
+        if out is None:
+            if len(self._source_memo) >= 4096:
+                self._source_memo.clear()
+            mv = self.movements
+            sources = np.array([mv.location_index(x) for x in row], dtype=int)
+            pairs = mv._pairs
+            codes = np.arange(len(sources)) * len(mv.locations_) + sources
+            idx = np.minimum(np.searchsorted(pairs, codes), max(len(pairs) - 1, 0))
+            found = pairs[idx] == codes if len(pairs) else np.zeros(len(sources), dtype=bool)
+            out = self._source_memo[key] = (sources, idx, found)
+        return out
+
+    def _mv_activities(self) -> np.ndarray:
+        """Movement-model activity index of every local activity id of the paths."""
+        names = self._paths.names
+        if len(self._translate) < len(names):
+            mv = self.movements
+            extra = [mv.activity_index(a) for a in list(names)[len(self._translate):]]
+            self._translate = np.concatenate([self._translate, np.array(extra, dtype=int)])
+        return self._translate
 
     def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]], horizon: int) -> Forecast:
         """Forecast movements at steps m+1..m+1+horizon, where m = len(locations) - 1 is the last
         step whose locations are known and ``activities`` holds a_0.. (m or m+1 of them: the
         activity at step m may be unknown). Movements at step u belong to the activity at u-1."""
-        m = len(locations) - 1
-        n = len(activities)
-        if m < 0 or n not in (m, m + 1):
-            raise ValueError(f"need the locations of steps 0..m and the activities of 0..m-1 or 0..m; got {len(locations)} "
-                             f"location rows and {n} activities")
+        return self.forecast_many([(activities, locations)], horizon)[0]
+
+    def forecast_many(self, queries: Sequence[tuple[Sequence[str], Sequence[Sequence[str]]]], horizon: int,
+                      trees: TreeBatch | None = None) -> "Forecasts":
+        """:meth:`forecast` for every (activities, locations) of ``queries`` at once (the same
+        numbers, computed level by level over all their activity paths together). Each query's
+        activities end at the same offset from its last location step (m - 1 for all or m for
+        all). ``trees`` (from :meth:`trees` of the same histories) saves the forward pass when
+        several movement models forecast the same histories."""
         self._check_version()
-        known = tuple(activities)
-        # one step beyond the horizon: whether the activity at m+horizon ends there matters
-        future = self.paths(known, m + horizon + 2 - n)
         mv = self.movements
-        nj, nl = len(mv.objects_), len(mv.locations_)
-        sources = np.array([mv.location_index(x) for x in locations[m]])
-        base_dur = durations(known)
-        departure = np.zeros((horizon + 1, nj))
-        weights: list[dict[str, np.ndarray]] = [defaultdict(lambda: np.zeros(nj)) for _ in range(horizon + 1)]
-        act_marg: list[dict[str, float]] = [defaultdict(float) for _ in range(horizon + 1)]
-        hazard_memo: dict[tuple[str, int, bool, bool], np.ndarray] = {}
-        # objects already moved in the run under way (movements seen up to step m), and none in a new run
-        r0 = (n - 1) - int(base_dur[n - 1]) if n else m
-        earlier = np.zeros(nj, dtype=bool)
-        for v in range(r0 + 1, m + 1):
-            if locations[v] != locations[v - 1]:
-                earlier |= np.array([x != y for x, y in zip(locations[v], locations[v - 1])])
-        none = np.zeros(nj, dtype=bool)
-        # Paths share prefixes (activities at m, m+1, ...): each object's survival along a prefix
-        # is computed once. The hazard of step m+1+k reads the activities at m+k and m+k+1.
-        weight: dict[tuple[str, ...], float] = defaultdict(float)
-        for w, path in future or [(1.0, ())]:
-            seq = known + path
-            for k in range(min(horizon + 2, len(seq) - m)):
-                weight[seq[m: m + k + 1]] += w
-        start_prev, start_dur = (known[m - 1], int(base_dur[m - 1])) if 1 <= m <= n else (None, -1)
-        state: dict[tuple[str, ...], tuple[np.ndarray, int, bool]] = {(): (np.ones(nj), start_dur, True)}
-        for prefix in sorted(weight, key=len):  # parents before children
-            survive, dur, first_run = state[prefix[:-1]]
-            a = prefix[-1]
-            prev: str | None = start_prev
-            if len(prefix) >= 2:
-                k, prev = len(prefix) - 2, prefix[-2]
-                key = (prev, dur, a != prev, first_run)
-                h = hazard_memo.get(key)
-                if h is None:
-                    h = hazard_memo[key] = mv.hazards(prev, dur, sources, ends=a != prev, moved=earlier if first_run else none)
-                leave = weight[prefix] * survive * h
-                departure[k] += leave
-                weights[k][prev] += leave
-                survive = survive * (1.0 - h)
-            if len(prefix) <= horizon + 1:
-                act_marg[len(prefix) - 1][a] += weight[prefix]
-            state[prefix] = (survive, dur + 1 if a == prev else 0, first_run and a == prev)
-        destination = np.zeros((horizon + 1, nj, nl))
-        for k in range(horizon + 1):
-            for a, leave in weights[k].items():
-                destination[k] += leave[:, None] * self._destinations(a, sources)
-        return Forecast(m, mv.objects_, mv.locations_, tuple(dict(c) for c in act_marg), departure, destination)
+        mv._check_fitted()
+        nj = len(mv.objects_)
+        nq = len(queries)
+        hazard = mv.hazard_
+        _, nc, ne, nm, npairs = hazard.shape
+        memory = nm == 2
+        starts = np.zeros(nq, dtype=int)
+        src = np.zeros((nq, nj), dtype=int)
+        cells = np.zeros((nq, nj), dtype=int)
+        seen = np.ones((nq, nj), dtype=bool)
+        earlier = np.zeros((nq, nj), dtype=bool)
+        for q, (activities, locations) in enumerate(queries):
+            m, n = len(locations) - 1, len(activities)
+            if m < 0 or n not in (m, m + 1):
+                raise ValueError(f"need the locations of steps 0..m and the activities of 0..m-1 or 0..m; got "
+                                 f"{len(locations)} location rows and {n} activities")
+            starts[q] = m
+            src[q], cells[q], seen[q] = self._sources(locations[m])
+            if memory and n:  # objects already moved in the run under way (movements seen up to step m)
+                last = activities[n - 1]
+                r0 = n - 1  # the first step of the last known activity's run
+                while r0 > 0 and activities[r0 - 1] == last:
+                    r0 -= 1
+                for v in range(r0 + 1, m + 1):
+                    if locations[v] != locations[v - 1]:
+                        earlier[q] |= np.array([x != y for x, y in zip(locations[v], locations[v - 1])])
+        if trees is None:
+            trees = self.trees([tuple(a) for a, _ in queries], starts.tolist(), horizon)
+        translate = self._mv_activities()
+        departure = np.zeros((nq, horizon + 1, nj))
+        targets, real, _ = self._target_table()
+        destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
+        flat = hazard.reshape(-1)
+        no_cells, all_seen = npairs == 0, bool(seen.all())
+        cols = np.arange(nj)
+        survive = np.ones((len(trees.levels[0].act) if trees.levels else 0, nj))
+        for i, level in enumerate(trees.levels[1:], start=1):
+            prev = translate[level.up]
+            owner = level.query
+            if no_cells:
+                h = mv._p1[prev]
+            else:
+                d = np.minimum(level.dur_up, nc - 1)
+                e = level.ends.astype(int) if ne == 2 else 0
+                base = ((prev * nc + d) * ne + e) * nm
+                if memory:
+                    moved = level.first_up[:, None] & earlier[owner]
+                    h = flat[(base[:, None] + moved) * npairs + cells[owner]]
+                else:
+                    h = flat[(base * npairs)[:, None] + cells[owner]]
+                if not all_seen:  # an object never seen at its place: P(move | activity, object)
+                    h = np.where(seen[owner], h, mv._p1[prev])
+            up = survive[level.parent]
+            leave = level.weight[:, None] * up * h
+            departure[:, i - 1] = np.bincount(((owner * nj)[:, None] + cols).ravel(), weights=leave.ravel(),
+                                              minlength=nq * nj).reshape(nq, nj)
+            survive = up * (1.0 - h)
+            # where they go: the departures summed per (query, activity left), times its destinations
+            ngroups = len(level.group_query)
+            per = np.bincount(((level.group * nj)[:, None] + cols).ravel(), weights=leave.ravel(),
+                              minlength=ngroups * nj).reshape(ngroups, nj)
+            contrib = per[:, :, None] * self._destination_rows(translate[level.group_act], src[level.group_query])
+            first = np.searchsorted(level.group_query, level.group_query)
+            rank = np.arange(ngroups) - first
+            for r in range(int(rank.max(initial=-1)) + 1):  # in order, as a running sum would
+                mine = rank == r
+                destination[level.group_query[mine], i - 1] += contrib[mine]
+        return Forecasts(starts, mv.objects_, mv.locations_, trees, departure, destination, targets, real)
+
+    def trees(self, histories: Sequence[tuple[str, ...]], starts: Sequence[int], horizon: int) -> TreeBatch:
+        """The forward pass of :meth:`forecast_many` alone (shareable between movement models)."""
+        self._check_version()
+        return self._paths.trees(histories, starts, horizon)
+
+    def _target_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per object, the places it was ever seen going to (ascending; padded): (objects x
+        targets) location indices, which are real, and location -> position per object."""
+        if self._targets is None:
+            mv = self.movements
+            nj, nl = len(mv.objects_), len(mv.locations_)
+            seen = [sorted(mv._dest.get((j,), {})) for j in range(nj)]
+            width = max([len(x) for x in seen] + [1])
+            targets = np.zeros((nj, width), dtype=int)
+            real = np.zeros((nj, width), dtype=bool)
+            position = np.full((nj, nl), -1, dtype=int)
+            for j, xs in enumerate(seen):
+                targets[j, : len(xs)] = xs
+                real[j, : len(xs)] = True
+                position[j, xs] = np.arange(len(xs))
+            self._targets = (targets, real, position)
+        return self._targets
+
+    def _destination_rows(self, acts: np.ndarray, sources: np.ndarray) -> np.ndarray:
+        """(groups x objects x targets): where each object goes from ``sources[g]`` when it
+        moves during activity ``acts[g]`` (over the object's targets; memoised per activity,
+        object and place)."""
+        mv = self.movements
+        nj, nl = sources.shape[1], len(mv.locations_)
+        _, _, position = self._target_table()
+        codes = (acts[:, None] * nj + np.arange(nj)) * nl + sources
+        table = self._rows
+        if len(table.index) < len(mv.activities_) * nj * nl:
+            table.index = np.full(len(mv.activities_) * nj * nl, -1, dtype=int)
+        rows = table.index[codes]
+        missing = np.unique(codes[rows < 0])
+        if len(missing):
+            new = np.zeros((len(missing), self._target_table()[0].shape[1]))
+            for r, code in enumerate(missing.tolist()):
+                a, rest = divmod(code, nj * nl)
+                j, src = divmod(rest, nl)
+                idx, p = mv.destination(mv.activities_[a], j, src)
+                new[r, position[j, idx]] = p
+            table.index[missing] = np.arange(len(table.values), len(table.values) + len(missing))
+            table.values = np.concatenate([table.values, new]) if len(table.values) else new
+            rows = table.index[codes]
+        return table.values[rows]
+
+
+@dataclass(slots=True)
+class _Rows:
+    index: np.ndarray
+    values: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class Forecasts:
+    """Several forecasts at once (:meth:`Forecaster.forecast_many`): ``departure[q]`` is the
+    q-th query's :attr:`Forecast.departure`; ``destination[q, k, j, x]`` its
+    ``destination[k, j, targets[j, x]]`` over each object's possible targets (``real``: not
+    padding; elsewhere the destination is 0)."""
+
+    start: np.ndarray
+    objects: tuple[str, ...]
+    locations: tuple[str, ...]
+    trees: TreeBatch
+    departure: np.ndarray
+    destination: np.ndarray
+    targets: np.ndarray
+    real: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+    def __getitem__(self, q: int) -> Forecast:
+        compact = self.destination[q]
+        full = np.zeros(compact.shape[:2] + (len(self.locations),))
+        j, x = np.nonzero(self.real)
+        full[:, j, self.targets[j, x]] = compact[:, j, x]
+        return Forecast(int(self.start[q]), self.objects, self.locations, self.trees.activity(q),
+                        self.departure[q], full)
+
+    def first_locations(self, horizons: int) -> tuple[np.ndarray, np.ndarray]:
+        """(queries x horizons x objects): the location index of each object's most likely first
+        new place within m+1..m+1+s, and P(it is that) (as :meth:`Forecast.first_location`)."""
+        return first_locations(self.destination, self.targets, horizons)
+
+
+def first_locations(destination: np.ndarray, targets: np.ndarray, horizons: int) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array."""
+    joint = np.cumsum(destination[:, :horizons], axis=1)
+    best = joint.argmax(axis=3)
+    prob = np.take_along_axis(joint, best[..., None], axis=3)[..., 0]
+    return targets[np.arange(targets.shape[0])[None, None, :], best], prob

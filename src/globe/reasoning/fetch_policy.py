@@ -21,7 +21,7 @@ from typing import Collection, Sequence
 import numpy as np
 
 from globe.data.records import Day
-from globe.models.forecast import Forecast, Forecaster
+from globe.models.forecast import Forecast, Forecaster, Forecasts
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,14 +85,42 @@ class FetchPolicy:
         order = sorted(range(len(p)), key=lambda j: (-p[j], forecast.objects[j]))
         return [FetchCandidate(forecast.objects[j], float(p[j]), targets[j], float(ev[j])) for j in order]
 
+    def candidates_many(self, forecasts: Forecasts) -> list[list[FetchCandidate]]:
+        """:meth:`candidates_from` for every forecast of a batch (the same numbers)."""
+        lo, hi = max(self.min_lead_steps - 1, 0), min(self.window_steps, forecasts.departure.shape[1])
+        p = np.zeros(forecasts.departure.shape[::2])
+        joint = np.zeros(forecasts.destination.shape[:1] + forecasts.destination.shape[2:])
+        for k in range(lo, hi):  # summed step by step, as for one forecast
+            p = p + forecasts.departure[:, k] if k > lo else forecasts.departure[:, k].copy()
+            joint = joint + forecasts.destination[:, k] if k > lo else forecasts.destination[:, k].copy()
+        best = joint.argmax(axis=2)
+        found = np.take_along_axis(joint, best[..., None], axis=2)[..., 0] > 0
+        where = forecasts.targets[np.arange(len(forecasts.objects))[None, :], best]
+        ev = expected_value(p, self.cost_useless, self.cost_missed)
+        objects, locations = forecasts.objects, forecasts.locations
+        out = []
+        for q in range(len(p)):
+            pq, evq = p[q].tolist(), ev[q].tolist()
+            targets = [locations[x] if ok else None for x, ok in zip(where[q].tolist(), found[q].tolist())]
+            order = sorted(range(len(pq)), key=lambda j: (-pq[j], objects[j]))
+            out.append([FetchCandidate(objects[j], pq[j], targets[j], evq[j]) for j in order])
+        return out
+
     def choose(self, candidates: Sequence[FetchCandidate], exclude: Collection[str] = ()) -> list[FetchCandidate]:
         """The candidates worth fetching: positive expected value, not already fetched, at most
         ``max_fetches_per_step``, most likely useful first."""
-        chosen = [c for c in candidates if c.obj not in exclude and self._worth(c.probability)]
-        return chosen[: self.max_fetches_per_step]
+        chosen: list[FetchCandidate] = []
+        if self.max_fetches_per_step <= 0:
+            return chosen
+        for c in candidates:
+            if c.obj not in exclude and self._worth(c.probability):
+                chosen.append(c)
+                if len(chosen) == self.max_fetches_per_step:
+                    break
+        return chosen
 
     def _worth(self, probability: float) -> bool:
-        return float(expected_value(np.asarray(probability), self.cost_useless, self.cost_missed)) > 0
+        return probability * self.cost_missed - (1.0 - probability) * self.cost_useless > 0
 
     def decide(self, activities: Sequence[str], locations: Sequence[Sequence[str]],
                exclude: Collection[str] = ()) -> list[FetchCandidate]:
