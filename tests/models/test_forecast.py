@@ -203,3 +203,19 @@ def test_a_batch_of_forecasts_is_each_forecast_alone(households, config, estimat
                 names, prob = batch[q].first_location(s)
                 assert np.array_equal(prob, p[q, s])
                 assert [n for n, pp in zip(names, prob) if pp > 0] == [batch.locations[x] for x, pp in zip(where[q, s], p[q, s]) if pp > 0]
+
+
+def test_shared_memos_do_not_keep_a_model_alive():
+    """The registries of activity paths and dynamics are keyed weakly by the model: once nothing
+    else holds a fitted model (a cross-validation fold's), it and its memos are freed."""
+    import gc
+    import weakref
+
+    movements = MovementModel().fit(TOY_DAYS, OBJECTS)
+    model = ChainModel().fit([])
+    f = Forecaster(model, movements)
+    f.forecast(("a",), [("shelf", "shelf"), ("shelf", "shelf")], horizon=1)
+    ref = weakref.ref(model)
+    del f, model
+    gc.collect()
+    assert ref() is None

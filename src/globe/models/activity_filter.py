@@ -215,10 +215,18 @@ class _Dynamics:
     P(a_step | the history), memoised by (key, step)."""
 
     def __init__(self, model: NextActivityModel) -> None:
-        self.model = model
+        # Weakly: the shared registry maps the model to this object, which must not keep it alive.
+        try:
+            self._model: Callable[[], Any] = weakref.ref(model)
+        except TypeError:
+            self._model = lambda: model
         self._memo: dict[Hashable, dict[str, float]] = {}
         self._child_keys: dict[Hashable, Hashable] = {}
         self.version = model_version(model)
+
+    @property
+    def model(self) -> Any:
+        return self._model()
 
     def start(self) -> Hashable:
         return ()
@@ -275,8 +283,6 @@ class _RoutineDynamics(_Dynamics):
     distribution is :meth:`RoutineModel._distribution` with its parts (stay probability, run
     n-gram, time-of-day prior) memoised (the same numbers, tested)."""
 
-    model: RoutineModel
-
     def __init__(self, model: RoutineModel) -> None:
         super().__init__(model)
         self._stay: dict[tuple[str, int, int], float] = {}
@@ -324,8 +330,6 @@ class _RoutineDynamics(_Dynamics):
 
 class _NgramDynamics(_Dynamics):
     """n-gram model: the state is the suffix-automaton match of the day so far."""
-
-    model: ActivityModel
 
     def start(self) -> Hashable:
         return self.model.index_.match((NGRAM_DAY_START,))

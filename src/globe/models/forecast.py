@@ -352,7 +352,11 @@ class ActivityPaths:
 
     def __init__(self, model: ActivityModelBase, *, min_path_probability: float = 3e-3, max_paths: int = 24,
                  memo_size: int = 200_000) -> None:
-        self.model = model
+        # Weakly: the shared registry maps the model to this object, which must not keep it alive.
+        try:
+            self._model: Any = weakref.ref(model)
+        except TypeError:
+            self._model = lambda: model
         self.min_path_probability = min_path_probability
         self.max_paths = max_paths
         self.memo_size = memo_size
@@ -360,6 +364,10 @@ class ActivityPaths:
         self._name_list: list[str] = []
         self._strrank = np.zeros(0, dtype=int)
         self._reset()
+
+    @property
+    def model(self) -> ActivityModelBase:
+        return self._model()
 
     @classmethod
     def shared(cls, model: ActivityModelBase, *, min_path_probability: float = 3e-3, max_paths: int = 24,
