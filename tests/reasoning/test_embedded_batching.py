@@ -45,39 +45,16 @@ def test_scores_do_not_depend_on_order_subset_or_history(embedded_llm):
 
 def test_shared_starts_are_decoded_once(embedded_llm, monkeypatch):
     """One decode per distinct proper token prefix, fewer than one per token after the first."""
-    from globe.reasoning.backends import embedded
-
     llm = embedded_llm._shared().llm
     tails = [llm.tokenize(c.encode("utf-8"), add_bos=False) for c in CONTINUATIONS]
     prefixes = {tuple(t[:d]) for t in tails for d in range(1, len(t))}
     one_by_one = sum(len(t) - 1 for t in tails)
     assert len(prefixes) < one_by_one  # the chosen names do share starts ("food", "coffee")
     embedded_llm.continuation_logprobs(NULL_PREFIX, CONTINUATIONS)  # the prompt's own decode is not counted below
-    calls, blocks = [], []
-    real_eval, real_decode = llm.eval, embedded._decode
+    calls = []
+    real_eval = llm.eval
     monkeypatch.setattr(llm, "eval", lambda tokens: (calls.append(list(tokens)), real_eval(tokens))[1])
-    monkeypatch.setattr(embedded, "_decode", lambda m, tokens, logits: (blocks.append(list(tokens)), real_decode(m, tokens, logits=logits))[1])
     embedded_llm.continuation_logprobs(NULL_PREFIX, CONTINUATIONS)
-    assert len(blocks) == 1  # the same prompt again: only its last block (the one giving logits) is evaluated
-    assert len(calls) == len(prefixes)
-    assert all(len(c) == 1 for c in calls)
-
-
-def test_prompt_blocks_shared_with_the_previous_prompt_are_reused_with_the_same_bits(embedded_llm, monkeypatch):
-    from globe.reasoning.backends import embedded
-
-    llm = embedded_llm._shared().llm
-    first = cloze_prefix(ChoiceContext("breakfast", ("bowl", "spoon", "milk")))
-    second = cloze_prefix(ChoiceContext("breakfast", ("bowl", "spoon", "food_cereal")))
-    tokens = llm.tokenize(second.encode("utf-8"), add_bos=True)
-    shared = embedded._reusable_blocks(llm.tokenize(first.encode("utf-8"), add_bos=True), tokens, embedded.PROMPT_BLOCK)
-    assert 0 < shared < len(tokens)  # the prompts share complete blocks (the activity and first objects)
-    embedded_llm.continuation_logprobs(NULL_PREFIX, CONTINUATIONS[:2])  # a prompt sharing nothing: no reuse
-    fresh = embedded_llm.continuation_logprobs(second, CONTINUATIONS)
-    embedded_llm.continuation_logprobs(first, CONTINUATIONS)
-    blocks = []
-    real_decode = embedded._decode
-    monkeypatch.setattr(embedded, "_decode", lambda m, toks, logits: (blocks.append(list(toks)), real_decode(m, toks, logits=logits))[1])
-    reused = embedded_llm.continuation_logprobs(second, CONTINUATIONS)
-    assert sum(map(len, blocks)) == len(tokens) - shared  # only the blocks after the shared ones
-    assert reused == fresh  # and the same bits as evaluating the prompt afresh
+    prompt_calls = 1  # a one-line prompt is evaluated afresh in one batch
+    assert len(calls) == prompt_calls + len(prefixes)
+    assert all(len(c) == 1 for c in calls[prompt_calls:])

@@ -10,9 +10,8 @@ listed candidate:
 - without them, a sentence about the activity and the objects so far, minus the candidate's
   score after a context-free sentence (pointwise mutual information).
 
-The text is evaluated once, in fixed blocks of tokens (blocks the model's cache already holds
-from the previous prompt are reused: consecutive questions about one activity share their start
-or their diary); each candidate then costs only its own few tokens, and
+The text is evaluated once (a diary already in the model's cache is reused: consecutive
+questions about one activity share it); each candidate then costs only its own few tokens, and
 candidates that start alike ("food cereal", "food jam") share the decodes of their common start
 (a prefix trie walked depth first).
 
@@ -102,40 +101,14 @@ def _native_stderr_silenced():
         os.close(saved)
 
 
-PROMPT_BLOCK = 4
-"""Tokens per prompt block: complete blocks shared with the previous prompt are reused."""
-
-SCORING = f"blocks{PROMPT_BLOCK}-lse32"
+SCORING = "lse32"
 """How scores are computed; part of every cache key, so answers computed another way are not reused."""
-
-
-def _reusable_blocks(cached: list[int], tokens: list[int], block: int) -> int:
-    """How many leading tokens of ``tokens`` lie in complete blocks the cache holds already
-    (never the whole prompt: its last block is evaluated to produce the logits)."""
-    same = 0
-    limit = min(len(cached), len(tokens) - 1)
-    while same < limit and cached[same] == tokens[same]:
-        same += 1
-    return same // block * block
-
-
-def _decode(llm, tokens: list[int], *, logits: bool) -> None:
-    """Evaluate ``tokens`` after the first ``llm.n_tokens`` cached ones, as one batch; the
-    logits of its last token are computed only if ``logits`` (the output layer over Gemma's
-    262k words is the costliest part of a short batch)."""
-    llm._ctx.kv_cache_seq_rm(-1, llm.n_tokens, -1)
-    llm._batch.set_batch(batch=tokens, n_past=llm.n_tokens, logits_all=False)
-    if not logits:
-        llm._batch.batch.logits[len(tokens) - 1] = False
-    llm._ctx.decode(llm._batch)
-    llm.input_ids[llm.n_tokens: llm.n_tokens + len(tokens)] = tokens
-    llm.n_tokens += len(tokens)
 
 
 def _logits_and_normaliser(llm) -> tuple[Any, float]:
     """The last evaluated token's logits (float32, as llama.cpp leaves them) and their
     log-sum-exp. The exponentials are taken in float32 and summed in float64: the normaliser
-    over Gemma's 262k words costs a fifth of a single-token decode in float64 throughout."""
+    over Gemma's 262k words cost a fifth of a single-token decode in float64 throughout."""
     import llama_cpp
     import numpy as np
 
@@ -254,27 +227,29 @@ class EmbeddedBackend(LLMBackend):
     def _eval_prompt(self, shared: _Loaded, prompt: str) -> list[int]:
         """Evaluate ``prompt``; returns its tokens. Call with the lock held.
 
-        The prompt is evaluated in fixed blocks of :data:`PROMPT_BLOCK` tokens (positions 0..B-1,
-        B..2B-1, ...), only the last block producing logits. A block's keys and values depend
-        only on the tokens up to its end, so complete blocks the model's cache already holds
-        from the previous prompt (questions about one activity share their start; consecutive
-        diary questions share the diary) are kept instead of evaluated again, and the
-        arithmetic is the same as evaluating the prompt afresh: scores never depend on what
-        was asked before.
+        A multi-line prompt is evaluated as two fixed batches: everything up to its last line
+        (kept in the model's cache and reused while it stays the same, e.g. one activity's
+        diary) and the last line. A one-line prompt is evaluated afresh. Either way the
+        arithmetic never depends on what was asked before, so scores are reproducible.
         """
         llm = shared.llm
-        tokens = llm.tokenize(prompt.encode("utf-8"), add_bos=True)
-        if len(tokens) >= self.n_ctx - 16:
-            raise ValueError(f"prompt of {len(tokens)} tokens does not fit n_ctx={self.n_ctx}")
-        start = _reusable_blocks(shared.cached_head, tokens, PROMPT_BLOCK)
-        llm.n_tokens = start
-        shared.cached_head = list(tokens[:start])
-        for begin in range(start, len(tokens), PROMPT_BLOCK):
-            block = tokens[begin: begin + PROMPT_BLOCK]
-            _decode(llm, block, logits=begin + len(block) == len(tokens))
-            if len(block) == PROMPT_BLOCK:
-                shared.cached_head.extend(block)
-        return tokens
+        base, newline, last = prompt.rpartition("\n")
+        if newline:
+            first = llm.tokenize((base + newline).encode("utf-8"), add_bos=True)
+            second = llm.tokenize(last.encode("utf-8"), add_bos=False)
+        else:
+            first, second = llm.tokenize(prompt.encode("utf-8"), add_bos=True), []
+        if len(first) + len(second) >= self.n_ctx - 16:
+            raise ValueError(f"prompt of {len(first) + len(second)} tokens does not fit n_ctx={self.n_ctx}")
+        if second and shared.cached_head == first:
+            llm.n_tokens = len(first)
+        else:
+            llm.reset()
+            llm.eval(first)
+            shared.cached_head = list(first)
+        if second:
+            llm.eval(second)
+        return first + second
 
     def prompt(self, context: ChoiceContext) -> str:
         return diary_prefix(context) if context.examples else cloze_prefix(context)
