@@ -84,8 +84,7 @@ class _SharedFit:
         if key not in self.fits:
             self.fits[key] = m.fit(days)
         fitted = self.fits[key]
-        own = {k: v for k, v in m.get_params().items() if k in m._prediction_params}
-        return fitted if fitted is m else fitted.with_prediction_params(**own)
+        return fitted if fitted is m else fitted.with_prediction_params(**m.prediction_params())
 
 
 def activity_fold(model: ActivityModelBase, days: Sequence[Sequence[str]]) -> tuple[list[str], list[str]]:

@@ -25,6 +25,10 @@ class CountingModel:
         """The parameters that change what :meth:`fit` counts."""
         return {k: v for k, v in self.get_params().items() if k not in self._prediction_params}
 
+    def prediction_params(self) -> dict[str, Any]:
+        """The parameters read only when predicting (what :meth:`with_prediction_params` sets)."""
+        return {k: v for k, v in self.get_params().items() if k in self._prediction_params}
+
     def with_prediction_params(self, **params: Any) -> "CountingModel":
         """A fitted copy answering with other prediction-only parameters. It *shares* this model's
         counts (cross-validation fits each fold once for every such candidate), so it must not
