@@ -43,3 +43,30 @@ def test_a_script_without_a_main_guard_runs_once(tmp_path):
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.splitlines() == ["ran [1, 2, 3]"]
+
+
+def test_run_forked_runs_closures_in_order_and_does_not_nest():
+    from globe.evaluation.parallel import run_forked
+
+    data = {"offset": 10}  # a closure over live objects: nothing of it is pickled
+    inner = run_forked(lambda i: run_forked(lambda j: (i, j), 2, 2), 3, 2)
+    assert inner == [[(i, 0), (i, 1)] for i in range(3)]
+    assert run_forked(lambda i: i + data["offset"], 5, 2) == [10, 11, 12, 13, 14]
+    assert run_forked(lambda i: i, 1, 2) == [0]
+
+
+def test_missing_labels_on_other_processes_equal_one_process(households):
+    from globe.evaluation.missing_labels import run_missing_labels
+
+    small = [replace(h, train=h.train[:12], test=h.test[:1]) for h in households.values()][:2]
+    base = {"selection.folds": 3, "selection.routine_orders": (2,), "selection.time_weights": (1.0,),
+            "filter.fractions": (0.0, 1.0), "filter.emission_weights": (0.5, 1.0), "filter.emission_previous_shares": (0.5,),
+            "filter.emission_boundaries": (False,), "lookahead.horizons": 2, "lookahead.thresholds": (0.3, 0.5)}
+    one = run_missing_labels(GlobeConfig().with_overrides({**base, "evaluation.workers": 1}), small)
+    two = run_missing_labels(GlobeConfig().with_overrides({**base, "evaluation.workers": 2}), small)
+    def numbers(rows):  # everything but the time each part took
+        return [{k: v for k, v in r.items() if k != "seconds"} for r in rows]
+
+    assert numbers(one.rows) == numbers(two.rows) and one.selection_rows == two.selection_rows
+    assert len(one.rows) == 6 and len(one.selection_rows) == 4
+    assert all(r["lookahead_f1_10min"] is not None for r in one.rows)

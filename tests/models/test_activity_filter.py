@@ -234,3 +234,26 @@ def test_routine_dynamics_give_the_models_own_distributions(households):
             cursor = dyn.advance(cursor, t, a)
     model.partial_fit([h.test[0].activities])  # learning makes a fresh one
     assert dynamics_for(model) is not dyn
+
+
+@pytest.mark.parametrize("order", [1, 2, 3])
+def test_routine_child_key_equals_the_key_of_the_advanced_history(households, order):
+    """The routine dynamics compute a child's state from the parent's state alone; it must be
+    the state of the extended history, for every activity that could come next."""
+    from globe.models.activity_filter import dynamics_for
+
+    h = households["A"]
+    model = RoutineModel(order=order).fit([d.activities for d in h.train[:20]])
+    dyn = dynamics_for(model)
+    seen_new_run = seen_same_run = 0
+    for day in h.test[:2]:
+        cursor = dyn.start()
+        for t, a in enumerate(day.activities[:40]):
+            key = dyn.key(cursor)
+            for b in model.classes_:
+                assert dyn.child_key(cursor, key, t, b) == dyn.key(dyn.advance(cursor, t, b))
+                same = t > 0 and b == day.activities[t - 1]
+                seen_same_run += same
+                seen_new_run += not same
+            cursor = dyn.advance(cursor, t, a)
+    assert seen_same_run and seen_new_run

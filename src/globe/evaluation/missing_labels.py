@@ -41,6 +41,7 @@ from globe.data.records import Day, Household
 from globe.errors import ConfigError
 from globe.evaluation import report
 from globe.evaluation.metrics import f1, log_loss
+from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
 from globe.evaluation.tuning import Selection, folds, grid, select, tuned_models
 from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
@@ -75,7 +76,20 @@ def beliefs(activity: NextActivityModel, emission: MovementEmission | None, conf
     flt = assembly.activity_filter(activity, emission, config.filter)
     nowcast = config.sequences.alignment == "previous"
     predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast)
+    assert predictive is not None
     return predictive, now if now is not None else predictive
+
+
+def object_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
+                   visible: Sequence[bool], objects: Sequence[str]) -> list[dict[str, float]]:
+    """The second half of :func:`beliefs` only (the same numbers; the activity question's
+    distributions are not mixed when a nowcast answers the object questions)."""
+    flt = assembly.activity_filter(activity, emission, config.filter)
+    nowcast = config.sequences.alignment == "previous"
+    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast, predictive=not nowcast)
+    out = now if nowcast else predictive
+    assert out is not None
+    return out
 
 
 # -- choosing the movement evidence on training days --------------------------------------------
@@ -108,7 +122,7 @@ def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], li
     true: list[str] = []
     pred: list[str] = []
     for day in days:
-        _, objects = beliefs(model.activity, model.emission, model.config, day, [False] * len(day), model.household.objects)
+        objects = object_beliefs(model.activity, model.emission, model.config, day, [False] * len(day), model.household.objects)
         ev = evaluate_days(model.household, [day], _FixedScan(model.activity, objects), model.chooser,
                            alignment=model.config.sequences.alignment)
         true.extend(r.true for r in ev.objects)
@@ -116,17 +130,34 @@ def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], li
     return true, pred
 
 
+def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
+    """The movement evidence's search space, simplest first (ties go to the first listed)."""
+    return grid({"boundary": fc.emission_boundaries, "previous_share": fc.emission_previous_shares,
+                 "weight": fc.emission_weights})
+
+
+def score_filter_candidates(household: Household, config: GlobeConfig, models: ModelConfig,
+                            candidates: Sequence[dict[str, Any]]) -> Selection:
+    """:func:`tune_filter` over ``candidates`` only (each one's score does not depend on the
+    others, so a search split into parts and joined by :func:`join_selections` is the same)."""
+    memo: dict = {}
+    return select(list(household.train), list(candidates), lambda p: _FoldFilter(household, config, models, p, memo),
+                  _hidden_fold, config.selection.folds)
+
+
+def join_selections(parts: Sequence[Selection]) -> Selection:
+    """One search from searches over consecutive parts of its candidate list (the first best)."""
+    scores = [ps for part in parts for ps in part.scores]
+    best = max(scores, key=lambda ps: ps[1])[0] if scores else {}
+    return Selection(dict(best), scores, sum(part.seconds for part in parts))
+
+
 def tune_filter(household: Household, config: GlobeConfig, models: ModelConfig) -> Selection:
     """The movement evidence (move rates by activity change or not, share credited to the earlier
     activity, weight) with the best object F1 under the protocol on held-out training days with
     no activity labels at all (the case the evidence is for); ties go to the first listed
     candidate, so the simpler evidence (no change-dependent rates) wins them."""
-    fc = config.filter
-    candidates = grid({"boundary": fc.emission_boundaries, "previous_share": fc.emission_previous_shares,
-                       "weight": fc.emission_weights})
-    memo: dict = {}
-    return select(list(household.train), candidates, lambda p: _FoldFilter(household, config, models, p, memo),
-                  _hidden_fold, config.selection.folds)
+    return score_filter_candidates(household, config, models, filter_candidates(config.filter))
 
 
 # -- evaluation ---------------------------------------------------------------------------------
@@ -173,11 +204,13 @@ class FilterSetup:
     train_s: float
 
 
-def setup_household(household: Household, config: GlobeConfig, cache: dict | None = None) -> FilterSetup:
+def setup_household(household: Household, config: GlobeConfig, cache: dict | None = None,
+                    selection: Selection | None = None) -> FilterSetup:
     """Choose the models on training days (cached in ``cache`` like the main job's), fit them on
-    all training days, and fit the chosen movement emission."""
+    all training days, and fit the chosen movement emission (``selection``: the evidence
+    already chosen by :func:`tune_filter`)."""
     models, _ = tuned_models(household, config, "routine", {} if cache is None else cache)
-    selection = tune_filter(household, config, models)
+    selection = tune_filter(household, config, models) if selection is None else selection
     started = time.perf_counter()
     fitted = assembly.fit_household(household, config.model_copy(update={"models": models}))
     emission = assembly.movement_emission(config.filter, **selection.best).fit(household.train, household.objects)
@@ -298,18 +331,26 @@ def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day], mas
         from globe.evaluation import lookahead as lk  # noqa: F401
     except ImportError:  # pragma: no cover - the lookahead part ships separately
         return None
-    h, la = setup.household, config.lookahead
+    la = config.lookahead
     threshold = _lookahead_threshold(setup, config, cache, fraction)
-    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la)
-    forecaster = cache.get(key)
-    if forecaster is None:  # over the filter's own activity model (its distributions are shared)
-        movements = assembly.movement_model(la, True, False).fit(h.train, h.objects)
-        forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
-                                             max_paths=la.max_paths)
+    forecaster = _forecaster(setup, config, cache)
     run = filtered_lookahead(forecaster, setup, config.filter, days, masks, la.horizons, la.first_reference,
                              la.last_reference)
     counts = [p.counts(threshold) for p in run.pairs]
     return tuple(c.f1 for c in counts), tuple(float(a) for a in run.activity_accuracy())
+
+
+def _forecaster(setup: FilterSetup, config: GlobeConfig, cache: dict) -> Forecaster:
+    """The lookahead's forecaster over the filter's own activity model (memoised: its
+    distributions are shared across label shares)."""
+    h, la = setup.household, config.lookahead
+    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la)
+    forecaster = cache.get(key)
+    if forecaster is None:
+        movements = assembly.movement_model(la, True, False).fit(h.train, h.objects)
+        forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
+                                             max_paths=la.max_paths)
+    return forecaster
 
 
 def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict, fraction: float = 1.0) -> float:
@@ -378,19 +419,33 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
     point of ``globe reproduce``; ``cache`` shares the main job's cross-validated model choices)."""
     fractions = check_fractions(config.filter.fractions)
     cache = {} if cache is None else cache
-    results: list[FractionResult] = []
+    workers = worker_count(config.evaluation.workers)
+    models = {h.name: tuned_models(h, config, "routine", cache)[0] for h in households}
+    # 1. The movement evidence of every household, its candidates split over the processes.
+    candidates = filter_candidates(config.filter)
+    size = -(-len(candidates) // max(1, min(workers, len(candidates))))
+    parts = [(h, candidates[i:i + size]) for h in households for i in range(0, len(candidates), size)]
+    if progress:
+        progress("missing labels: choosing the filter's movement evidence (cross-validation, in parallel)")
+    scored = run_forked(lambda i: score_filter_candidates(parts[i][0], config, models[parts[i][0].name], parts[i][1]),
+                        len(parts), workers)
+    setups: dict[str, FilterSetup] = {}
     selection_rows: list[dict] = []
     for h in households:
-        if progress:
-            progress(f"missing labels: household {h.name}: choosing the filter's movement evidence")
-        setup = setup_household(h, config, cache)
-        for params, score in setup.selection.scores:
+        selection = join_selections([sel for (hh, _), sel in zip(parts, scored) if hh is h])
+        setup = setups[h.name] = setup_household(h, config, cache, selection)
+        for params, score in selection.scores:
             selection_rows.append({"household": h.name, "params": params, "cv_object_f1_no_labels": round(score, 4),
-                                   "chosen": params == setup.selection.best})
-        for fraction in fractions:
-            if progress:
-                progress(f"missing labels: household {h.name}: {fraction:.0%} of labels")
-            results.append(evaluate_fraction(setup, config, fraction, lookahead=lookahead, cache=cache))
+                                   "chosen": params == selection.best})
+        if lookahead:  # shared by every label share: made once, before the processes fork
+            _lookahead_threshold(setup, config, cache)
+            _forecaster(setup, config, cache)
+    # 2. Every (household, label share) on its own.
+    tasks = [(setups[h.name], fraction) for h in households for fraction in fractions]
+    if progress:
+        progress(f"missing labels: {len(tasks)} households x label shares (in parallel)")
+    results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], lookahead=lookahead, cache=cache),
+                         len(tasks), workers)
     return MissingLabelResults(missing_label_rows(results, config.lookahead.horizons), selection_rows, results)
 
 

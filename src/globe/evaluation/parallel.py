@@ -48,6 +48,31 @@ def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list
         return list(pool.map(fn, tasks))
 
 
+_FORKED: Callable[[int], object] | None = None
+
+
+def _call_forked(i: int) -> object:
+    assert _FORKED is not None
+    return _FORKED(i)
+
+
+def run_forked(fn: Callable[[int], R], n: int, workers: int) -> list[R]:
+    """``[fn(i) for i in range(n)]``, on up to ``workers`` forked processes that inherit ``fn``
+    (a closure over fitted models and caches: nothing is pickled but the index and the
+    result). In this process when 1 worker, a single task, or no fork on this platform."""
+    global _FORKED
+    if workers <= 1 or n <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return [fn(i) for i in range(n)]
+    if _FORKED is not None:  # already inside a forked run: no nested pools
+        return [fn(i) for i in range(n)]
+    _FORKED = fn
+    try:
+        with ProcessPoolExecutor(max_workers=min(workers, n), mp_context=multiprocessing.get_context("fork")) as pool:
+            return list(pool.map(_call_forked, range(n)))  # type: ignore[arg-type]
+    finally:
+        _FORKED = None
+
+
 def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
     household, config, family = task
     return tuned_models(household, config, family, {})

@@ -253,8 +253,9 @@ class _Dynamics:
             out = self._child_keys[memo_key] = self.key(self.advance(cursor, step, activity))
         return out
 
-    def distribution(self, cursor: Any, step: int) -> dict[str, float]:
-        key = (self.key(cursor), step)
+    def distribution(self, cursor: Any, step: int, key: Hashable = None) -> dict[str, float]:
+        """P(a_step | the history ``cursor``); ``key`` is ``key(cursor)`` when the caller has it."""
+        key = (self.key(cursor) if key is None else key, step)
         dist = self._memo.get(key)
         if dist is None:
             if len(self._memo) >= 200_000:
@@ -304,6 +305,18 @@ class _RoutineDynamics(_Dynamics):
         if len(runs) < order:
             tokens = ((RUN_DAY_START,) + tokens)[-order:]
         return tokens, runs[-1][1] if runs else -1
+
+    def child_key(self, cursor: Any, key: Hashable, step: int, activity: str) -> Hashable:
+        """``key(advance(cursor, step, activity))`` from ``key`` alone (tested against it): the
+        same key when the current run goes on, else the last ``order`` labels with ``activity``
+        appended and the run starting at ``step``."""
+        order = self.model.order
+        if order < 1:
+            return super().child_key(cursor, key, step, activity)
+        tokens, start = key  # type: ignore[misc]
+        if start >= 0 and tokens[-1] == activity:
+            return key
+        return (tokens + (activity,))[-order:], step
 
     def _compute(self, cursor: Any, step: int) -> dict[str, float]:
         runs, state, matched = cursor
@@ -416,8 +429,8 @@ class ActivityFilter:
         self._beam = [Hypothesis(1.0, (), start)]
         self._keys: list[Hashable] = [self._dynamics.key(start)]
 
-    def _next(self, h: Hypothesis) -> dict[str, float]:
-        dist = self._dynamics.distribution(h.cursor, len(h.history))
+    def _next(self, h: Hypothesis, key: Hashable = None) -> dict[str, float]:
+        dist = self._dynamics.distribution(h.cursor, len(h.history), key)
         if not dist and h.history:  # a model with nothing to say: the activity stays the same
             return {h.history[-1]: 1.0}
         return dist
@@ -425,8 +438,8 @@ class ActivityFilter:
     def predictive(self) -> dict[str, float]:
         """P(the activity at the next step | everything seen so far), mixed over the beam."""
         out: dict[str, float] = {}
-        for h in self._beam:
-            for a, p in self._next(h).items():
+        for h, key in zip(self._beam, self._keys):
+            for a, p in self._next(h, key).items():
                 out[a] = out.get(a, 0.0) + h.weight * p
         total = sum(out.values())
         return {a: p / total for a, p in out.items()} if total > 0 else {}
@@ -462,7 +475,7 @@ class ActivityFilter:
         best, lowest = 0.0, self.min_weight
         bounded = self._bounded()
         for h, key in zip(self._beam, self._keys):
-            dist = self._next(h)
+            dist = self._next(h, key)
             if label is not None:
                 dist = {label: dist.get(label, 0.0)}
             prev = h.history[-1] if h.history else None
@@ -485,7 +498,7 @@ class ActivityFilter:
             # Nothing kept: the label (or movement) is impossible under the model. The evidence
             # wins over the model: keep the histories' weights and extend them as observed.
             for h, key in zip(self._beam, self._keys):
-                dist = self._next(h)
+                dist = self._next(h, key)
                 guess = max(dist, key=lambda k: dist[k]) if dist else (h.history[-1] if h.history else None)
                 chosen = label if label is not None else guess
                 if chosen is not None:
@@ -545,19 +558,22 @@ class ActivityFilter:
 
 
 def filtered_beliefs(flt: ActivityFilter, day: Day, visible: Sequence[bool], objects: Sequence[str], *,
-                     nowcast: bool = False) -> tuple[list[dict[str, float]], list[dict[str, float]] | None]:
+                     nowcast: bool = False, predictive: bool = True
+                     ) -> tuple[list[dict[str, float]] | None, list[dict[str, float]] | None]:
     """Run ``flt`` over ``day`` (from a reset). Returns, for every step t, the predictive
-    P(a_t | visible labels of steps < t, movements seen at steps < t) and, with ``nowcast``,
-    P(a_t | the same and the movements seen at step t) (what is known about the activity under
-    way once the objects' places at t are seen, before its label would arrive)."""
+    P(a_t | visible labels of steps < t, movements seen at steps < t) (None without
+    ``predictive``: mixing it costs a third of the filter) and, with ``nowcast``, P(a_t | the same
+    and the movements seen at step t) (what is known about the activity under way once the
+    objects' places at t are seen, before its label would arrive)."""
     if len(visible) != len(day):
         raise ValueError(f"the label mask has {len(visible)} steps; the day {day.name} has {len(day)}")
     flt.reset()
     moved = moved_objects(day, objects)
-    predictive: list[dict[str, float]] = []
+    ahead: list[dict[str, float]] | None = [] if predictive else None
     now: list[dict[str, float]] | None = [] if nowcast else None
     for t in range(len(day)):
-        predictive.append(flt.predictive())
+        if ahead is not None:
+            ahead.append(flt.predictive())
         if now is not None and not visible[t]:  # the update itself is the nowcast
             flt.update(t, None, moved[t])
             now.append(flt.posterior())
@@ -567,7 +583,7 @@ def filtered_beliefs(flt: ActivityFilter, day: Day, visible: Sequence[bool], obj
             peek.update(t, None, moved[t])
             now.append(peek.posterior())
         flt.update(t, day.activities[t] if visible[t] else None, moved[t])
-    return predictive, now
+    return ahead, now
 
 
 def filtered_scan(model: NextActivityModel, emission: MovementEmission | None, day: Day, visible: Sequence[bool],
@@ -575,7 +591,9 @@ def filtered_scan(model: NextActivityModel, emission: MovementEmission | None, d
     """For every step t of ``day``: P(a_t | the visible labels and the movements seen at steps
     0..t-1). With every label visible this is exactly ``model.scan_proba(day.activities)``."""
     flt = ActivityFilter(model, emission, max_hypotheses=max_hypotheses, min_weight=min_weight)
-    return filtered_beliefs(flt, day, visible, objects)[0]
+    predictive, _ = filtered_beliefs(flt, day, visible, objects)
+    assert predictive is not None
+    return predictive
 
 
 def label_mask(n: int, fraction: float, seed: Sequence[int]) -> list[bool]:
