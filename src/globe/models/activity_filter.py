@@ -313,6 +313,8 @@ class _RoutineDynamics(_Dynamics):
         order = self.model.order
         if order < 1:
             return super().child_key(cursor, key, step, activity)
+        tokens: tuple[str, ...]
+        start: int
         tokens, start = key  # type: ignore[misc]
         if start >= 0 and tokens[-1] == activity:
             return key
