@@ -9,7 +9,7 @@ its threshold follows from the configured costs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -19,6 +19,7 @@ from globe.data.records import Household
 from globe.evaluation import report
 from globe.evaluation.fetch import FETCH_COLUMNS, FetchEvaluation, evaluate_fetch, fetch_rows, lead_time_rows
 from globe.evaluation.lookahead import LOOKAHEAD_COLUMNS, LookaheadResult, choose_settings, evaluate_lookahead, lookahead_rows
+from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_figure, lookahead_figure, save_figure
 from globe.evaluation.tuning import tuned_models
 
@@ -44,30 +45,54 @@ class AnticipationResult:
 def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | Sequence[Household],
                      progress: Callable[[str], None] | None = None, cache: dict | None = None) -> AnticipationResult:
     """Lookahead for every configured method and the fetch policy on every household's test
-    days. ``cache`` may be the main job's model-selection cache (so the routine CV runs once)."""
+    days. ``cache`` may be the main job's model-selection cache (so the routine CV runs once).
+
+    Each (household, method) runs on its own process (``evaluation.workers``; the fetch policy
+    with its method's lookahead, whose forecaster it shares). The lookahead's cross-validated
+    pairs come back into ``cache``, where the missing-label runs look for them."""
     homes = list(households.values()) if isinstance(households, Mapping) else list(households)
     cache = {} if cache is None else cache
-    say = progress or (lambda _msg: None)
+    policy_method = config.policy.method
+    tasks: list[tuple[Household, str | None]] = [(h, m) for h in homes for m in config.lookahead.methods]
+    tasks += [(h, None) for h in homes if policy_method not in config.lookahead.methods]
+    if progress:
+        progress(f"lookahead and fetch policy: {len(tasks)} households x methods (in parallel)")
+    before = set(cache)
+
+    def run(i: int) -> tuple[LookaheadResult | None, FetchEvaluation | None, dict]:
+        h, method = tasks[i]
+        look = None
+        if method is not None:
+            look = evaluate_lookahead(h, config, method_models(method, h, config, cache), method, cache)
+        fetch = _fetch(h, config, cache, look) if method in (None, policy_method) else None
+        shared = {k: v for k, v in cache.items() if k not in before and isinstance(k, tuple) and k[0] == "lookahead_cv"}
+        return None if look is None else replace(look, forecaster=None), fetch, shared
+
     look, fetch = [], []
-    for h in homes:
-        for method in config.lookahead.methods:
-            say(f"lookahead: {method}, household {h.name}")
-            look.append(evaluate_lookahead(h, config, method_models(method, h, config, cache), method, cache))
-        say(f"fetch policy: household {h.name}")
-        models = method_models(config.policy.method, h, config, cache)
-        same = next((r for r in look if r.household == h.name and r.method == config.policy.method), None)
-        if same is not None and same.forecaster is not None:  # the lookahead's forecaster (its paths are shared)
-            forecaster = same.forecaster
-        else:
-            if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
-                best = choose_settings(h, config, models, cache=cache).best
-                run_end, run_memory = bool(best["run_end"]), bool(best["run_memory"])
-            else:
-                run_end, run_memory = same.run_end, same.run_memory
-            forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory).forecaster
-        policy = assembly.fetch_policy(forecaster, config.policy, config.service.step_minutes)
-        fetch.append(evaluate_fetch(policy, h, h.test, config.policy.curve_ratios))
+    for result, evaluation, shared in run_forked(run, len(tasks), worker_count(config.evaluation.workers)):
+        cache.update(shared)
+        look += [result] if result is not None else []
+        fetch += [evaluation] if evaluation is not None else []
+    order = {h.name: i for i, h in enumerate(homes)}
+    fetch.sort(key=lambda e: order[e.household])
     return AnticipationResult(tuple(look), tuple(fetch), config)
+
+
+def _fetch(h: Household, config: GlobeConfig, cache: dict, same: LookaheadResult | None) -> FetchEvaluation:
+    """The fetch policy on ``h``'s test days, over ``same`` (the lookahead of the policy's method,
+    when it ran) or a forecaster with settings chosen on training days."""
+    models = method_models(config.policy.method, h, config, cache)
+    if same is not None and same.forecaster is not None:  # the lookahead's forecaster (its paths are shared)
+        forecaster = same.forecaster
+    else:
+        if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
+            best = choose_settings(h, config, models, cache=cache).best
+            run_end, run_memory = bool(best["run_end"]), bool(best["run_memory"])
+        else:
+            run_end, run_memory = same.run_end, same.run_memory
+        forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory).forecaster
+    policy = assembly.fetch_policy(forecaster, config.policy, config.service.step_minutes)
+    return evaluate_fetch(policy, h, h.test, config.policy.curve_ratios)
 
 
 def _ratio(config: GlobeConfig) -> float:
