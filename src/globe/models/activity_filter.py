@@ -30,6 +30,7 @@ import math
 import weakref
 from collections import Counter
 from dataclasses import dataclass
+from itertools import repeat
 from typing import Any, Callable, Collection, Hashable, Protocol, Sequence
 
 from globe.data.records import Day
@@ -52,8 +53,11 @@ def moved_objects(day: Day, objects: Sequence[str]) -> list[frozenset[str]]:
     out: list[frozenset[str]] = [frozenset()]
     for t in range(1, len(day)):
         before, after = day.locations[t - 1], day.locations[t]
-        out.append(frozenset() if before == after else frozenset(o for j, o in enumerate(objects) if before[j] != after[j]))
+        out.append(_EMPTY if before == after else frozenset(o for o, b, a in zip(objects, before, after) if b != a))
     return out
+
+
+_EMPTY: frozenset[str] = frozenset()
 
 
 class MovementEmission(CountingModel):
@@ -107,18 +111,25 @@ class MovementEmission(CountingModel):
             self.overall_: Counter[str] = Counter()
         elif tuple(objects) != self.objects_:
             raise ConfigError("MovementEmission.partial_fit: the object columns differ from the ones it was fitted on")
+        steps, moves = self.steps_, self.moves_
         for day in days:
             self.training_data_.append(day.name)
             moved = moved_objects(day, self.objects_)
+            before, after = day.activities[:-1], day.activities[1:]
+            changed = [b != a for b, a in zip(before, after)]
+            self.transitions_ += len(before)
+            # every step counts under both attachments, with and without the change flag
+            steps.update(zip(repeat(0), before))
+            steps.update(zip(repeat(0), before, changed))
+            steps.update(zip(repeat(1), after))
+            steps.update(zip(repeat(1), after, changed))
             for t in range(1, len(day)):
-                self.transitions_ += 1
-                self.overall_.update(moved[t])
-                changed = day.activities[t - 1] != day.activities[t]
-                for part, a in enumerate((day.activities[t - 1], day.activities[t])):
-                    for key in ((part, a), (part, a, changed)):
-                        self.steps_[key] += 1
+                if moved[t]:  # most steps move nothing
+                    self.overall_.update(moved[t])
+                    c = changed[t - 1]
+                    for key in ((0, before[t - 1]), (0, before[t - 1], c), (1, after[t - 1]), (1, after[t - 1], c)):
                         for o in moved[t]:
-                            self.moves_[(*key, o)] += 1
+                            moves[(*key, o)] += 1
         self.activities_ = tuple(sorted({key[1] for key in self.steps_}))
         self.rate_ = {o: (self.overall_[o] + 1) / (self.transitions_ + 2) for o in self.objects_}
         self._base: dict[tuple, float] = {}
@@ -476,26 +487,48 @@ class ActivityFilter:
         # min_weight of the best one so far cannot reach the floor below: it is not scored.
         best, lowest = 0.0, self.min_weight
         bounded = self._bounded()
+        next_of, grow = self._next, grown.append
         for h, key in zip(self._beam, self._keys):
-            dist = self._next(h, key)
+            dist = next_of(h, key)
             if label is not None:
                 dist = {label: dist.get(label, 0.0)}
             prev = h.history[-1] if h.history else None
+            hw = h.weight
+            if evidence is None:
+                for a, p in dist.items():
+                    w = hw * p
+                    if w < lowest * best:
+                        continue
+                    if w > 0.0:
+                        grow((w, h, key, a))
+                        if w > best:
+                            best = w
+                continue
+            row = evidence(prev)
+            prev_bounded = prev is None or prev in bounded
             for a, p in dist.items():
-                w = h.weight * p
-                if w < lowest * best and (evidence is None or (a in bounded and (prev is None or prev in bounded))):
+                w = hw * p
+                if w < lowest * best and prev_bounded and a in bounded:
                     continue
-                if evidence is not None and w > 0.0:
-                    w *= evidence(prev, a)
                 if w > 0.0:
-                    grown.append((w, h, key, a))
+                    w *= row[a]
+                if w > 0.0:
+                    grow((w, h, key, a))
                     if w > best:
                         best = w
         # Extensions far below the best cannot reach min_weight of the total: skip building them.
-        floor = self.min_weight * max((g[0] for g in grown), default=0.0)
+        floor = self.min_weight * best
+        child_key = self._dynamics.child_key
         for w, h, key, a in grown:
             if w >= floor:
-                self._add(merged, h, key, a, w)
+                child = child_key(h.cursor, key, len(h.history), a)
+                slot = merged.get(child)
+                if slot is None:
+                    merged[child] = [w, h, a, w]
+                else:  # the most probable member represents the state (the first among equals)
+                    slot[0] += w
+                    if w > slot[3]:
+                        slot[1], slot[2], slot[3] = h, a, w
         if not merged:
             # Nothing kept: the label (or movement) is impossible under the model. The evidence
             # wins over the model: keep the histories' weights and extend them as observed.
@@ -539,24 +572,40 @@ class ActivityFilter:
             if w > slot[3]:
                 slot[1], slot[2], slot[3] = h, a, w
 
-    def _evidence(self, moved: frozenset[str]) -> Callable[[str | None, str], float] | None:
+    def _evidence(self, moved: frozenset[str]) -> Callable[[str | None], "_EvidenceRow"] | None:
+        """For the set ``moved``: a function from the previous activity to its row of likelihoods
+        by current activity (relative to an upper bound, so that weights stay in floating-point
+        range), filled on first use and shared across steps and days by the emission's memo."""
         em = self.emission
         if em is None:
             return None
         activities = getattr(self.model, "classes_", ())
-        # Relative to an upper bound so that weights stay in floating-point range.
         if isinstance(em, MovementEmission):
-            top, cache = em.evidence(activities, moved)
+            top, rows = em.evidence(activities, moved)
         else:
-            top, cache = em.upper_bound(activities, moved), {}
+            top, rows = em.upper_bound(activities, moved), {}
 
-        def likelihood(prev: str | None, current: str) -> float:
-            v = cache.get((prev, current))
-            if v is None:
-                v = cache[(prev, current)] = math.exp(em.log_likelihood(prev, current, moved) - top)
-            return v
+        def row(prev: str | None) -> _EvidenceRow:
+            out = rows.get(prev)
+            if out is None:
+                out = rows[prev] = _EvidenceRow(em, prev, moved, top)
+            return out
 
-        return likelihood
+        return row
+
+
+class _EvidenceRow(dict):
+    """exp(log P(moved | prev, current) - top) by ``current``, computed on first lookup."""
+
+    __slots__ = ("emission", "prev", "moved", "top")
+
+    def __init__(self, emission: Any, prev: str | None, moved: frozenset[str], top: float) -> None:
+        super().__init__()
+        self.emission, self.prev, self.moved, self.top = emission, prev, moved, top
+
+    def __missing__(self, current: str) -> float:
+        v = self[current] = math.exp(self.emission.log_likelihood(self.prev, current, self.moved) - self.top)
+        return v
 
 
 def filtered_beliefs(flt: ActivityFilter, day: Day, visible: Sequence[bool], objects: Sequence[str], *,
