@@ -15,7 +15,7 @@ def test_results_folder(households, config, tmp_path):
     })
     messages: list[str] = []
     result = run_anticipation(cfg, {"A": households["A"]}, progress=messages.append)
-    assert messages == ["lookahead: persistence, household A", "fetch policy: household A"]
+    assert messages == ["lookahead and fetch policy: 1 households x methods (in parallel)"]
     paths = write_anticipation_results(tmp_path, result)
     assert all(p.exists() and p.stat().st_size > 0 for p in paths)
     with (tmp_path / "lookahead.csv").open() as fh:
