@@ -61,7 +61,9 @@ def _call_forked(i: int) -> object:
 def run_forked(fn: Callable[[int], R], n: int, workers: int) -> list[R]:
     """``[fn(i) for i in range(n)]``, on up to ``workers`` forked processes that inherit ``fn``
     (a closure over fitted models and caches: nothing is pickled but the index and the
-    result). In this process when 1 worker, a single task, or no fork on this platform."""
+    result). In this process when 1 worker, a single task, or no fork on this platform; inside
+    a forked task, nested calls run in that task's process. One call at a time per process
+    (the closure is handed to the workers through a module global)."""
     global _FORKED
     if workers <= 1 or n <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         return [fn(i) for i in range(n)]
