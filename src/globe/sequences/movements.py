@@ -44,12 +44,13 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
 def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment = "previous") -> list[MovementEvent]:
     """Every movement of the day, by step, then by column order (deterministic)."""
     events: list[MovementEvent] = []
+    rows = day.locations
     for t in range(1, len(day)):
-        before, after = day.locations[t - 1], day.locations[t]
-        if before == after:
+        before, after = rows[t - 1], rows[t]
+        if before == after:  # most steps: nothing moved
             continue
         s = activity_step_for(day.activities, t, alignment)
-        for j, obj in enumerate(objects):
-            if before[j] != after[j]:
-                events.append(MovementEvent(day.name, t, day.minutes[t], obj, before[j], after[j], s, day.activities[s]))
+        name, minute, activity = day.name, day.minutes[t], day.activities[s]
+        events.extend(MovementEvent(name, t, minute, obj, b, a, s, activity)
+                      for obj, b, a in zip(objects, before, after) if b != a)
     return events
