@@ -98,13 +98,16 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
     caches: dict[tuple[str, float], dict] = {(CLEAN, 0.0): {} if clean_cache is None else clean_cache}
     memo: dict[tuple[str, float, str, float], list[Evaluation]] = {}
 
+    def compute(data: Dataset, level: float, method: str, threshold: float) -> list[Evaluation]:
+        run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
+        return evaluate_dataset(run_cfg, data, method, backend, caches.setdefault((data.name, level), {}))
+
     def evaluated(data: Dataset, level: float, method: str, threshold: float) -> list[Evaluation]:
         key = (data.name, level, method, threshold)
         if key not in memo:
             if progress:
                 progress(f"{data.name} (train level {level:g}): {method}, d = {threshold:g}")
-            run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
-            memo[key] = evaluate_dataset(run_cfg, data, method, backend, caches.setdefault((data.name, level), {}))
+            memo[key] = compute(data, level, method, threshold)
         return memo[key]
 
     res = RobustnessResults([], [], [], [])
@@ -124,7 +127,7 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
     light = [item for key, item in plan.items() if not METHODS[item[2]].needs_llm and key not in memo]
     if progress and light:
         progress(f"robustness: {len(light)} evaluations without the LLM (in parallel)")
-    for (data, level, method, d), evals in zip(light, run_forked(lambda i: evaluated(*light[i]), len(light),
+    for (data, level, method, d), evals in zip(light, run_forked(lambda i: compute(*light[i]), len(light),
                                                                    worker_count(cfg.evaluation.workers))):
         memo[(data.name, level, method, d)] = evals
     for data, level in datasets:
