@@ -161,7 +161,7 @@ class EvaluationConfig(_Section):
         4, ge=1, le=50, description="recent runs shown to the LLM by the personalised rows (globe_personal, globe_routine)"
     )
     workers: int | None = Field(
-        None, ge=1, le=256, description="processes for the LLM-free work of the main job: cross-validations, evaluations without the LLM, lookahead, missing labels (None = one per core)"
+        None, ge=1, le=256, description="processes for the LLM-free work of the main job: cross-validations, lookahead, missing labels (None = one per core)"
     )
 
 

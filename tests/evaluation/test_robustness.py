@@ -40,11 +40,3 @@ def test_suite_scores_all_and_routine_events(setup, tmp_path):
     assert {(r["definition"], r["consistency"]) for r in res.consistency} == {
         (d, g) for d in ("start_time", "object_sequence") for g in ("more", "moderate", "less")}
     assert sorted(r["train_level"] for r in res.train_level) == [0.5, 1.0]
-
-
-def test_suite_on_several_processes_equals_one_process(setup):
-    cfg, small, root = setup
-    one = run_suite(cfg.with_overrides({"evaluation.workers": 1}), [small], root, None, methods=("ngram", "routine"))
-    two = run_suite(cfg.with_overrides({"evaluation.workers": 2}), [small], root, None, methods=("ngram", "routine"))
-    assert one == two
-    assert {r["method"] for r in one.robustness} == {"ngram", "routine"} and len(one.train_level) == 2

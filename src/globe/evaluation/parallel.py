@@ -4,8 +4,9 @@ The main job's model selection (k-fold cross-validation per household and model 
 counting and scoring, independent across households and datasets, and most of the job's CPU
 time once LLM answers are cached. It runs here on ``evaluation.workers`` processes (default: the
 machine's cores), before the LLM is asked anything, so the two never compete for cores. So do the
-other LLM-free parts (:func:`run_forked`): the robustness suite's evaluations without the LLM,
-the lookahead and fetch policy per (household, method), the missing-label runs.
+other LLM-free parts (:func:`run_forked`): the lookahead and fetch policy per (household,
+method) and the missing-label runs. (The robustness suite's LLM-free rows were tried there too
+and gained nothing: the parent must fit the same models again for the gated rows.)
 Results are identical to running in one process: each task is deterministic and the parent
 stores them under its own cache keys.
 """

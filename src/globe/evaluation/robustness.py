@@ -20,7 +20,7 @@ from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS, families
 from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1, mean_present
-from globe.evaluation.parallel import precompute_selections, run_forked, worker_count
+from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
 from globe.noise.dataset import CLEAN, Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
@@ -98,48 +98,34 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
     caches: dict[tuple[str, float], dict] = {(CLEAN, 0.0): {} if clean_cache is None else clean_cache}
     memo: dict[tuple[str, float, str, float], list[Evaluation]] = {}
 
-    def compute(data: Dataset, level: float, method: str, threshold: float) -> list[Evaluation]:
-        run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
-        return evaluate_dataset(run_cfg, data, method, backend, caches.setdefault((data.name, level), {}))
-
     def evaluated(data: Dataset, level: float, method: str, threshold: float) -> list[Evaluation]:
         key = (data.name, level, method, threshold)
         if key not in memo:
             if progress:
                 progress(f"{data.name} (train level {level:g}): {method}, d = {threshold:g}")
-            memo[key] = compute(data, level, method, threshold)
+            run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
+            memo[key] = evaluate_dataset(run_cfg, data, method, backend, caches.setdefault((data.name, level), {}))
         return memo[key]
 
     res = RobustnessResults([], [], [], [])
     loaded: dict = {}  # households read from the noise folders, shared by the datasets built from them
     datasets = [(clean_dataset(clean), 0.0)] + [
         (noisy_dataset(noise_root, t, n.train_level, n.test_level, names, loaded), n.train_level) for t in n.types]
-    thresholds = dict.fromkeys((cfg.gate.threshold, *n.thresholds)) if backend is not None else (cfg.gate.threshold,)
-    ablation = [(noisy_dataset(noise_root, t, level, n.test_level, names, loaded), level) for t in n.types for level in n.levels]
     # every dataset's cross-validations at once, on several processes
     precompute_selections(cfg, [(h, caches.setdefault((data.name, level), {})) for data, level in datasets
                                 for h in data.households], families(methods))
-    # the evaluations that need no LLM too (they only count and score); the parent asks the LLM
-    plan = {(data.name, level, method, d): (data, level, method, d) for data, level in datasets
-            for method, d in [(m, cfg.gate.threshold) for m in methods] + [(gate_method, d) for d in thresholds]}
-    plan.update({(data.name, level, method, cfg.gate.threshold): (data, level, method, cfg.gate.threshold)
-                 for data, level in ablation for method in dict.fromkeys(("ngram", gate_method))})
-    light = [item for key, item in plan.items() if not METHODS[item[2]].needs_llm and key not in memo]
-    if progress and light:
-        progress(f"robustness: {len(light)} evaluations without the LLM (in parallel)")
-    for (data, level, method, d), evals in zip(light, run_forked(lambda i: compute(*light[i]), len(light),
-                                                                   worker_count(cfg.evaluation.workers))):
-        memo[(data.name, level, method, d)] = evals
     for data, level in datasets:
         for method in methods:
             evals = evaluated(data, level, method, cfg.gate.threshold)
             res.robustness.append(score_row(data.name, method, evals))
             for definition, by_home in groups.items():
                 res.consistency.extend(consistency_rows(data.name, method, evals, by_home, definition))
-        for d in thresholds:
+        for d in dict.fromkeys((cfg.gate.threshold, *n.thresholds)) if backend is not None else (cfg.gate.threshold,):
             res.threshold.append(score_row(data.name, gate_method, evaluated(data, level, gate_method, d), threshold=d))
-    for t, (data, level) in zip([t for t in n.types for _ in n.levels], ablation):
-        for method in dict.fromkeys(("ngram", gate_method)):
-            res.train_level.append(score_row(t, method, evaluated(data, level, method, cfg.gate.threshold), train_level=level))
+    for t in n.types:
+        for level in n.levels:
+            data = noisy_dataset(noise_root, t, level, n.test_level, names, loaded)
+            for method in dict.fromkeys(("ngram", gate_method)):
+                res.train_level.append(score_row(t, method, evaluated(data, level, method, cfg.gate.threshold), train_level=level))
     res.threshold.sort(key=lambda r: (r["dataset"], r["threshold"]))
     return res
