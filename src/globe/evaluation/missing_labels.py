@@ -66,6 +66,20 @@ def check_fractions(fractions: Sequence[float]) -> tuple[float, ...]:
     return tuple(fractions)
 
 
+def _filter_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
+                    visible: Sequence[bool], objects: Sequence[str], activity_question: bool
+                    ) -> tuple[list[dict[str, float]] | None, list[dict[str, float]]]:
+    """:func:`beliefs`; without ``activity_question`` the first part is None when a nowcast
+    answers the object questions (its mixture is not computed)."""
+    flt = assembly.activity_filter(activity, emission, config.filter)
+    nowcast = config.sequences.alignment == "previous"
+    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast,
+                                       predictive=activity_question or not nowcast)
+    for_objects = now if now is not None else predictive
+    assert for_objects is not None
+    return predictive, for_objects
+
+
 def beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
             visible: Sequence[bool], objects: Sequence[str]) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
     """Per step t of ``day``: the filter's P(a_t) for the activity question (labels and movements
@@ -73,23 +87,16 @@ def beliefs(activity: NextActivityModel, emission: MovementEmission | None, conf
     t+1 is credited to a_t (``sequences.alignment = "previous"``), so its object question may also
     use the places seen at t; under another alignment the object would be seen at t itself, so
     both questions get the predictive distribution."""
-    flt = assembly.activity_filter(activity, emission, config.filter)
-    nowcast = config.sequences.alignment == "previous"
-    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast)
+    predictive, for_objects = _filter_beliefs(activity, emission, config, day, visible, objects, True)
     assert predictive is not None
-    return predictive, now if now is not None else predictive
+    return predictive, for_objects
 
 
 def object_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
                    visible: Sequence[bool], objects: Sequence[str]) -> list[dict[str, float]]:
     """The second half of :func:`beliefs` only (the same numbers; the activity question's
     distributions are not mixed when a nowcast answers the object questions)."""
-    flt = assembly.activity_filter(activity, emission, config.filter)
-    nowcast = config.sequences.alignment == "previous"
-    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast, predictive=not nowcast)
-    out = now if nowcast else predictive
-    assert out is not None
-    return out
+    return _filter_beliefs(activity, emission, config, day, visible, objects, False)[1]
 
 
 # -- choosing the movement evidence on training days --------------------------------------------

@@ -46,8 +46,9 @@ def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list
     call into llama.cpp, whose threads the parent may hold."""
     if workers <= 1 or len(tasks) <= 1:
         return [fn(t) for t in tasks]
-    context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=context) as pool:
+    if "fork" in multiprocessing.get_all_start_methods():
+        return run_forked(lambda i: fn(tasks[i]), len(tasks), workers)
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=multiprocessing.get_context("spawn")) as pool:
         return list(pool.map(fn, tasks))
 
 

@@ -48,16 +48,16 @@ class NextActivityModel(Protocol):
     def predict_proba(self, history: Sequence[str]) -> dict[str, float]: ...
 
 
+_EMPTY: frozenset[str] = frozenset()
+
+
 def moved_objects(day: Day, objects: Sequence[str]) -> list[frozenset[str]]:
     """Per step, the objects whose location differs from the step before (empty at step 0)."""
-    out: list[frozenset[str]] = [frozenset()]
+    out: list[frozenset[str]] = [_EMPTY]
     for t in range(1, len(day)):
         before, after = day.locations[t - 1], day.locations[t]
         out.append(_EMPTY if before == after else frozenset(o for o, b, a in zip(objects, before, after) if b != a))
     return out
-
-
-_EMPTY: frozenset[str] = frozenset()
 
 
 class MovementEmission(CountingModel):
@@ -151,8 +151,9 @@ class MovementEmission(CountingModel):
         return other
 
     def evidence(self, activities: Collection[str], moved: frozenset[str]) -> tuple[float, dict]:
-        """(:meth:`upper_bound` over ``activities``, a memo of likelihoods relative to it) for
-        the set ``moved``: the same sets recur (mostly "nothing moved"), across steps and days."""
+        """(:meth:`upper_bound` over ``activities``, a memo of likelihood rows relative to it by
+        previous activity) for the set ``moved``: the same sets recur (mostly "nothing moved"),
+        across steps and days."""
         key = (tuple(activities), moved)
         out = self._evidence.get(key)
         if out is None:
@@ -493,22 +494,15 @@ class ActivityFilter:
             if label is not None:
                 dist = {label: dist.get(label, 0.0)}
             prev = h.history[-1] if h.history else None
+            row: dict[str, float]
+            if evidence is None:  # every extension keeps its weight (times 1.0, exactly)
+                row, prev_bounded, any_bounded = _UNIT, True, True
+            else:
+                row, prev_bounded, any_bounded = evidence(prev), prev is None or prev in bounded, False
             hw = h.weight
-            if evidence is None:
-                for a, p in dist.items():
-                    w = hw * p
-                    if w < lowest * best:
-                        continue
-                    if w > 0.0:
-                        grow((w, h, key, a))
-                        if w > best:
-                            best = w
-                continue
-            row = evidence(prev)
-            prev_bounded = prev is None or prev in bounded
             for a, p in dist.items():
                 w = hw * p
-                if w < lowest * best and prev_bounded and a in bounded:
+                if w < lowest * best and prev_bounded and (any_bounded or a in bounded):
                     continue
                 if w > 0.0:
                     w *= row[a]
@@ -518,17 +512,9 @@ class ActivityFilter:
                         best = w
         # Extensions far below the best cannot reach min_weight of the total: skip building them.
         floor = self.min_weight * best
-        child_key = self._dynamics.child_key
         for w, h, key, a in grown:
             if w >= floor:
-                child = child_key(h.cursor, key, len(h.history), a)
-                slot = merged.get(child)
-                if slot is None:
-                    merged[child] = [w, h, a, w]
-                else:  # the most probable member represents the state (the first among equals)
-                    slot[0] += w
-                    if w > slot[3]:
-                        slot[1], slot[2], slot[3] = h, a, w
+                self._add(merged, h, key, a, w)
         if not merged:
             # Nothing kept: the label (or movement) is impossible under the model. The evidence
             # wins over the model: keep the histories' weights and extend them as observed.
@@ -592,6 +578,16 @@ class ActivityFilter:
             return out
 
         return row
+
+
+class _UnitRow(dict):
+    """The likelihood row when nothing was observed: 1.0 for every activity."""
+
+    def __missing__(self, current: str) -> float:
+        return 1.0
+
+
+_UNIT = _UnitRow()
 
 
 class _EvidenceRow(dict):
