@@ -185,22 +185,26 @@ class FittedForecaster:
     train_s: float  # both models' fitting (the activity model's included)
 
 
-def movement_model(lookahead: LookaheadConfig, run_end: bool = True, run_memory: bool = False) -> MovementModel:
+def movement_model(lookahead: LookaheadConfig, run_end: bool = True, run_memory: bool = False,
+                   run_next: bool = False) -> MovementModel:
     """An unfitted movement-hazard and destination model for the ``lookahead`` section
-    (``run_end``, ``run_memory``: of ``lookahead.run_end`` / ``run_memory``, chosen by cross-validation)."""
+    (``run_end``, ``run_memory``, ``run_next``: of ``lookahead.run_end`` / ``run_memory`` /
+    ``run_next``, chosen by cross-validation)."""
     return MovementModel(hazard_shrinkage=lookahead.hazard_shrinkage, duration_cap=lookahead.duration_cap,
-                         destination_shrinkage=lookahead.destination_shrinkage, run_end=run_end, run_memory=run_memory)
+                         destination_shrinkage=lookahead.destination_shrinkage, run_end=run_end, run_memory=run_memory,
+                         run_next=run_next)
 
 
 def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | None = None,
-               models: ModelConfig | None = None, run_end: bool = True, run_memory: bool = False) -> FittedForecaster:
+               models: ModelConfig | None = None, run_end: bool = True, run_memory: bool = False,
+               run_next: bool = False) -> FittedForecaster:
     """A forecaster over ``household``'s training days (or ``days``): the activity model of
     ``models`` (default ``config.models``) and the movement model of ``config.lookahead``."""
     days = tuple(household.train if days is None else days)
     la = config.lookahead
     t0 = time.perf_counter()
     activity = activity_model(models or config.models).fit([d.activities for d in days])
-    movements = movement_model(la, run_end, run_memory).fit(days, household.objects)
+    movements = movement_model(la, run_end, run_memory, run_next).fit(days, household.objects)
     train_s = time.perf_counter() - t0
     return FittedForecaster(Forecaster(activity, movements, min_path_probability=la.min_path_probability,
                                        max_paths=la.max_paths), train_s)

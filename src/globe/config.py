@@ -170,13 +170,13 @@ class LookaheadConfig(_Section):
     first_reference: int = Field(1, ge=1, le=10_000, description="first reference step r of the lookahead evaluation")
     last_reference: int = Field(102, ge=1, le=10_000, description="last reference step r (r + horizons must stay in the day)")
     min_path_probability: float = Field(
-        3e-3, ge=0.0, lt=1.0, description="activity paths less likely than this are pruned from the forward pass"
+        1e-3, ge=0.0, lt=1.0, description="activity paths less likely than this are pruned from the forward pass"
     )
-    max_paths: int = Field(24, ge=1, le=10_000, description="most activity paths kept per step of the forward pass")
+    max_paths: int = Field(64, ge=1, le=10_000, description="most activity paths kept per step of the forward pass")
     hazard_shrinkage: float = Field(
         2.0, gt=0.0, le=1000.0, description="pseudo-count shrinking each movement-hazard level towards the coarser one"
     )
-    duration_cap: int = Field(4, ge=1, le=200, description="steps into an activity run told apart by the movement hazard")
+    duration_cap: int = Field(8, ge=1, le=200, description="steps into an activity run told apart by the movement hazard")
     destination_shrinkage: float = Field(
         1.0, gt=0.0, le=1000.0, description="pseudo-count shrinking P(target | activity, object, source) to coarser levels"
     )
@@ -190,6 +190,9 @@ class LookaheadConfig(_Section):
     )
     run_memory: tuple[bool, ...] = Field(
         (False, True), description="also on the object having moved earlier in the run (with run_end only): tried by CV"
+    )
+    run_next: tuple[bool, ...] = Field(
+        (False, True), description="at a run's end also on the activity that starts (with run_end only): tried by CV"
     )
     cv_stride: int = Field(3, ge=1, le=100, description="cross-validation scores every n-th reference step (it only sets a threshold)")
 

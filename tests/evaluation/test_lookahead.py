@@ -127,6 +127,9 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
         "run_end": (False, True), "run_memory": (False, True), "thresholds": (0.5, 0.4, 0.3)})})
     chosen = lk.choose_settings(households["A"], cfg, cfg.models)
     # threshold 0.5 finds 1 of 2 changes, 0.4 and 0.3 both: 0.4 is listed first among the best
-    assert chosen.best == {"run_end": False, "run_memory": False, "thresholds": (0.4,) * 6}
-    # settings: (no run end, no memory), (run end), (run end + memory): memory only with the run end
-    assert len(chosen.scores) == 3 * 3 * 6
+    assert chosen.best == {"run_end": False, "run_memory": False, "run_next": False, "thresholds": (0.4,) * 6}
+    # settings: the plain model, then with the run end: x (memory or not) x (next activity or not);
+    # memory and the next activity only with the run end
+    assert len(chosen.scores) == 5 * 3 * 6
+    assert [(p["run_end"], p["run_memory"], p["run_next"]) for p, _ in chosen.scores[::18]] == [
+        (False, False, False), (True, False, False), (True, False, True), (True, True, False), (True, True, True)]

@@ -138,6 +138,32 @@ def test_run_end_hazards_tell_put_away_moves_apart():
     assert without.hazards("a", 1, shelf, ends=False)[0] == pytest.approx(0.5, abs=1e-6)
 
 
+def test_run_next_hazards_tell_apart_what_the_next_activity_takes_out():
+    """a ends twice: the cup comes out when b starts, the book when c starts (both credited to
+    a, whose interval it was). With ``run_next`` the run-end hazard knows which one starts;
+    without it both objects get the pooled 1/2; an unseen switch keeps the run-end hazard."""
+    days = (toy_day("train/000", "aab", ["shelf", "shelf", "table"], ["shelf"] * 3),
+            toy_day("train/001", "aac", ["shelf"] * 3, ["shelf", "shelf", "table"]))
+    mv = MovementModel(hazard_shrinkage=1e-9, run_end=True, run_next=True).fit(days, OBJECTS)
+    shelf = np.array([mv.location_index("shelf")] * 2)
+    assert mv.hazards("a", 1, shelf, ends=True, next_activity="b") == pytest.approx([1.0, 0.0], abs=1e-6)
+    assert mv.hazards("a", 1, shelf, ends=True, next_activity="c") == pytest.approx([0.0, 1.0], abs=1e-6)
+    assert mv.hazards("a", 1, shelf, ends=True, next_activity="a") == pytest.approx([0.5, 0.5], abs=1e-6)
+    assert mv.hazards("a", 1, shelf, ends=True) == pytest.approx([0.5, 0.5], abs=1e-6)
+    plain = MovementModel(hazard_shrinkage=1e-9, run_end=True).fit(days, OBJECTS)
+    assert plain.hazards("a", 1, shelf, ends=True, next_activity="b") == pytest.approx([0.5, 0.5], abs=1e-6)
+
+    class Next(ChainModel):  # after a: b with 0.3, c with 0.7
+        def predict_proba(self, history):
+            return {"b": 0.3, "c": 0.7} if history[-1] == "a" else {history[-1]: 1.0}
+
+    fc = Forecaster(Next().fit([]), mv, min_path_probability=0.0, max_paths=1000)
+    departure = fc.forecast(("a", "a"), [("shelf", "shelf")] * 2, horizon=0).departure
+    assert departure[0] == pytest.approx([0.3, 0.7], abs=1e-6)  # each path's own switch
+    pooled = Forecaster(Next().fit([]), plain, min_path_probability=0.0, max_paths=1000)
+    assert pooled.forecast(("a", "a"), [("shelf", "shelf")] * 2, horizon=0).departure[0] == pytest.approx([0.5, 0.5], abs=1e-6)
+
+
 def test_memos_follow_the_models_when_they_learn():
     """An online assistant adds days to the models; forecasts must not come from stale memos."""
     f = toy_forecaster()

@@ -87,10 +87,11 @@ def _fetch(h: Household, config: GlobeConfig, cache: dict, same: LookaheadResult
     else:
         if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
             best = choose_settings(h, config, models, cache=cache).best
-            run_end, run_memory = bool(best["run_end"]), bool(best["run_memory"])
+            run_end, run_memory, run_next = (bool(best[k]) for k in ("run_end", "run_memory", "run_next"))
         else:
-            run_end, run_memory = same.run_end, same.run_memory
-        forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory).forecaster
+            run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
+        forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory,
+                                         run_next=run_next).forecaster
     policy = assembly.fetch_policy(forecaster, config.policy, config.service.step_minutes)
     return evaluate_fetch(policy, h, h.test, config.policy.curve_ratios)
 
@@ -112,11 +113,13 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult) -> lis
     report.write_csv(paths["lookahead.csv"], rows, list(LOOKAHEAD_COLUMNS))
     report.write_csv(paths["lookahead_selection.csv"],
                      [{"method": r.method, "household": r.household, "run_end": p["run_end"], "run_memory": p["run_memory"],
-                       "horizon_min": step * (p["horizon"] + 1), "threshold": p["threshold"], "cv_f1": round(s, 4),
-                       "chosen": (p["run_end"], p["run_memory"]) == (r.run_end, r.run_memory)
+                       "run_next": p["run_next"], "horizon_min": step * (p["horizon"] + 1), "threshold": p["threshold"],
+                       "cv_f1": round(s, 4),
+                       "chosen": (p["run_end"], p["run_memory"], p["run_next"]) == (r.run_end, r.run_memory, r.run_next)
                        and p["threshold"] == r.thresholds[p["horizon"]]}
                       for r in result.lookahead for p, s in r.selection.scores],
-                     ["method", "household", "run_end", "run_memory", "horizon_min", "threshold", "cv_f1", "chosen"])
+                     ["method", "household", "run_end", "run_memory", "run_next", "horizon_min", "threshold", "cv_f1",
+                      "chosen"])
     report.write_csv(paths["lookahead_timing.csv"],
                      [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4)} for r in result.lookahead],
                      ["method", "household", "train_s"])

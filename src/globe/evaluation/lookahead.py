@@ -213,18 +213,23 @@ def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, fi
     return run
 
 
-def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> list[tuple[bool, bool]]:
+Setting = tuple[bool, bool, bool]  # the movement model's (run_end, run_memory, run_next)
+
+
+def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> list[Setting]:
+    """Every movement setting tried (run memory and the next activity only with the run end)."""
     la = config.lookahead
-    return [(e, mem) for e in (la.run_end if run_ends is None else run_ends) for mem in la.run_memory if e or not mem]
+    return [(e, mem, nxt) for e in (la.run_end if run_ends is None else run_ends) for mem in la.run_memory
+            for nxt in la.run_next if e or not (mem or nxt)]
 
 
-def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[tuple[bool, bool]],
-             cache: dict | None = None) -> dict[tuple[bool, bool], LookaheadRun]:
+def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[Setting],
+             cache: dict | None = None) -> dict[Setting, LookaheadRun]:
     """Pairs of every held-out *training* day (contiguous folds, every ``cv_stride``-th reference)
-    for each movement setting (run end, run memory): each fold's activity model is fitted once
+    for each movement setting (run end, run memory, next activity): each fold's activity model is fitted once
     and its activity paths are shared by every setting. Memoised in ``cache``."""
     la = config.lookahead
-    out: dict[tuple[bool, bool], LookaheadRun] = {}
+    out: dict[Setting, LookaheadRun] = {}
     todo = []
     for setting in dict.fromkeys(settings):
         key = ("lookahead_cv", household.name, hash(household.train), household.objects, models, la, config.selection.folds,
@@ -235,7 +240,7 @@ def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, set
             todo.append((setting, key))
     if not todo:
         return out
-    runs: dict[tuple[bool, bool], list[LookaheadRun]] = {setting: [] for setting, _ in todo}
+    runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting, _ in todo}
     data = (household.name, hash(household.train), household.objects)
     for train_idx, val_idx in folds(len(household.train), config.selection.folds):
         train = [household.train[i] for i in train_idx]
@@ -260,7 +265,7 @@ def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, set
     return out
 
 
-def _movements(household: Household, la: LookaheadConfig, days: Sequence[Day], setting: tuple[bool, bool],
+def _movements(household: Household, la: LookaheadConfig, days: Sequence[Day], setting: Setting,
                cache: dict | None, data_key: Any = None) -> MovementModel:
     """The movement model of ``setting`` fitted on ``days`` (memoised in ``cache`` under
     ``data_key``, which names the days: every activity model of a cross-validation shares the
@@ -279,28 +284,28 @@ def _movements(household: Household, la: LookaheadConfig, days: Sequence[Day], s
 def choose_settings(household: Household, config: GlobeConfig, models: ModelConfig,
                     run_ends: Sequence[bool] | None = None, cache: dict | None = None) -> Selection:
     """The movement model's settings (run end of ``run_ends``, default ``lookahead.run_end``;
-    run memory of ``lookahead.run_memory``, only with the run end) and a change threshold per
-    horizon, by F1 on held-out *training* days. The setting with the best mean over horizons of
-    each horizon's best F1 wins, then each horizon takes its best threshold; ties go to the first
-    listed values (the simpler model, the higher threshold).
-    ``best``: ``{"run_end": bool, "run_memory": bool, "thresholds": (one per horizon)}``."""
+    run memory of ``lookahead.run_memory`` and the next activity of ``lookahead.run_next``, both
+    only with the run end) and a change threshold per horizon, by F1 on held-out *training* days.
+    The setting with the best mean over horizons of each horizon's best F1 wins, then each
+    horizon takes its best threshold; ties go to the first listed values (the simpler model, the
+    higher threshold).
+    ``best``: ``{"run_end": bool, "run_memory": bool, "run_next": bool, "thresholds": (one per horizon)}``."""
     la = config.lookahead
     settings = _settings(config, run_ends)
     pooled_runs = _cv_runs(household, config, models, settings, cache)
     scores: list[tuple[dict, float]] = []
     best: dict | None = None
     best_score = -1.0
-    for run_end, run_memory in settings:
-        pooled = pooled_runs[(run_end, run_memory)]
-        per = [[p.counts(t).f1 for t in la.thresholds] for p in pooled.pairs]
-        scores.extend(({"run_end": run_end, "run_memory": run_memory, "horizon": s, "threshold": t}, f)
-                      for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
+    for setting in settings:
+        named = dict(zip(("run_end", "run_memory", "run_next"), setting))
+        per = [[p.counts(t).f1 for t in la.thresholds] for p in pooled_runs[setting].pairs]
+        scores.extend(({**named, "horizon": s, "threshold": t}, f) for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
         score = float(np.mean([max(row) for row in per]))
         if score > best_score:
             best_score = score
-            best = {"run_end": run_end, "run_memory": run_memory,
-                    "thresholds": tuple(la.thresholds[row.index(max(row))] for row in per)}
-    return Selection(best or {"run_end": True, "run_memory": False, "thresholds": (0.5,) * la.horizons}, scores)
+            best = {**named, "thresholds": tuple(la.thresholds[row.index(max(row))] for row in per)}
+    return Selection(best or {"run_end": True, "run_memory": False, "run_next": False, "thresholds": (0.5,) * la.horizons},
+                     scores)
 
 
 def choose_threshold(household: Household, config: GlobeConfig, models: ModelConfig, run_end: bool = True,
@@ -308,7 +313,7 @@ def choose_threshold(household: Household, config: GlobeConfig, models: ModelCon
     """One change threshold for every horizon (best mean F1 over horizons on held-out training
     days, ties to the first listed), for a forecaster built with ``run_end`` (the default of
     :func:`globe.assembly.forecaster`). ``best``: ``{"threshold": t}``."""
-    pooled = _cv_runs(household, config, models, [(run_end, False)], cache)[(run_end, False)]
+    pooled = _cv_runs(household, config, models, [(run_end, False, False)], cache)[(run_end, False, False)]
     scores = [({"threshold": t}, float(np.mean(pooled.f1s(t)))) for t in config.lookahead.thresholds]
     return Selection(dict(max(scores, key=lambda ps: ps[1])[0]), scores)
 
@@ -337,6 +342,7 @@ class LookaheadResult:
     selection: Selection
     run_end: bool = True
     run_memory: bool = False
+    run_next: bool = False
     forecaster: Forecaster | None = field(default=None, compare=False, repr=False)  # fitted on every training day
 
 
@@ -345,12 +351,13 @@ def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelC
     """Choose the settings on training days, fit on all of them, score the test days."""
     la = config.lookahead
     chosen = choose_settings(household, config, models, cache=cache)
-    run_end, run_memory = bool(chosen.best["run_end"]), bool(chosen.best["run_memory"])
-    fitted = assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory)
+    run_end, run_memory, run_next = (bool(chosen.best[k]) for k in ("run_end", "run_memory", "run_next"))
+    fitted = assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory, run_next=run_next)
     run = forecast_days(fitted.forecaster, household.test, la.horizons, la.first_reference, la.last_reference)
     ts = tuple(float(t) for t in chosen.best["thresholds"])
     return LookaheadResult(method, household.name, ts, tuple(p.counts(t) for p, t in zip(run.pairs, ts)),
-                           tuple(run.activity_accuracy()), fitted.train_s, chosen, run_end, run_memory, fitted.forecaster)
+                           tuple(run.activity_accuracy()), fitted.train_s, chosen, run_end, run_memory, run_next,
+                           fitted.forecaster)
 
 
 LOOKAHEAD_COLUMNS = ("method", "household", "horizon_min", "precision", "recall", "f1", "activity_accuracy")

@@ -402,7 +402,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cach
             emission = assembly.movement_emission(config.filter, **setup.selection.best).fit(train, h.objects)
             if cache is not None:
                 cache[key] = activity, emission
-        movements = lk._movements(h, la, train, (True, False), cache, (data, tuple(train_idx)))
+        movements = lk._movements(h, la, train, (True, False, False), cache, (data, tuple(train_idx)))
         fold = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
         forecaster = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in val}

@@ -17,6 +17,10 @@ propagates the whole activity distribution and the objects' movements forward:
   the paths run one step past the horizon. ``run_end=False`` drops that distinction (the
   simpler model; cross-validation chooses). ``run_memory=True`` also tells apart objects that
   already moved earlier in the run (what came out during an activity goes back when it ends).
+  ``run_next=True`` also tells apart, at a run's last step, which activity starts: a movement
+  seen as the next activity begins is credited to the one ending (the interval began in it), but
+  what is taken out depends on what comes next (the paths know it); those switch counts per
+  (activity ending, activity starting, object, place) are shrunk towards the run-end hazard.
 - **Destinations.** Where an object goes when it moves, P(target | activity, object, source),
   shrunk towards P(target | object, source) and P(target | object): learned from where objects
   went in training (nothing in the one-step models predicts *where* an object goes).
@@ -48,16 +52,17 @@ class MovementModel(CountingModel):
     """Per-step movement hazards and destinations of every tracked object (see module doc)."""
 
     _parameter_constraints = {"hazard_shrinkage": float, "duration_cap": int, "destination_shrinkage": float,
-                              "run_end": (True, False), "run_memory": (True, False)}
+                              "run_end": (True, False), "run_memory": (True, False), "run_next": (True, False)}
     kind = "movement"
 
-    def __init__(self, *, hazard_shrinkage: float = 2.0, duration_cap: int = 4, destination_shrinkage: float = 1.0,
-                 run_end: bool = True, run_memory: bool = False) -> None:
+    def __init__(self, *, hazard_shrinkage: float = 2.0, duration_cap: int = 8, destination_shrinkage: float = 1.0,
+                 run_end: bool = True, run_memory: bool = False, run_next: bool = False) -> None:
         self.hazard_shrinkage = hazard_shrinkage
         self.duration_cap = duration_cap
         self.destination_shrinkage = destination_shrinkage
         self.run_end = run_end
         self.run_memory = run_memory
+        self.run_next = run_next
 
     # -- training ---------------------------------------------------------------------------
     def fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementModel":
@@ -79,6 +84,7 @@ class MovementModel(CountingModel):
         e_size, m_size = (2 if self.run_end else 1), (2 if self.run_memory else 1)
         cells, changes, moves = [], [], []  # (activity, steps into run, run ends, moved earlier) and (object, place)
         day_acts = []
+        switches, switch_changes, switch_moves = [], [], []  # run ends: (activity ending, activity starting)
         for day, ids in zip(days, row_ids):
             if len(day) < 2:
                 continue
@@ -94,6 +100,11 @@ class MovementModel(CountingModel):
             cells.append(np.broadcast_to(cell, change.shape).ravel())
             changes.append(change.ravel())
             moves.append((cols[None, :] * nl + src).ravel())
+            if self.run_next and self.run_end:
+                b = np.nonzero(acts[1:] != acts[:-1])[0]
+                switches.append(np.repeat(acts[b] * na + acts[b + 1], nj))
+                switch_changes.append(change[b].ravel())
+                switch_moves.append((cols[None, :] * nl + src[b]).ravel())
         # Only (object, place) pairs seen in training get cells: objects visit few places.
         pair_codes = np.concatenate(moves) if moves else np.zeros(0, dtype=int)
         self._pairs = np.nonzero(np.bincount(pair_codes, minlength=nj * nl))[0]
@@ -124,8 +135,42 @@ class MovementModel(CountingModel):
         p3 = (moved.sum(axis=(1, 3)) + k * p2[:, None]) / (seen.sum(axis=(1, 3)) + k)  # (A, E, P)
         p4 = (moved.sum(axis=3) + k * p3[:, None]) / (seen.sum(axis=3) + k)  # (A, C, E, P)
         self.hazard_ = (moved + k * p4[:, :, :, None]) / (seen + k)  # (A, C, E, M, P); E, M of size 1 if pooled
+        self._fit_switches(switches, switch_changes, switch_moves, lookup, npairs)
         self._dest_memo: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
         return self
+
+    def _fit_switches(self, switches: list, changes: list, moves: list, lookup: np.ndarray, npairs: int) -> None:
+        """With ``run_next``: counts of moves at the last step of a run per (activity ending,
+        activity starting, object, place): what is taken out for the next activity depends on
+        which one it is. ``switch_index_`` maps a switch code a * A + b to its row (-1: never seen)."""
+        na = len(self.activities_)
+        self.switch_index_ = np.full(na * na if switches else 0, -1, dtype=int)
+        self.switch_seen_: np.ndarray = np.zeros((0, npairs))
+        self.switch_moved_: np.ndarray = np.zeros((0, npairs))
+        if not switches:
+            return
+        codes = np.concatenate(switches)
+        pairs = np.concatenate(moves)
+        used = np.unique(codes)
+        self.switch_index_[used] = np.arange(len(used))
+        keys = self.switch_index_[codes] * npairs + lookup[pairs]
+        size = len(used) * npairs
+        self.switch_seen_ = np.bincount(keys, minlength=size).astype(float).reshape(len(used), npairs)
+        self.switch_moved_ = np.bincount(keys, weights=np.concatenate(changes).astype(float),
+                                         minlength=size).reshape(len(used), npairs)
+
+    def switch_hazards(self, ending: np.ndarray, starting: np.ndarray, pairs: np.ndarray, at_end: np.ndarray) -> np.ndarray:
+        """``at_end`` (the run-end hazards of (object, place) cells ``pairs``, rows of ``ending``
+        activity indices) shrunk towards the counts of the switch to ``starting`` (unchanged
+        where that switch was never seen, or without ``run_next``)."""
+        if not len(getattr(self, "switch_index_", ())):
+            return at_end
+        rows = self.switch_index_[ending * len(self.activities_) + starting]
+        k = self.hazard_shrinkage
+        known = rows >= 0
+        r = np.where(known, rows, 0)[:, None]
+        mixed = (self.switch_moved_[r, pairs] + k * at_end) / (self.switch_seen_[r, pairs] + k)
+        return np.where(known[:, None], mixed, at_end)
 
     # -- lookups ----------------------------------------------------------------------------
     def activity_index(self, activity: str) -> int:
@@ -135,10 +180,11 @@ class MovementModel(CountingModel):
         return self._loc_index.get(location, len(self.locations_) - 1)
 
     def hazards(self, activity: str, duration: int, sources: np.ndarray, ends: bool = False,
-                moved: np.ndarray | None = None) -> np.ndarray:
+                moved: np.ndarray | None = None, next_activity: str | None = None) -> np.ndarray:
         """P(each object leaves its place ``sources`` (location indices) in the step after one of
         ``activity``, ``duration`` steps into its run, that is its run's last (``ends``) or not,
-        given whether each object already moved earlier in this run (``moved``, default none))."""
+        given whether each object already moved earlier in this run (``moved``, default none))
+        and, at a run's end with ``run_next``, which activity starts (``next_activity``)."""
         self._check_fitted()
         a, d = self.activity_index(activity), min(duration, self.duration_cap - 1)
         e = int(ends) if self.hazard_.shape[2] == 2 else 0
@@ -149,7 +195,10 @@ class MovementModel(CountingModel):
         if not len(self._pairs):
             return self._p1[a].copy()
         found = self._pairs[idx] == codes  # an object never seen at this place: P(move | activity, object)
-        return np.where(found, self.hazard_[a, d, e, m, idx], self._p1[a])
+        h = self.hazard_[a, d, e, m, idx]
+        if e and next_activity is not None:
+            h = self.switch_hazards(np.array([a]), np.array([self.activity_index(next_activity)]), idx[None, :], h[None, :])[0]
+        return np.where(found, h, self._p1[a])
 
     def destination(self, activity: str, obj: int, source: int) -> tuple[np.ndarray, np.ndarray]:
         """(location indices, probabilities) of where object ``obj`` goes from ``source`` when it
@@ -350,7 +399,7 @@ class ActivityPaths:
 
     _registry: "weakref.WeakKeyDictionary[Any, dict[tuple[float, int], ActivityPaths]]" = weakref.WeakKeyDictionary()
 
-    def __init__(self, model: ActivityModelBase, *, min_path_probability: float = 3e-3, max_paths: int = 24,
+    def __init__(self, model: ActivityModelBase, *, min_path_probability: float = 1e-3, max_paths: int = 64,
                  memo_size: int = 200_000) -> None:
         # Weakly: the shared registry maps the model to this object, which must not keep it alive.
         try:
@@ -370,7 +419,7 @@ class ActivityPaths:
         return self._model()
 
     @classmethod
-    def shared(cls, model: ActivityModelBase, *, min_path_probability: float = 3e-3, max_paths: int = 24,
+    def shared(cls, model: ActivityModelBase, *, min_path_probability: float = 1e-3, max_paths: int = 64,
                memo_size: int = 200_000) -> "ActivityPaths":
         try:
             mine = cls._registry.setdefault(model, {})
@@ -619,8 +668,8 @@ class ActivityPaths:
 class Forecaster:
     """An activity model and a movement model, propagated together (see module doc)."""
 
-    def __init__(self, activity: ActivityModelBase, movements: MovementModel, *, min_path_probability: float = 3e-3,
-                 max_paths: int = 24, memo_size: int = 200_000) -> None:
+    def __init__(self, activity: ActivityModelBase, movements: MovementModel, *, min_path_probability: float = 1e-3,
+                 max_paths: int = 64, memo_size: int = 200_000) -> None:
         self.activity = activity
         self.movements = movements
         self.min_path_probability = min_path_probability
@@ -726,6 +775,7 @@ class Forecaster:
         destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
         flat = hazard.reshape(-1)
         no_cells, all_seen = npairs == 0, bool(seen.all())
+        switching = ne == 2 and len(getattr(mv, "switch_index_", ())) > 0
         cols = np.arange(nj)
         survive = np.ones((len(trees.levels[0].act) if trees.levels else 0, nj))
         for i, level in enumerate(trees.levels[1:], start=1):
@@ -742,6 +792,9 @@ class Forecaster:
                     h = flat[(base[:, None] + moved) * npairs + cells[owner]]
                 else:
                     h = flat[(base * npairs)[:, None] + cells[owner]]
+                if switching:
+                    ends = np.nonzero(level.ends)[0]
+                    h[ends] = mv.switch_hazards(prev[ends], translate[level.act[ends]], cells[owner[ends]], h[ends])
                 if not all_seen:  # an object never seen at its place: P(move | activity, object)
                     h = np.where(seen[owner], h, mv._p1[prev])
             up = survive[level.parent]
