@@ -70,11 +70,12 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
 
 
 def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight: float,
-                      boundary: bool = False) -> MovementEmission:
+                      boundary: bool = False, switch: bool = False) -> MovementEmission:
     """An unfitted P(moved objects | activities) for the activity filter (``previous_share``,
-    ``weight`` and ``boundary`` come from cross-validation, :mod:`globe.evaluation.missing_labels`)."""
+    ``weight``, ``boundary`` and ``switch`` come from cross-validation,
+    :mod:`globe.evaluation.missing_labels`)."""
     return MovementEmission(smoothing=filter_cfg.emission_smoothing, weight=weight, previous_share=previous_share,
-                            boundary=boundary)
+                            boundary=boundary, switch=switch)
 
 
 def activity_filter(activity: NextActivityModel, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
@@ -89,7 +90,7 @@ def household_filter(household: Household, config: GlobeConfig, activity: NextAc
     ``filter.emission_*`` settings (no cross-validation on the request path)."""
     fc = config.filter
     emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
-                                 boundary=fc.emission_boundary)
+                                 boundary=fc.emission_boundary, switch=fc.emission_switch)
     emission.fit(household.train if days is None else days, household.objects)
     return activity_filter(activity, emission, fc)
 
@@ -151,7 +152,7 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     # The filter's movement evidence is learned with the models; the filter itself is rebuilt per
     # prediction over the current models (cheap), so it never reads stale counts.
     emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
-                                 boundary=fc.emission_boundary).fit(household.train, household.objects)
+                                 boundary=fc.emission_boundary, switch=fc.emission_switch).fit(household.train, household.objects)
     policy = None
     if s.fetch_decision == "policy":
         movements = movement_model(config.lookahead, run_end=True).fit(household.train, household.objects)

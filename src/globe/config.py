@@ -229,10 +229,14 @@ class FilterConfig(_Section):
         (0.5, 1.0), description="exponents of the movement likelihood tried by cross-validation on training days"
     )
     emission_previous_shares: tuple[Share, ...] = Field(
-        (0.5, 0.0), description="share of a movement's likelihood credited to the activity at t-1 (the rest: at t), tried by CV"
+        (0.5, 0.0, 1.0), description="share of a movement's likelihood credited to the activity at t-1 (the rest: at t), tried by CV"
     )
     emission_boundaries: tuple[bool, ...] = Field(
         (False, True), description="whether move rates also depend on the activity changing at the step, tried by CV"
+    )
+    emission_switches: tuple[bool, ...] = Field(
+        (False, True), description="whether, at a change, moves credited to a_{s-1} also depend on the activity that "
+        "starts (with the change flag and a share credited to a_{s-1}), tried by CV"
     )
     emission_weight: float = Field(
         1.0, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service)"
@@ -242,6 +246,9 @@ class FilterConfig(_Section):
     )
     emission_boundary: bool = Field(
         True, description="move rates depend on the activity changing, where no cross-validation runs"
+    )
+    emission_switch: bool = Field(
+        False, description="at a change, move rates also depend on the activity that starts, where no cross-validation runs"
     )
     forecast_hypotheses: int = Field(
         4, ge=1, le=1000, description="most probable filtered histories mixed in a lookahead forecast with missing labels"

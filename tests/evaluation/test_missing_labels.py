@@ -129,3 +129,18 @@ def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(mo
     off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
     assert ml._lookahead_threshold(setup, off, {}, 0.25) == 0.5
     assert seen == [0.0]
+
+
+def test_filter_candidates_try_the_switch_only_where_it_exists(config):
+    """The switch table needs the change flag and a share credited to a_{s-1}: elsewhere it would
+    repeat a candidate. Each switch candidate follows its plain twin (the simpler wins ties)."""
+    from globe.evaluation.missing_labels import filter_candidates
+
+    fc = config.filter.model_copy(update={"emission_boundaries": (False, True), "emission_previous_shares": (0.5, 0.0),
+                                          "emission_weights": (1.0,), "emission_switches": (False, True)})
+    assert filter_candidates(fc) == [
+        {"boundary": False, "previous_share": 0.5, "weight": 1.0, "switch": False},
+        {"boundary": False, "previous_share": 0.0, "weight": 1.0, "switch": False},
+        {"boundary": True, "previous_share": 0.5, "weight": 1.0, "switch": False},
+        {"boundary": True, "previous_share": 0.5, "weight": 1.0, "switch": True},
+        {"boundary": True, "previous_share": 0.0, "weight": 1.0, "switch": False}]

@@ -179,6 +179,30 @@ def test_movement_emission_counts_by_hand():
     assert both.upper_bound(("x", "y"), frozenset({"cup"})) >= both.log_likelihood("x", "y", frozenset({"cup"}))
 
 
+def test_switch_emission_tells_apart_what_the_next_activity_takes_out():
+    """x ends twice: the cup moves when y starts, the plate when z starts. With ``switch`` the
+    part credited to x knows which activity starts (shrunk towards x's change rate); a switch
+    never seen keeps that rate, and the upper bound still bounds every likelihood."""
+    d1 = _day("train/000", ["x", "x", "y"], ["t", "t", "s"], ["t", "t", "t"])
+    d2 = _day("train/001", ["x", "x", "z"], ["t", "t", "t"], ["t", "t", "f"])
+    objects = ("cup", "plate")
+    plain = MovementEmission(smoothing=1.0, previous_share=1.0, boundary=True).fit([d1, d2], objects)
+    em = MovementEmission(smoothing=1.0, previous_share=1.0, boundary=True, switch=True).fit([d1, d2], objects)
+    changed = plain.probability("x", "cup", 0, changed=True)  # x -> y and x -> z: the cup moved once in 2
+    assert em.probability("x", "cup", 0, True, "y") == pytest.approx((1 + changed) / (1 + 1))
+    assert em.probability("x", "cup", 0, True, "z") == pytest.approx((0 + changed) / (1 + 1))
+    assert em.probability("x", "cup", 0, True, "w") != em.probability("x", "cup", 0, True, "y")
+    cup = frozenset({"cup"})
+    assert em.log_likelihood("x", "y", cup) > plain.log_likelihood("x", "y", cup) > em.log_likelihood("x", "z", cup)
+    assert em.log_likelihood("x", "w", cup) == pytest.approx(plain.log_likelihood("x", "w", cup))  # never seen
+    assert em.log_likelihood("x", "x", cup) == pytest.approx(plain.log_likelihood("x", "x", cup))  # no change
+    off = MovementEmission(smoothing=1.0, previous_share=1.0, boundary=True).fit([d1, d2], objects).with_params(switch=True)
+    assert off.log_likelihood("x", "y", cup) == pytest.approx(em.log_likelihood("x", "y", cup))  # counted either way
+    for moved in (frozenset(), cup, frozenset(objects)):
+        top = em.upper_bound(("x", "y", "z"), moved)
+        assert all(top >= em.log_likelihood(a, b, moved) - 1e-12 for a in "xyz" for b in "xyz")
+
+
 def test_label_masks_are_seeded_sized_and_nested():
     masks = {f: label_mask(109, f, (0, 7, 9)) for f in (0.0, 0.25, 0.5, 0.75, 1.0)}
     assert [sum(m) for m in masks.values()] == [0, 27, 54, 82, 109]

@@ -138,9 +138,13 @@ def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], li
 
 
 def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
-    """The movement evidence's search space, simplest first (ties go to the first listed)."""
-    return grid({"boundary": fc.emission_boundaries, "previous_share": fc.emission_previous_shares,
-                 "weight": fc.emission_weights})
+    """The movement evidence's search space, simplest first (ties go to the first listed). The
+    switch table only exists with the change flag and a share credited to a_{s-1}, so it is
+    tried only there."""
+    return [{**params, "switch": switch}
+            for params in grid({"boundary": fc.emission_boundaries, "previous_share": fc.emission_previous_shares,
+                                "weight": fc.emission_weights})
+            for switch in (fc.emission_switches if params["boundary"] and params["previous_share"] > 0 else (False,))]
 
 
 def score_filter_candidates(household: Household, config: GlobeConfig, models: ModelConfig,

@@ -71,22 +71,27 @@ class MovementEmission(CountingModel):
     overall rate p(o) (add-one smoothed) with pseudo-count ``smoothing``, so "nothing moved" is
     evidence too. The log-likelihood is multiplied by ``weight`` (< 1 tempers the independence
     assumption: objects used together move together). Objects unknown to training carry no
-    evidence.
+    evidence. With ``switch`` (and ``boundary``), the part credited to a_{s-1} at a step where
+    the activity changes is also told which activity starts: what is taken out depends on it
+    (p(a -> b, o), shrunk towards p(a, o | changed); switches never seen keep the latter).
     """
 
-    _parameter_constraints = {"smoothing": float, "weight": float, "previous_share": float, "boundary": bool}
+    _parameter_constraints = {"smoothing": float, "weight": float, "previous_share": float, "boundary": bool,
+                              "switch": bool}
     kind = "movement_emission"
 
     def __init__(self, *, smoothing: float = 1.0, weight: float = 1.0, previous_share: float = 1.0,
-                 boundary: bool = False) -> None:
+                 boundary: bool = False, switch: bool = False) -> None:
         self.smoothing = smoothing
         self.weight = weight
         self.previous_share = previous_share
         self.boundary = boundary
+        self.switch = switch
 
     def _validate_params(self) -> None:
-        if not isinstance(self.boundary, bool):
-            raise ConfigError(f"MovementEmission: boundary={self.boundary!r}; expected True or False")
+        for name in ("boundary", "switch"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"MovementEmission: {name}={getattr(self, name)!r}; expected True or False")
         for name in ("smoothing", "weight", "previous_share"):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or value < 0 or (name == "previous_share" and value > 1):
@@ -118,19 +123,23 @@ class MovementEmission(CountingModel):
             before, after = day.activities[:-1], day.activities[1:]
             changed = [b != a for b, a in zip(before, after)]
             self.transitions_ += len(before)
-            # every step counts under both attachments, with and without the change flag
+            # every step counts under both attachments, with and without the change flag; a step
+            # where the activity changes also counts under its switch (part 2: a_{s-1} -> a_s)
             steps.update(zip(repeat(0), before))
             steps.update(zip(repeat(0), before, changed))
             steps.update(zip(repeat(1), after))
             steps.update(zip(repeat(1), after, changed))
+            steps.update((2, b, a) for b, a, c in zip(before, after, changed) if c)
             for t in range(1, len(day)):
                 if moved[t]:  # most steps move nothing
                     self.overall_.update(moved[t])
-                    c = changed[t - 1]
-                    for key in ((0, before[t - 1]), (0, before[t - 1], c), (1, after[t - 1]), (1, after[t - 1], c)):
+                    b, a, c = before[t - 1], after[t - 1], changed[t - 1]
+                    keys = ((0, b), (0, b, c), (1, a), (1, a, c)) + (((2, b, a),) if c else ())
+                    for key in keys:
                         for o in moved[t]:
                             moves[(*key, o)] += 1
         self.activities_ = tuple(sorted({key[1] for key in self.steps_}))
+        self.switches_ = tuple(sorted(key[1:] for key in self.steps_ if key[0] == 2))
         self.rate_ = {o: (self.overall_[o] + 1) / (self.transitions_ + 2) for o in self.objects_}
         self._base: dict[tuple, float] = {}
         self._memo: dict[tuple, float] = {}
@@ -143,7 +152,7 @@ class MovementEmission(CountingModel):
         self._check_fitted()
         other = copy.copy(self)
         for name, value in params.items():
-            if name not in ("weight", "previous_share", "boundary"):
+            if name not in ("weight", "previous_share", "boundary", "switch"):
                 raise ConfigError(f"MovementEmission.with_params: {name!r} changes the counts; fit a new one")
             setattr(other, name, value)
         other._validate_params()
@@ -162,36 +171,50 @@ class MovementEmission(CountingModel):
             out = self._evidence[key] = (self.upper_bound(activities, moved), {})
         return out
 
-    def probability(self, activity: str, obj: str, part: int = 0, changed: bool | None = None) -> float:
+    def probability(self, activity: str, obj: str, part: int = 0, changed: bool | None = None,
+                    following: str | None = None) -> float:
         """p(activity, obj): the chance that ``obj`` moves at a step credited to ``activity``
         (``part`` 0: the activity at s-1, 1: the activity at s); with ``boundary``, also given
-        whether the activity changes at s (shrunk towards the rate over both cases)."""
+        whether the activity changes at s (shrunk towards the rate over both cases); with
+        ``switch`` and part 0 at a change, also given the activity that starts (``following``)."""
         key: tuple = (part, activity)
         p = (self.moves_.get((*key, obj), 0) + self.smoothing * self.rate_[obj]) / (self.steps_.get(key, 0) + self.smoothing)
         if self.boundary and changed is not None:
             key = (part, activity, changed)
             p = (self.moves_.get((*key, obj), 0) + self.smoothing * p) / (self.steps_.get(key, 0) + self.smoothing)
+            if following is not None and changed and part == 0 and self.switch:
+                key = (2, activity, following)
+                p = (self.moves_.get((*key, obj), 0) + self.smoothing * p) / (self.steps_.get(key, 0) + self.smoothing)
         return p
 
-    def _nothing(self, part: int, activity: str, changed: bool | None) -> float:
-        key = (part, activity, changed)
+    def _nothing(self, part: int, activity: str, changed: bool | None, following: str | None = None) -> float:
+        key = (part, activity, changed, following)
         base = self._base.get(key)
         if base is None:
-            base = self._base[key] = sum(math.log1p(-self.probability(activity, o, part, changed)) for o in self.objects_)
+            base = self._base[key] = sum(math.log1p(-self.probability(activity, o, part, changed, following))
+                                         for o in self.objects_)
         return base
 
-    def part_log_likelihood(self, part: int, activity: str, moved: frozenset[str], changed: bool | None = None) -> float:
+    def _following(self, part: int, activity: str, changed: bool | None, following: str | None) -> str | None:
+        """``following`` where the switch table applies (a switch seen in training), else None."""
+        if following is None or part != 0 or not changed or not (self.switch and self.boundary):
+            return None
+        return following if (2, activity, following) in self.steps_ else None
+
+    def part_log_likelihood(self, part: int, activity: str, moved: frozenset[str], changed: bool | None = None,
+                            following: str | None = None) -> float:
         """log P(exactly ``moved`` moved | the activity credited by ``part``), untempered."""
         changed = changed if self.boundary else None
-        key = (part, activity, changed, moved)
+        following = self._following(part, activity, changed, following)
+        key = (part, activity, changed, following, moved)
         out = self._memo.get(key)
         if out is None:
             if len(self._memo) >= 500_000:
                 self._memo.clear()
-            ll = self._nothing(part, activity, changed)
+            ll = self._nothing(part, activity, changed, following)
             for o in moved:
                 if o in self.rate_:
-                    p = self.probability(activity, o, part, changed)
+                    p = self.probability(activity, o, part, changed, following)
                     ll += math.log(p) - math.log1p(-p)
             out = self._memo[key] = ll
         return out
@@ -203,7 +226,7 @@ class MovementEmission(CountingModel):
         changed = None if previous is None else previous != current
         parts = []
         if lam > 0.0:
-            parts.append(math.log(lam) + self.part_log_likelihood(0, previous, moved, changed))  # type: ignore[arg-type]
+            parts.append(math.log(lam) + self.part_log_likelihood(0, previous, moved, changed, current))  # type: ignore[arg-type]
         if lam < 1.0:
             parts.append(math.log1p(-lam) + self.part_log_likelihood(1, current, moved, changed))
         top = max(parts)
@@ -213,8 +236,9 @@ class MovementEmission(CountingModel):
         """At least every :meth:`log_likelihood` over ``activities`` (for scaling weights)."""
         acts = set(activities) | set(self.activities_)
         flags: tuple[bool | None, ...] = (None, False, True) if self.boundary else (None,)
-        return self.weight * max((self.part_log_likelihood(part, a, moved, c) for part in (0, 1) for a in acts for c in flags),
-                                 default=0.0)
+        plain = (self.part_log_likelihood(part, a, moved, c) for part in (0, 1) for a in acts for c in flags)
+        switches = (self.part_log_likelihood(0, a, moved, True, b) for a, b in self.switches_) if self.switch and self.boundary else ()
+        return self.weight * max((*plain, *switches), default=0.0)
 
 
 # -- dynamics: how each kind of activity model extends a history ---------------------------------
