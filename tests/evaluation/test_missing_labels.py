@@ -107,28 +107,32 @@ def test_results_table_and_plot(households, tmp_path):
 
 
 def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(monkeypatch, households):
-    """With labels missing, the threshold is the best on held-out training days masked the same
-    way (ties to the first listed); with every label, or with the option off, the labelled one."""
+    """With labels missing, each horizon's threshold is the best on held-out training days masked
+    the same way, with the lookahead's movement setting (ties to the first listed); with every
+    label, or with the option off, the lookahead's own thresholds."""
     from globe.evaluation import missing_labels as ml
 
     h, config = households["A"], GlobeConfig().with_overrides({"filter.threshold_per_fraction": True})
     setup = _setup(h, config, previous_share=0.5)
-    seen: list[float] = []
+    seen: list[tuple] = []
 
-    def fake_hidden(setup_, cfg, fraction, cache=None):
-        seen.append(fraction)
-        # a change at every pair, found with p = 0.35: thresholds <= 0.35 score F1 1, higher 0
-        pairs = [lk.HorizonPairs([np.array([0.35])], [np.array([True])], [np.array([True])]) for _ in range(6)]
+    def fake_hidden(setup_, cfg, fraction, cache=None, setting=(True, False, False)):
+        seen.append((fraction, setting))
+        # a change at every pair, found with p = 0.35 (horizon 0) or 0.22 (the others)
+        pairs = [lk.HorizonPairs([np.array([0.35 if s == 0 else 0.22])], [np.array([True])], [np.array([True])])
+                 for s in range(6)]
         return lk.LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int))
 
+    labelled = {"run_end": True, "run_memory": False, "run_next": True, "thresholds": (0.5, 0.4, 0.3, 0.25, 0.2, 0.15)}
     monkeypatch.setattr(ml, "hidden_cv_run", fake_hidden)
-    monkeypatch.setattr(lk, "choose_threshold", lambda *a, **k: Selection({"threshold": 0.5}))
-    assert ml._lookahead_threshold(setup, config, {}, 0.0) == 0.3  # first listed of 0.3, 0.25, 0.2, 0.15
-    assert seen == [0.0]
-    assert ml._lookahead_threshold(setup, config, {}, 1.0) == 0.5
+    monkeypatch.setattr(lk, "choose_settings", lambda *a, **k: Selection(dict(labelled)))
+    # thresholds <= p score F1 1, higher 0: first listed of (0.5, 0.4, 0.3, 0.25, 0.2, 0.15) at or below p
+    assert ml._lookahead_thresholds(setup, config, {}, 0.0) == (0.3,) + (0.2,) * 5
+    assert seen == [(0.0, (True, False, True))]
+    assert ml._lookahead_thresholds(setup, config, {}, 1.0) == labelled["thresholds"]
     off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
-    assert ml._lookahead_threshold(setup, off, {}, 0.25) == 0.5
-    assert seen == [0.0]
+    assert ml._lookahead_thresholds(setup, off, {}, 0.25) == labelled["thresholds"]
+    assert len(seen) == 1
 
 
 def test_filter_candidates_try_the_switch_only_where_it_exists(config):

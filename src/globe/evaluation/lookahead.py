@@ -308,16 +308,6 @@ def choose_settings(household: Household, config: GlobeConfig, models: ModelConf
                      scores)
 
 
-def choose_threshold(household: Household, config: GlobeConfig, models: ModelConfig, run_end: bool = True,
-                     cache: dict | None = None) -> Selection:
-    """One change threshold for every horizon (best mean F1 over horizons on held-out training
-    days, ties to the first listed), for a forecaster built with ``run_end`` (the default of
-    :func:`globe.assembly.forecaster`). ``best``: ``{"threshold": t}``."""
-    pooled = _cv_runs(household, config, models, [(run_end, False, False)], cache)[(run_end, False, False)]
-    scores = [({"threshold": t}, float(np.mean(pooled.f1s(t)))) for t in config.lookahead.thresholds]
-    return Selection(dict(max(scores, key=lambda ps: ps[1])[0]), scores)
-
-
 def _pool(runs: Sequence[LookaheadRun], horizons: int) -> LookaheadRun:
     pooled = LookaheadRun(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int), np.zeros(horizons, int))
     for run in runs:

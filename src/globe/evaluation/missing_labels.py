@@ -15,8 +15,10 @@ movements it sees. Everything else is the protocol of :func:`globe.evaluation.pr
   with every label visible and the movement credited to the earlier activity this is exactly
   the protocol's distribution.
 - **Lookahead** (when :mod:`globe.evaluation.lookahead` is present): the relocation F1 at each
-  horizon, forecasting from a mixture over the filter's most probable histories (its threshold is
-  the one chosen on fully labelled training days).
+  horizon, forecasting from a mixture over the filter's most probable histories with the
+  lookahead's own forecaster (movement settings and per-horizon thresholds chosen on fully
+  labelled training days by :func:`globe.evaluation.lookahead.choose_settings`), so that with
+  every label visible it is exactly the routine row of ``lookahead.csv``.
 
 The activity model is the routine model chosen by cross-validation
 (:func:`globe.evaluation.tuning.tuned_models`); the filter's movement evidence (which step's
@@ -343,54 +345,69 @@ def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day], mas
     except ImportError:  # pragma: no cover - the lookahead part ships separately
         return None
     la = config.lookahead
-    threshold = _lookahead_threshold(setup, config, cache, fraction)
+    thresholds = _lookahead_thresholds(setup, config, cache, fraction)
     forecaster = _forecaster(setup, config, cache)
     run = filtered_lookahead(forecaster, setup, config.filter, days, masks, la.horizons, la.first_reference,
                              la.last_reference)
-    counts = [p.counts(threshold) for p in run.pairs]
+    counts = [p.counts(t) for p, t in zip(run.pairs, thresholds)]
     return tuple(c.f1 for c in counts), tuple(float(a) for a in run.activity_accuracy())
 
 
+def _lookahead_selection(setup: FilterSetup, config: GlobeConfig, cache: dict) -> dict[str, Any]:
+    """The lookahead's choice on fully labelled training days (movement setting and a threshold
+    per horizon), memoised; the main job's lookahead stage has usually made it already."""
+    from globe.evaluation import lookahead as lk
+
+    h = setup.household
+    key = ("missing_labels_lookahead", h.name, hash(h.train), setup.models, config.lookahead, config.selection.folds)
+    if key not in cache:
+        cache[key] = dict(lk.choose_settings(h, config, setup.models, cache=cache).best)
+    return cache[key]
+
+
+def _setting(chosen: dict[str, Any]) -> tuple[bool, bool, bool]:
+    return bool(chosen["run_end"]), bool(chosen["run_memory"]), bool(chosen["run_next"])
+
+
 def _forecaster(setup: FilterSetup, config: GlobeConfig, cache: dict) -> Forecaster:
-    """The lookahead's forecaster over the filter's own activity model (memoised: its
-    distributions are shared across label shares)."""
+    """The lookahead's forecaster (its chosen movement setting) over the filter's own activity
+    model (memoised: its distributions are shared across label shares)."""
     h, la = setup.household, config.lookahead
-    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la)
+    setting = _setting(_lookahead_selection(setup, config, cache))
+    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la, setting)
     forecaster = cache.get(key)
     if forecaster is None:
-        movements = assembly.movement_model(la, True, False).fit(h.train, h.objects)
+        movements = assembly.movement_model(la, *setting).fit(h.train, h.objects)
         forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
                                              max_paths=la.max_paths)
     return forecaster
 
 
-def _lookahead_threshold(setup: FilterSetup, config: GlobeConfig, cache: dict, fraction: float = 1.0) -> float:
-    """The lookahead's change threshold at label share ``fraction`` (memoised): chosen on fully
-    labelled training days, or, with ``filter.threshold_per_fraction`` and labels missing, on
-    held-out training days with the same share of labels visible (a forecast mixed over hidden
-    histories is less sure, so its best threshold may be lower); ties go to the first listed."""
-    from globe.evaluation import lookahead as lk
-
+def _lookahead_thresholds(setup: FilterSetup, config: GlobeConfig, cache: dict, fraction: float = 1.0) -> tuple[float, ...]:
+    """The lookahead's change threshold per horizon at label share ``fraction`` (memoised): the
+    lookahead's own, chosen on fully labelled training days, or, with
+    ``filter.threshold_per_fraction`` and labels missing, the best per horizon on held-out
+    training days with the same share of labels visible (a forecast mixed over hidden histories
+    is less sure, so its best threshold may be lower); ties go to the first listed."""
     h, la = setup.household, config.lookahead
+    chosen = _lookahead_selection(setup, config, cache)
     if fraction >= 1.0 or not config.filter.threshold_per_fraction:
-        key: tuple = ("lookahead_threshold", h.name, setup.models, la)
-        if key not in cache:
-            cache[key] = float(lk.choose_threshold(h, config, setup.models, cache=cache).best["threshold"])
-        return cache[key]
+        return tuple(float(t) for t in chosen["thresholds"])
     key = ("lookahead_threshold_hidden", h.name, hash(h.train), setup.models, la, config.filter, config.selection.folds,
-           tuple(sorted(setup.selection.best.items())), fraction)
+           tuple(sorted(setup.selection.best.items())), _setting(chosen), fraction)
     if key not in cache:
-        run = hidden_cv_run(setup, config, fraction, cache)
-        scores = [(t, float(np.mean(run.f1s(t)))) for t in la.thresholds]
-        cache[key] = float(max(scores, key=lambda ts: ts[1])[0])
+        run = hidden_cv_run(setup, config, fraction, cache, _setting(chosen))
+        cache[key] = tuple(float(max(la.thresholds, key=lambda t: (pairs.counts(t).f1, -la.thresholds.index(t))))
+                           for pairs in run.pairs)
     return cache[key]
 
 
-def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None = None) -> Any:
+def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None = None,
+                  setting: tuple[bool, bool, bool] = (True, False, False)) -> Any:
     """The lookahead's pairs through the filter on held-out *training* days (contiguous folds,
     every ``cv_stride``-th reference) with ``fraction`` of their labels visible; each fold's
-    activity model, movement model (run end, no memory) and emission (the chosen evidence) are
-    fitted on the other folds."""
+    activity model, movement model (of ``setting``: run end, run memory, next activity) and
+    emission (the chosen evidence) are fitted on the other folds."""
     from globe.evaluation import lookahead as lk
 
     h, la = setup.household, config.lookahead
@@ -406,7 +423,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cach
             emission = assembly.movement_emission(config.filter, **setup.selection.best).fit(train, h.objects)
             if cache is not None:
                 cache[key] = activity, emission
-        movements = lk._movements(h, la, train, (True, False, False), cache, (data, tuple(train_idx)))
+        movements = lk._movements(h, la, train, setting, cache, (data, tuple(train_idx)))
         fold = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
         forecaster = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in val}
@@ -449,7 +466,7 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
             selection_rows.append({"household": h.name, "params": params, "cv_object_f1_no_labels": round(score, 4),
                                    "chosen": params == selection.best})
         if lookahead:  # shared by every label share: made once, before the processes fork
-            _lookahead_threshold(setup, config, cache)
+            _lookahead_thresholds(setup, config, cache)
             _forecaster(setup, config, cache)
     # 2. Every (household, label share) on its own.
     tasks = [(setups[h.name], fraction) for h in households for fraction in fractions]
