@@ -220,7 +220,7 @@ class FilterConfig(_Section):
         (0.0, 0.25, 0.5, 0.75, 1.0), description="shares of history steps whose activity label is visible (missing-label runs)"
     )
     seed: int = Field(0, description="seed of which steps hide their label (combined with the household and day names)")
-    max_hypotheses: int = Field(16, ge=1, le=10_000, description="most activity histories the filter keeps per step")
+    max_hypotheses: int = Field(32, ge=1, le=10_000, description="most activity histories the filter keeps per step")
     min_weight: float = Field(1e-4, ge=0.0, lt=1.0, description="histories below this share of the belief are dropped")
     emission_smoothing: float = Field(
         1.0, gt=0.0, le=1e6, description="pseudo-count shrinking P(object moves | activity) towards its overall rate"
