@@ -239,16 +239,17 @@ class FilterConfig(_Section):
         "starts (with the change flag and a share credited to a_{s-1}), tried by CV"
     )
     emission_weight: float = Field(
-        1.0, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service)"
+        0.5, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service; "
+        "the emission_* defaults are what cross-validation chose on every HOMER+ household's training days)"
     )
     emission_previous_share: float = Field(
-        0.5, ge=0.0, le=1.0, description="share of a movement credited to the activity at t-1 where no cross-validation runs"
+        1.0, ge=0.0, le=1.0, description="share of a movement credited to the activity at t-1 where no cross-validation runs"
     )
     emission_boundary: bool = Field(
         True, description="move rates depend on the activity changing, where no cross-validation runs"
     )
     emission_switch: bool = Field(
-        False, description="at a change, move rates also depend on the activity that starts, where no cross-validation runs"
+        True, description="at a change, move rates also depend on the activity that starts, where no cross-validation runs"
     )
     forecast_hypotheses: int = Field(
         4, ge=1, le=1000, description="most probable filtered histories mixed in a lookahead forecast with missing labels"
