@@ -72,18 +72,26 @@ class RoutineModel(ActivityModelBase):
             self.runs_.add((DAY_START, *(a for a, _, _ in runs)))
             while len(self.starts_) < len(day):
                 self.starts_.append(Counter())
+            seen: list[tuple] = []  # every step's keys (see _keys), counted at once below
+            stayed: list[tuple] = []
+            cap, hour = self.duration_cap, self.hour_steps
             for a, first, last in runs:
                 self.starts_[first][a] += 1
+                alone = (a,)
                 for t in range(first, min(last + 1, len(day) - 1)):
-                    stayed = t + 1 <= last
-                    for key in self._keys(a, t - first + 1, t + 1):
-                        self.seen_[key] += 1
-                        self.stayed_[key] += stayed
+                    d = min(t - first + 1, cap)
+                    keys = (alone, (a, d), (a, d, (t + 1) // hour))
+                    seen.extend(keys)
+                    if t + 1 <= last:
+                        stayed.extend(keys)
+            self.seen_.update(seen)
+            self.stayed_.update(stayed)
         self.runs_.compact()  # typed arrays: a tenth of the memory, the same answers
         self.classes_ = tuple(sorted(self.frequency_))
         return self
 
     def _keys(self, activity: str, duration: int, step: int) -> tuple[tuple, ...]:
+        """The stay-hazard levels of a step (:meth:`partial_fit` writes them out inline)."""
         d = min(duration, self.duration_cap)
         return (activity,), (activity, d), (activity, d, step // self.hour_steps)
 
