@@ -11,7 +11,8 @@ still changed (its first new place is where it went).
 
 A change is predicted when the forecaster's P(first new place = its best guess) reaches a
 threshold (one per horizon); the thresholds and whether movement hazards know that an activity
-ends are chosen by cross-validation on training days (the listed first values win ties).
+ends (and then what moved earlier in its run, and which activity starts) are chosen by
+cross-validation on training days (the listed first values win ties).
 """
 
 from __future__ import annotations
