@@ -72,15 +72,12 @@ class RoutineModel(ActivityModelBase):
             self.runs_.add((DAY_START, *(a for a, _, _ in runs)))
             while len(self.starts_) < len(day):
                 self.starts_.append(Counter())
-            seen: list[tuple] = []  # every step's keys (see _keys), counted at once below
+            seen: list[tuple] = []  # every step's keys, counted at once below
             stayed: list[tuple] = []
-            cap, hour = self.duration_cap, self.hour_steps
             for a, first, last in runs:
                 self.starts_[first][a] += 1
-                alone = (a,)
                 for t in range(first, min(last + 1, len(day) - 1)):
-                    d = min(t - first + 1, cap)
-                    keys = (alone, (a, d), (a, d, (t + 1) // hour))
+                    keys = self._keys(a, t - first + 1, t + 1)
                     seen.extend(keys)
                     if t + 1 <= last:
                         stayed.extend(keys)
@@ -91,7 +88,7 @@ class RoutineModel(ActivityModelBase):
         return self
 
     def _keys(self, activity: str, duration: int, step: int) -> tuple[tuple, ...]:
-        """The stay-hazard levels of a step (:meth:`partial_fit` writes them out inline)."""
+        """The stay-hazard levels of a step, counted by :meth:`partial_fit`."""
         d = min(duration, self.duration_cap)
         return (activity,), (activity, d), (activity, d, step // self.hour_steps)
 
