@@ -18,7 +18,14 @@ from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation import report
 from globe.evaluation.fetch import FETCH_COLUMNS, FetchEvaluation, evaluate_fetch, fetch_rows, lead_time_rows
-from globe.evaluation.lookahead import LOOKAHEAD_COLUMNS, LookaheadResult, choose_settings, evaluate_lookahead, lookahead_rows
+from globe.evaluation.lookahead import (
+    LOOKAHEAD_COLUMNS,
+    LookaheadResult,
+    choose_settings,
+    evaluate_lookahead,
+    lookahead_rows,
+    setting_of,
+)
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_figure, lookahead_figure, save_figure
 from globe.evaluation.tuning import tuned_models
@@ -86,8 +93,7 @@ def _fetch(h: Household, config: GlobeConfig, cache: dict, same: LookaheadResult
         forecaster = same.forecaster
     else:
         if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
-            best = choose_settings(h, config, models, cache=cache).best
-            run_end, run_memory, run_next = (bool(best[k]) for k in ("run_end", "run_memory", "run_next"))
+            run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, cache=cache).best)
         else:
             run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
         forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory,

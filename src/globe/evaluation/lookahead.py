@@ -18,7 +18,7 @@ cross-validation on training days (the listed first values win ties).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -215,6 +215,23 @@ def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, fi
 
 
 Setting = tuple[bool, bool, bool]  # the movement model's (run_end, run_memory, run_next)
+SETTING_KEYS = ("run_end", "run_memory", "run_next")
+
+
+def setting_of(best: Mapping[str, Any]) -> Setting:
+    """The movement setting of a :func:`choose_settings` choice."""
+    run_end, run_memory, run_next = (bool(best[k]) for k in SETTING_KEYS)
+    return run_end, run_memory, run_next
+
+
+def threshold_f1s(run: LookaheadRun, thresholds: Sequence[float]) -> list[list[float]]:
+    """Per horizon, the F1 of ``run``'s pairs at each of ``thresholds``."""
+    return [[p.counts(t).f1 for t in thresholds] for p in run.pairs]
+
+
+def best_thresholds(f1s: Sequence[Sequence[float]], thresholds: Sequence[float]) -> tuple[float, ...]:
+    """Each horizon's best threshold of :func:`threshold_f1s` (the first listed wins ties)."""
+    return tuple(float(thresholds[list(row).index(max(row))]) for row in f1s)
 
 
 def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> list[Setting]:
@@ -298,13 +315,13 @@ def choose_settings(household: Household, config: GlobeConfig, models: ModelConf
     best: dict | None = None
     best_score = -1.0
     for setting in settings:
-        named = dict(zip(("run_end", "run_memory", "run_next"), setting))
-        per = [[p.counts(t).f1 for t in la.thresholds] for p in pooled_runs[setting].pairs]
+        named = dict(zip(SETTING_KEYS, setting))
+        per = threshold_f1s(pooled_runs[setting], la.thresholds)
         scores.extend(({**named, "horizon": s, "threshold": t}, f) for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
         score = float(np.mean([max(row) for row in per]))
         if score > best_score:
             best_score = score
-            best = {**named, "thresholds": tuple(la.thresholds[row.index(max(row))] for row in per)}
+            best = {**named, "thresholds": best_thresholds(per, la.thresholds)}
     return Selection(best or {"run_end": True, "run_memory": False, "run_next": False, "thresholds": (0.5,) * la.horizons},
                      scores)
 
@@ -345,7 +362,7 @@ def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelC
     """Choose the settings on training days, fit on all of them, score the test days."""
     la = config.lookahead
     chosen = choose_settings(household, config, models, cache=cache)
-    run_end, run_memory, run_next = (bool(chosen.best[k]) for k in ("run_end", "run_memory", "run_next"))
+    run_end, run_memory, run_next = setting_of(chosen.best)
     fits = [assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory,
                                 run_next=run_next) for _ in range(TIMING_FITS)]
     fitted = fits[0]

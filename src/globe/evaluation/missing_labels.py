@@ -365,15 +365,13 @@ def _lookahead_selection(setup: FilterSetup, config: GlobeConfig, cache: dict) -
     return cache[key]
 
 
-def _setting(chosen: dict[str, Any]) -> tuple[bool, bool, bool]:
-    return bool(chosen["run_end"]), bool(chosen["run_memory"]), bool(chosen["run_next"])
-
-
 def _forecaster(setup: FilterSetup, config: GlobeConfig, cache: dict) -> Forecaster:
     """The lookahead's forecaster (its chosen movement setting) over the filter's own activity
     model (memoised: its distributions are shared across label shares)."""
+    from globe.evaluation import lookahead as lk
+
     h, la = setup.household, config.lookahead
-    setting = _setting(_lookahead_selection(setup, config, cache))
+    setting = lk.setting_of(_lookahead_selection(setup, config, cache))
     key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la, setting)
     forecaster = cache.get(key)
     if forecaster is None:
@@ -389,21 +387,22 @@ def _lookahead_thresholds(setup: FilterSetup, config: GlobeConfig, cache: dict, 
     ``filter.threshold_per_fraction`` and labels missing, the best per horizon on held-out
     training days with the same share of labels visible (a forecast mixed over hidden histories
     is less sure, so its best threshold may be lower); ties go to the first listed."""
+    from globe.evaluation import lookahead as lk
+
     h, la = setup.household, config.lookahead
     chosen = _lookahead_selection(setup, config, cache)
     if fraction >= 1.0 or not config.filter.threshold_per_fraction:
         return tuple(float(t) for t in chosen["thresholds"])
     key = ("lookahead_threshold_hidden", h.name, hash(h.train), setup.models, la, config.filter, config.selection.folds,
-           tuple(sorted(setup.selection.best.items())), _setting(chosen), fraction)
+           tuple(sorted(setup.selection.best.items())), lk.setting_of(chosen), fraction)
     if key not in cache:
-        run = hidden_cv_run(setup, config, fraction, cache, _setting(chosen))
-        cache[key] = tuple(float(max(la.thresholds, key=lambda t: (pairs.counts(t).f1, -la.thresholds.index(t))))
-                           for pairs in run.pairs)
+        run = hidden_cv_run(setup, config, fraction, cache, lk.setting_of(chosen))
+        cache[key] = lk.best_thresholds(lk.threshold_f1s(run, la.thresholds), la.thresholds)
     return cache[key]
 
 
-def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None = None,
-                  setting: tuple[bool, bool, bool] = (True, False, False)) -> Any:
+def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None,
+                  setting: tuple[bool, bool, bool]) -> Any:
     """The lookahead's pairs through the filter on held-out *training* days (contiguous folds,
     every ``cv_stride``-th reference) with ``fraction`` of their labels visible; each fold's
     activity model, movement model (of ``setting``: run end, run memory, next activity) and

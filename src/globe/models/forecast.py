@@ -163,7 +163,7 @@ class MovementModel(CountingModel):
         """``at_end`` (the run-end hazards of (object, place) cells ``pairs``, rows of ``ending``
         activity indices) shrunk towards the counts of the switch to ``starting`` (unchanged
         where that switch was never seen, or without ``run_next``)."""
-        if not len(getattr(self, "switch_index_", ())):
+        if not len(self.switch_index_):
             return at_end
         rows = self.switch_index_[ending * len(self.activities_) + starting]
         k = self.hazard_shrinkage
@@ -775,7 +775,7 @@ class Forecaster:
         destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
         flat = hazard.reshape(-1)
         no_cells, all_seen = npairs == 0, bool(seen.all())
-        switching = ne == 2 and len(getattr(mv, "switch_index_", ())) > 0
+        switching = ne == 2 and len(mv.switch_index_) > 0
         cols = np.arange(nj)
         survive = np.ones((len(trees.levels[0].act) if trees.levels else 0, nj))
         for i, level in enumerate(trees.levels[1:], start=1):
