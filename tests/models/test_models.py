@@ -214,3 +214,10 @@ def test_packed_days_give_back_the_days_packed(seed):
     with pytest.raises(IndexError):
         packed[len(days)]
     assert list(PackedDays([])) == []
+    # the numbered view gives back every step's row, day by day
+    steps, table, labels = packed.coded_rows(3)
+    for i, day in enumerate(days):
+        lo, hi = packed.offsets[i], packed.offsets[i + 1]
+        assert [tuple(labels[x] for x in table[r]) for r in steps[lo:hi]] == list(day.locations)
+    with pytest.raises(ValueError):
+        packed.coded_rows(2)

@@ -70,17 +70,22 @@ class MovementModel(CountingModel):
         self._reset()
         self._validate_params()
         days = tuple(days)
-        self.training_data_ = PackedDays(days)  # counted again when a day is learned; packed, a tenth of the memory
+        packed = self.training_data_ = PackedDays(days)  # counted again when a day is learned; a tenth of the memory
         self.objects_ = tuple(objects)
         self.activities_ = tuple(sorted(set().union(*(d.activities for d in days)))) + (UNKNOWN,)
-        distinct: dict[tuple[str, ...], int] = {}  # a day's rows repeat until something moves
-        row_ids = [np.array([distinct.setdefault(row, len(distinct)) for row in d.locations], dtype=int) for d in days]
-        self.locations_ = tuple(sorted({loc for row in distinct for loc in row})) + (UNKNOWN,)
+        # A day's rows repeat until something moves: the packing numbered the distinct ones already.
+        steps, row_labels, labels = packed.coded_rows(len(self.objects_))
+        places = np.unique(row_labels)
+        self.locations_ = tuple(sorted(labels[i] for i in places.tolist())) + (UNKNOWN,)
         self._act_index = {a: i for i, a in enumerate(self.activities_)}
         self._loc_index = {loc: i for i, loc in enumerate(self.locations_)}
         na, c, nj, nl = len(self.activities_), self.duration_cap, len(self.objects_), len(self.locations_)
         cols = np.arange(nj)
-        table = np.array([[self._loc_index[x] for x in row] for row in distinct], dtype=int).reshape(len(distinct), nj)
+        place_of = np.zeros(len(labels), dtype=int)
+        place_of[places] = [self._loc_index[labels[i]] for i in places.tolist()]
+        table = place_of[row_labels]
+        offsets = packed.offsets
+        row_ids = [steps[offsets[i]: offsets[i + 1]] for i in range(len(days))]
         e_size, m_size = (2 if self.run_end else 1), (2 if self.run_memory else 1)
         cells, changes, moves = [], [], []  # (activity, steps into run, run ends, moved earlier) and (object, place)
         day_acts = []

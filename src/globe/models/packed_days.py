@@ -12,6 +12,8 @@ from array import array
 from itertools import accumulate, chain, groupby, repeat
 from typing import Iterable, Iterator, Sequence, overload
 
+import numpy as np
+
 from globe.data.records import Day
 
 
@@ -41,6 +43,22 @@ class PackedDays(Sequence[Day]):
 
     def __len__(self) -> int:
         return len(self._meta)
+
+    def coded_rows(self, width: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """The locations as numbers, for counting without hashing rows again: each step's
+        distinct-row number (all days in order; day i is steps ``offsets[i] .. offsets[i + 1]``),
+        the distinct rows as label numbers (rows x ``width``), and number -> label."""
+        starts = np.frombuffer(self._row_start, dtype=np.int32)
+        if np.any(np.diff(starts) != width):
+            raise ValueError(f"every row of locations must have {width} cells")
+        steps = np.frombuffer(self._rows, dtype=np.int32).astype(int)
+        table = np.frombuffer(self._row_labels, dtype=np.int32).astype(int).reshape(len(starts) - 1, width)
+        return steps, table, self._labels
+
+    @property
+    def offsets(self) -> tuple[int, ...]:
+        """Day i is steps ``offsets[i] .. offsets[i + 1]`` of :meth:`coded_rows`."""
+        return tuple(self._offsets)
 
     @overload
     def __getitem__(self, i: int) -> Day: ...
