@@ -23,7 +23,7 @@ from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
 from globe.reasoning.gate import UncertaintyGate
-from globe.sequences.runs import training_sequences
+from globe.sequences.runs import TrainingSequences, training_sequences
 
 if TYPE_CHECKING:
     from globe.noise.proposals import Scorer
@@ -56,6 +56,7 @@ class FittedHousehold:
     objects: ObjectModel
     train_s: float  # model fitting only (preprocessing excluded)
     preprocess_s: float
+    sequences: TrainingSequences  # what was counted
 
 
 def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day] | None = None) -> FittedHousehold:
@@ -66,7 +67,7 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
     t1 = time.perf_counter()
     activity = activity_model(config.models).fit(seqs.activities)
     objects = object_model(config.models).fit(seqs.runs)
-    return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0)
+    return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0, seqs)
 
 
 def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight: float,
@@ -152,7 +153,8 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     # The filter's movement evidence is learned with the models; the filter itself is rebuilt per
     # prediction over the current models (cheap), so it never reads stale counts.
     emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
-                                 boundary=fc.emission_boundary, switch=fc.emission_switch).fit(household.train, household.objects)
+                                 boundary=fc.emission_boundary, switch=fc.emission_switch).fit(household.train, household.objects,
+                                                                                        fitted.sequences.moves)
     policy = None
     if s.fetch_decision == "policy":
         movements = movement_model(config.lookahead, run_end=True).fit(household.train, household.objects)

@@ -18,6 +18,7 @@ from globe.models.activity_filter import (
 )
 from globe.models.baselines import PersistenceModel
 from globe.models.routine import RoutineModel
+from globe.sequences.movements import moved_steps
 
 
 class ToyMarkov:
@@ -220,6 +221,11 @@ def test_movement_emission_partial_fit_equals_fit():
     for moved in (frozenset(), frozenset({"cup"}), frozenset({"cup", "plate"})):
         for prev, cur in (("x", "x"), ("x", "y"), ("y", "x")):
             assert parts.log_likelihood(prev, cur, moved) == pytest.approx(whole.log_likelihood(prev, cur, moved))
+    given = MovementEmission(previous_share=0.5).fit([d1, d2], ("cup", "plate"),
+                                                     [moved_steps(d1, ("cup", "plate")), moved_steps(d2, ("cup", "plate"))])
+    assert (given.steps_, given.moves_, given.rate_) == (whole.steps_, whole.moves_, whole.rate_)
+    with pytest.raises(ValueError, match="moved steps of 1 days for 2 days"):
+        MovementEmission().fit([d1, d2], ("cup", "plate"), [moved_steps(d1, ("cup", "plate"))])
 
 
 def test_online_filter_for_the_service_matches_the_offline_scan(households):

@@ -1,8 +1,8 @@
 import pytest
 
 from globe.data.records import Day, Household
-from globe.sequences.movements import extract_movements
-from globe.sequences.runs import activity_runs, run_bounds, training_sequences
+from globe.sequences.movements import extract_movements, moved_steps
+from globe.sequences.runs import activity_runs, run_bounds, run_objects, training_sequences
 
 OBJECTS = ("cup", "plate", "book")
 # step:        0            1            2            3           4
@@ -46,3 +46,17 @@ def test_runs_group_events_by_activity_run():
 def test_unknown_alignment_is_rejected():
     with pytest.raises(ValueError, match="expected one of previous, current, hybrid"):
         extract_movements(DAY, OBJECTS, "later")  # type: ignore[arg-type]
+
+
+def test_moved_steps_list_what_moved_in_column_order():
+    assert moved_steps(DAY, OBJECTS) == [(2, ("cup", "plate")), (3, ("cup",)), (4, ("book",))]
+
+
+@pytest.mark.parametrize("alignment", ["previous", "current", "hybrid"])
+def test_run_objects_are_the_objects_of_activity_runs(alignment):
+    expected = [(r.activity, r.objects) for r in activity_runs(DAY, OBJECTS, alignment)]
+    assert run_objects(DAY, OBJECTS, alignment) == expected
+    assert run_objects(DAY, OBJECTS, alignment, moved_steps(DAY, OBJECTS)) == expected
+    home = Household("toy", (), OBJECTS, (DAY, DAY), ())
+    seqs = training_sequences(home, [DAY, DAY], alignment)
+    assert seqs.runs == expected * 2 and seqs.moves == [moved_steps(DAY, OBJECTS)] * 2

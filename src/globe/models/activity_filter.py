@@ -30,7 +30,6 @@ import math
 import weakref
 from collections import Counter
 from dataclasses import dataclass
-from itertools import repeat
 from typing import Any, Callable, Collection, Hashable, Protocol, Sequence
 
 from globe.data.records import Day
@@ -42,6 +41,7 @@ from globe.models.base import CountingModel, windowed_prior
 from globe.models.baselines import PersistenceModel
 from globe.models.routine import DAY_START as RUN_DAY_START
 from globe.models.routine import RoutineModel
+from globe.sequences.movements import moved_steps
 
 
 class NextActivityModel(Protocol):
@@ -53,10 +53,9 @@ _EMPTY: frozenset[str] = frozenset()
 
 def moved_objects(day: Day, objects: Sequence[str]) -> list[frozenset[str]]:
     """Per step, the objects whose location differs from the step before (empty at step 0)."""
-    out: list[frozenset[str]] = [_EMPTY]
-    for t in range(1, len(day)):
-        before, after = day.locations[t - 1], day.locations[t]
-        out.append(_EMPTY if before == after else frozenset(o for o, b, a in zip(objects, before, after) if b != a))
+    out: list[frozenset[str]] = [_EMPTY] * len(day)
+    for t, moved in moved_steps(day, objects):
+        out[t] = frozenset(moved)
     return out
 
 
@@ -98,12 +97,15 @@ class MovementEmission(CountingModel):
                 raise ConfigError(f"MovementEmission: {name}={value!r}; expected a number >= 0"
                                   + (" and <= 1" if name == "previous_share" else ""))
 
-    def fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementEmission":
-        """Count from scratch over ``days`` whose object columns are ``objects``."""
+    def fit(self, days: Sequence[Day], objects: Sequence[str],
+            day_moves: Sequence[Sequence[tuple[int, tuple[str, ...]]]] | None = None) -> "MovementEmission":
+        """Count from scratch over ``days`` whose object columns are ``objects`` (``day_moves``:
+        each day's :func:`~globe.sequences.movements.moved_steps`, when the caller has them)."""
         self._reset()
-        return self.partial_fit(days, objects)
+        return self.partial_fit(days, objects, day_moves)
 
-    def partial_fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementEmission":
+    def partial_fit(self, days: Sequence[Day], objects: Sequence[str],
+                    day_moves: Sequence[Sequence[tuple[int, tuple[str, ...]]]] | None = None) -> "MovementEmission":
         """Add days to the counts (the service learns each day as it ends)."""
         if not hasattr(self, "training_data_"):
             self._validate_params()
@@ -116,28 +118,32 @@ class MovementEmission(CountingModel):
             self.overall_: Counter[str] = Counter()
         elif tuple(objects) != self.objects_:
             raise ConfigError("MovementEmission.partial_fit: the object columns differ from the ones it was fitted on")
-        steps, moves = self.steps_, self.moves_
-        for day in days:
+        # Counted per distinct (a_{s-1}, a_s) pair and (a_{s-1}, a_s, object moved), then spread
+        # over the keys below: the same counts as one increment per step and key, a third of the time.
+        pairs: Counter[tuple[str, str]] = Counter()
+        moved_pairs: Counter[tuple[str, str, str]] = Counter()
+        if day_moves is not None and len(day_moves) != len(days):
+            raise ValueError(f"moved steps of {len(day_moves)} days for {len(days)} days")
+        for i, day in enumerate(days):
             self.training_data_.append(day.name)
-            moved = moved_objects(day, self.objects_)
-            before, after = day.activities[:-1], day.activities[1:]
-            changed = [b != a for b, a in zip(before, after)]
-            self.transitions_ += len(before)
-            # every step counts under both attachments, with and without the change flag; a step
-            # where the activity changes also counts under its switch (part 2: a_{s-1} -> a_s)
-            steps.update(zip(repeat(0), before))
-            steps.update(zip(repeat(0), before, changed))
-            steps.update(zip(repeat(1), after))
-            steps.update(zip(repeat(1), after, changed))
-            steps.update((2, b, a) for b, a, c in zip(before, after, changed) if c)
-            for t in range(1, len(day)):
-                if moved[t]:  # most steps move nothing
-                    self.overall_.update(moved[t])
-                    b, a, c = before[t - 1], after[t - 1], changed[t - 1]
-                    keys = ((0, b), (0, b, c), (1, a), (1, a, c)) + (((2, b, a),) if c else ())
-                    for key in keys:
-                        for o in moved[t]:
-                            moves[(*key, o)] += 1
+            acts = day.activities
+            pairs.update(zip(acts, acts[1:]))
+            for t, moved in moved_steps(day, self.objects_) if day_moves is None else day_moves[i]:
+                b, a = acts[t - 1], acts[t]
+                moved_pairs.update((b, a, o) for o in moved)
+                self.overall_.update(moved)
+        steps, moves = self.steps_, self.moves_
+        # every step counts under both attachments, with and without the change flag; a step
+        # where the activity changes also counts under its switch (part 2: a_{s-1} -> a_s)
+        for (b, a), n in pairs.items():
+            c = b != a
+            self.transitions_ += n
+            for key in ((0, b), (0, b, c), (1, a), (1, a, c)) + (((2, b, a),) if c else ()):
+                steps[key] += n
+        for (b, a, o), n in moved_pairs.items():
+            c = b != a
+            for key in ((0, b), (0, b, c), (1, a), (1, a, c)) + (((2, b, a),) if c else ()):
+                moves[(*key, o)] += n
         self.activities_ = tuple(sorted({key[1] for key in self.steps_}))
         self.switches_ = tuple(sorted(key[1:] for key in self.steps_ if key[0] == 2))
         self.rate_ = {o: (self.overall_[o] + 1) / (self.transitions_ + 2) for o in self.objects_}

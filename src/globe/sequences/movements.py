@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from itertools import compress
+from operator import ne
+from typing import Literal, Sequence
 
 from globe.data.records import Day
 
@@ -41,13 +43,27 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
     raise ValueError(f"unknown alignment {alignment!r}; expected one of {', '.join(ALIGNMENTS)}")
 
 
+def moved_steps(day: Day, objects: Sequence[str]) -> list[tuple[int, tuple[str, ...]]]:
+    """(t, the objects whose location at t differs from t-1, in column order) for every step t at
+    which something moved. Most steps move nothing, and the rows of such steps are often the
+    same tuple (the parser shares them), so those cost one identity check."""
+    rows = day.locations
+    out = []
+    for t in range(1, len(rows)):
+        before, after = rows[t - 1], rows[t]
+        if before is after or before == after:
+            continue
+        out.append((t, tuple(compress(objects, map(ne, before, after)))))
+    return out
+
+
 def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment = "previous") -> list[MovementEvent]:
     """Every movement of the day, by step, then by column order (deterministic)."""
     events: list[MovementEvent] = []
     rows = day.locations
     for t in range(1, len(day)):
         before, after = rows[t - 1], rows[t]
-        if before == after:  # most steps: nothing moved
+        if before is after or before == after:  # most steps: nothing moved
             continue
         s = activity_step_for(day.activities, t, alignment)
         name, minute, activity = day.name, day.minutes[t], day.activities[s]
