@@ -46,6 +46,24 @@ def toy_forecaster() -> Forecaster:
 
 def test_durations_count_steps_since_the_run_began():
     assert durations(list("aabbba")).tolist() == [0, 1, 0, 1, 2, 0]
+    assert durations(np.array([3, 3, 1, 1, 1, 3])).tolist() == [0, 1, 0, 1, 2, 0]
+    assert durations([]).tolist() == []
+
+
+def test_nothing_is_counted_across_days():
+    """All days are counted at once: the step from one day's last row to the next day's first
+    is not a transition (day 1 ends with the cup on the table, day 2 starts with it on the
+    shelf; a one-step day between them has no transition at all)."""
+    one_step = toy_day("train/009", "b", ["sink"], ["sink"])
+    alone = toy_forecaster().movements
+    mv = MovementModel(hazard_shrinkage=1e-9, destination_shrinkage=1e-9).fit((TOY_DAYS[0], one_step, TOY_DAYS[1]), OBJECTS)
+    for place in ("table", "sink"):  # the cup only ever went to the table (the object-level backoff)
+        idx, _ = mv.destination("b", 0, mv.location_index(place))
+        assert [mv.locations_[i] for i in idx] == ([] if place == "table" else ["table"])
+    for a in ("a", "b"):
+        for d in range(3):
+            shelf = np.array([mv.location_index("shelf")] * 2)
+            assert mv.hazards(a, d, shelf) == pytest.approx(alone.hazards(a, d, np.array([alone.location_index("shelf")] * 2)))
 
 
 def test_hazards_and_destinations_are_the_counted_rates():

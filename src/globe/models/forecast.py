@@ -72,10 +72,11 @@ class MovementModel(CountingModel):
         days = tuple(days)
         packed = self.training_data_ = PackedDays(days)  # counted again when a day is learned; a tenth of the memory
         self.objects_ = tuple(objects)
-        self.activities_ = tuple(sorted(set().union(*(d.activities for d in days)))) + (UNKNOWN,)
         # A day's rows repeat until something moves: the packing numbered the distinct ones already.
         steps, row_labels, labels = packed.coded_rows(len(self.objects_))
-        places = np.unique(row_labels)
+        step_labels = packed.coded_activities()
+        self.activities_ = tuple(sorted(labels[i] for i in np.unique(step_labels).tolist())) + (UNKNOWN,)
+        places = np.flatnonzero(np.bincount(row_labels.ravel(), minlength=len(labels)))
         self.locations_ = tuple(sorted(labels[i] for i in places.tolist())) + (UNKNOWN,)
         self._act_index = {a: i for i, a in enumerate(self.activities_)}
         self._loc_index = {loc: i for i, loc in enumerate(self.locations_)}
@@ -84,32 +85,35 @@ class MovementModel(CountingModel):
         place_of = np.zeros(len(labels), dtype=int)
         place_of[places] = [self._loc_index[labels[i]] for i in places.tolist()]
         table = place_of[row_labels]
-        offsets = packed.offsets
-        row_ids = [steps[offsets[i]: offsets[i + 1]] for i in range(len(days))]
+        act_of = np.zeros(len(labels), dtype=int)
+        act_of[np.unique(step_labels)] = [self._act_index[labels[i]] for i in np.unique(step_labels).tolist()]
         e_size, m_size = (2 if self.run_end else 1), (2 if self.run_memory else 1)
-        cells, changes, moves = [], [], []  # (activity, steps into run, run ends, moved earlier) and (object, place)
-        day_acts = []
+        # Every day at once: the steps of all days in order, and the transitions u -> u + 1 inside a day.
+        acts_all = act_of[step_labels]
+        starts = np.ones(len(acts_all), dtype=bool)  # a run starts where the activity changes or a day starts
+        starts[1:] = acts_all[1:] != acts_all[:-1]
+        offsets = np.asarray(packed.offsets)
+        starts[offsets[:-1][offsets[:-1] < len(starts)]] = True
+        index = np.arange(len(acts_all))
+        dur_all = np.minimum(index - np.maximum.accumulate(np.where(starts, index, 0)), c - 1)
+        inside = np.ones(max(len(acts_all) - 1, 0), dtype=bool)
+        inside[offsets[1:-1][(offsets[1:-1] > 0) & (offsets[1:-1] < len(acts_all))] - 1] = False
+        u = np.flatnonzero(inside)  # the step before each transition
+        acts, after, dur = acts_all[u], acts_all[u + 1], dur_all[u]
+        src, dst = table[steps[u]], table[steps[u + 1]]  # (transitions, objects)
+        change = src != dst
+        ends = (after != acts).astype(int) * (e_size - 1)  # things get put away when it ends ...
+        earlier = moved_in_run(dur, change) if self.run_memory else 0  # ... what came out during it
+        cell = ((acts[:, None] * c + dur[:, None]) * e_size + ends[:, None]) * m_size + earlier
+        cells = [np.broadcast_to(cell, change.shape).ravel()]  # (activity, steps into run, run ends, moved earlier)
+        changes = [change.ravel()]
+        moves = [(cols[None, :] * nl + src).ravel()]  # (object, place)
         switches, switch_changes, switch_moves = [], [], []  # run ends: (activity ending, activity starting)
-        for day, ids in zip(days, row_ids):
-            if len(day) < 2:
-                continue
-            acts = np.array([self._act_index[a] for a in day.activities])
-            day_acts.append((acts, ids))
-            dur = np.minimum(durations(day.activities), c - 1)
-            locs = table[ids]
-            src, dst = locs[:-1], locs[1:]
-            change = src != dst
-            ends = (acts[1:] != acts[:-1]).astype(int) * (e_size - 1)  # things get put away when it ends ...
-            earlier = moved_in_run(dur, change) if self.run_memory else 0  # ... what came out during it
-            cell = ((acts[:-1, None] * c + dur[:-1, None]) * e_size + ends[:, None]) * m_size + earlier
-            cells.append(np.broadcast_to(cell, change.shape).ravel())
-            changes.append(change.ravel())
-            moves.append((cols[None, :] * nl + src).ravel())
-            if self.run_next and self.run_end:
-                b = np.nonzero(acts[1:] != acts[:-1])[0]
-                switches.append(np.repeat(acts[b] * na + acts[b + 1], nj))
-                switch_changes.append(change[b].ravel())
-                switch_moves.append((cols[None, :] * nl + src[b]).ravel())
+        if self.run_next and self.run_end:
+            b = np.flatnonzero(after != acts)
+            switches.append(np.repeat(acts[b] * na + after[b], nj))
+            switch_changes.append(change[b].ravel())
+            switch_moves.append((cols[None, :] * nl + src[b]).ravel())
         # Only (object, place) pairs seen in training get cells: objects visit few places.
         pair_codes = np.concatenate(moves) if moves else np.zeros(0, dtype=int)
         self._pairs = np.nonzero(np.bincount(pair_codes, minlength=nj * nl))[0]
@@ -122,14 +126,7 @@ class MovementModel(CountingModel):
         weights = np.concatenate(changes).astype(float) if changes else np.zeros(0)
         seen = np.bincount(keys, minlength=size).astype(float).reshape(na, c, e_size, m_size, npairs)
         moved = np.bincount(keys, weights=weights, minlength=size).reshape(na, c, e_size, m_size, npairs)
-        self._dest: dict[tuple, Counter[int]] = defaultdict(Counter)  # (a, j, src) / (j, src) / (j,) -> target counts
-        for acts, ids in day_acts:
-            locs = table[ids]
-            t, j = np.nonzero(locs[:-1] != locs[1:])
-            for a, jj, src_, x in zip(acts[t].tolist(), j.tolist(), locs[t, j].tolist(), locs[t + 1, j].tolist()):
-                self._dest[(a, jj, src_)][x] += 1
-                self._dest[(jj, src_)][x] += 1
-                self._dest[(jj,)][x] += 1
+        self._dest = self._count_destinations(acts, src, dst)
         k = self.hazard_shrinkage
         to_object = np.zeros((npairs, nj))
         to_object[np.arange(npairs), self._pair_object] = 1.0
@@ -143,6 +140,27 @@ class MovementModel(CountingModel):
         self._fit_switches(switches, switch_changes, switch_moves, lookup, npairs)
         self._dest_memo: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
         return self
+
+    def _count_destinations(self, acts: np.ndarray, src: np.ndarray, dst: np.ndarray) -> dict[tuple, Counter[int]]:
+        """Where objects went: (activity, object, source) / (object, source) / (object,) -> target
+        counts, from each transition's activity and places (transitions x objects). Each distinct
+        move is counted once, then added in the order moves were first seen (the counters' order
+        is the one of one increment per move, so sums over them are too)."""
+        nj, nl = len(self.objects_), len(self.locations_)
+        t, j = np.nonzero(src != dst)
+        codes = ((acts[t] * nj + j) * nl + src[t, j]) * nl + dst[t, j]
+        dest: dict[tuple, Counter[int]] = defaultdict(Counter)
+        distinct, first, counts = np.unique(codes, return_index=True, return_counts=True)
+        order = np.argsort(first, kind="stable")
+        distinct, counts = distinct[order], counts[order]
+        x, rest = np.divmod(distinct, nl)[::-1]
+        rest, src = np.divmod(rest, nl)
+        a, j = np.divmod(rest, nj)
+        for a_, j_, s_, x_, n in zip(a.tolist(), j.tolist(), src.tolist(), x.tolist(), counts.tolist()):
+            dest[(a_, j_, s_)][x_] += n
+            dest[(j_, s_)][x_] += n
+            dest[(j_,)][x_] += n
+        return dest
 
     def _fit_switches(self, switches: list, changes: list, moves: list, lookup: np.ndarray, npairs: int) -> None:
         """With ``run_next``: counts of moves at the last step of a run per (activity ending,
@@ -250,12 +268,13 @@ def moved_in_run(dur: np.ndarray, change: np.ndarray) -> np.ndarray:
     return ((before - before[start]) > 0).astype(int)
 
 
-def durations(activities: Sequence[str]) -> np.ndarray:
+def durations(activities: Sequence[Any]) -> np.ndarray:
     """Steps since the current run began, at every step (0 on a run's first step)."""
-    out = np.zeros(len(activities), dtype=int)
-    for t in range(1, len(activities)):
-        out[t] = out[t - 1] + 1 if activities[t] == activities[t - 1] else 0
-    return out
+    acts = np.asarray(activities)
+    steps = np.arange(len(acts))
+    starts = np.ones(len(acts), dtype=bool)
+    starts[1:] = acts[1:] != acts[:-1]
+    return steps - np.maximum.accumulate(np.where(starts, steps, 0))
 
 
 @dataclass(frozen=True, slots=True)

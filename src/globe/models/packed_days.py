@@ -9,7 +9,7 @@ days, about 3 KB a day. Reading gives back :class:`Day` records equal to the one
 from __future__ import annotations
 
 from array import array
-from itertools import accumulate, chain, groupby, repeat
+from itertools import accumulate, chain
 from typing import Iterable, Iterator, Sequence, overload
 
 import numpy as np
@@ -26,9 +26,13 @@ class PackedDays(Sequence[Day]):
         days = tuple(days)
         rows: dict[tuple[str, ...], int] = {}  # distinct rows of locations, first seen first
         steps = array("i")  # step -> its row
-        for d in days:  # rows mostly repeat the one before (objects rarely move): one lookup per run of equal rows
-            for row, run in groupby(d.locations):
-                steps.extend(repeat(rows.setdefault(row, len(rows)), sum(1 for _ in run)))
+        seen: dict[int, int] = {}  # id of a row object -> its number: parsed days share equal rows' tuples
+        for d in days:
+            for row in d.locations:
+                number = seen.get(id(row))
+                if number is None:  # rows are numbered by value; the days are alive, so the ids are stable
+                    number = seen[id(row)] = rows.setdefault(row, len(rows))
+                steps.append(number)
         labels = dict.fromkeys(chain(chain.from_iterable(d.activities for d in days), chain.from_iterable(rows)))
         ids = {label: i for i, label in enumerate(labels)}
         self._labels: list[str] = list(labels)  # number -> label (activities and locations)
@@ -54,6 +58,10 @@ class PackedDays(Sequence[Day]):
         steps = np.frombuffer(self._rows, dtype=np.int32).astype(int)
         table = np.frombuffer(self._row_labels, dtype=np.int32).astype(int).reshape(len(starts) - 1, width)
         return steps, table, self._labels
+
+    def coded_activities(self) -> np.ndarray:
+        """Each step's activity as a label number of :meth:`coded_rows` (all days in order)."""
+        return np.frombuffer(self._activities, dtype=np.int32).astype(int)
 
     @property
     def offsets(self) -> tuple[int, ...]:
