@@ -132,6 +132,7 @@ def create_app(config: GlobeConfig) -> FastAPI:
             threading.Thread(target=registry.warm_up, args=(stop,), name="globe-warm-up", daemon=True).start()
         yield
         stop.set()
+        registry.close()
         store.close()
 
     app = FastAPI(title="GLOBE assistance service", version=__version__, lifespan=lifespan,

@@ -15,6 +15,7 @@ import json
 import logging
 import threading
 from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Iterator
@@ -91,6 +92,11 @@ class Registry:
         self._recent: OrderedDict[str, None] = OrderedDict()  # built households, least recently used first
         self._creating: set[str] = set()  # names reserved by a creation under way
         self.failed: dict[str, str] = {}  # households that could not be built, and why
+        self._encoder = ThreadPoolExecutor(max_workers=1, thread_name_prefix="globe-encode")
+
+    def close(self) -> None:
+        """Stop the helper thread (the store is closed by its owner)."""
+        self._encoder.shutdown(wait=True)
 
     # -- start-up ------------------------------------------------------------------------------
     def load_all(self) -> None:
@@ -168,10 +174,16 @@ class Registry:
                 raise LimitError(f"this service holds {limit} households already (service.max_households)", field="name")
             self._creating.add(name)
         try:
-            with no_gc():
-                assistant = assembly.assistant(household, self.config, self.backend)
+            # The days are compressed for storage on another core while the models are counted
+            # (zlib releases the GIL); nothing is stored unless the build succeeds.
+            encoding = self._encoder.submit(Store.encode_days, day_texts)
+            try:
+                with no_gc():
+                    assistant = assembly.assistant(household, self.config, self.backend)
+            finally:
+                encoded = encoding.result()
             with self._lock:
-                self.store.add_household(household, timezone, day_texts)
+                self.store.add_household(household, timezone, day_texts, encoded)
                 row = self.store.household(name)
                 assert row is not None
                 self._served[name] = Served(row, assistant)

@@ -224,14 +224,25 @@ class Store:
                 raise StoreError(f"database read failed: {err}") from err
 
     # -- households --------------------------------------------------------------------------
-    def add_household(self, household: Household, timezone: str, day_texts: Sequence[str]) -> None:
-        """Store the map and the training days (as their CSV text: compact, re-validated on load)."""
+    @staticmethod
+    def encode_days(day_texts: Sequence[str]) -> list[bytes]:
+        """Training days as they are stored: their CSV text, zlib-compressed (a tenth of the size).
+        Compression releases the GIL, so a caller may run this beside other work."""
+        return [zlib.compress(text.encode("utf-8"), 1) for text in day_texts]
+
+    def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
+                      encoded: Sequence[bytes] | None = None) -> None:
+        """Store the map and the training days (as their CSV text: compact, re-validated on load);
+        ``encoded`` is :meth:`encode_days` of ``day_texts`` when the caller has it already."""
+        blobs = self.encode_days(day_texts) if encoded is None else encoded
+        if len(blobs) != len(day_texts):
+            raise ValueError(f"{len(blobs)} encoded days for {len(day_texts)} day texts")
         stmts: list[tuple[str, tuple]] = [
             ("INSERT INTO households (name, nodes, objects, created_at, timezone) VALUES (?, ?, ?, ?, ?)",
              (household.name, json.dumps([asdict(n) for n in household.nodes]), json.dumps(household.objects), _now(), timezone)),
         ]
-        stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)",
-                   (household.name, i, zlib.compress(text.encode("utf-8"), 1))) for i, text in enumerate(day_texts)]
+        stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
+                  for i, blob in enumerate(blobs)]
         self._transaction(f"store household {household.name!r}", stmts)
 
     def households(self) -> list[HouseholdRow]:
