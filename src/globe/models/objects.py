@@ -48,9 +48,12 @@ class ObjectModel(CountingModel):
             self.training_data_.append((activity, objects))
             if not objects:
                 continue
-            index = self.indexes_.setdefault(activity, SuffixIndex(never_predicted=[RUN_START]))
+            index = self.indexes_.get(activity)
+            if index is None:  # not setdefault: that would build an index (and a Counter) per run
+                index = self.indexes_[activity] = SuffixIndex(never_predicted=[RUN_START])
+                self.frequency_[activity] = Counter()
             index.add(self._prefixed(objects))
-            self.frequency_.setdefault(activity, Counter()).update(objects)
+            self.frequency_[activity].update(objects)
         for index in self.indexes_.values():
             index.compact()
         return self

@@ -121,6 +121,8 @@ class SuffixIndex:
             label1.append(-1)
             target1.append(-1)
             p = last
+            # :meth:`_get` and :meth:`_set` written out for the states that keep their further
+            # transitions in a dict (every state a fit creates): this loop is the whole fit.
             while p != -1:
                 first = label1[p]
                 if first == c:
@@ -130,10 +132,17 @@ class SuffixIndex:
                     label1[p] = c
                     target1[p] = cur
                 else:
-                    q = self._get(p, c)
-                    if q != -1:
-                        break
-                    self._set(p, c, cur)
+                    extra = more.get(p)
+                    if extra is None:
+                        q = self._get(p, c)
+                        if q != -1:
+                            break
+                        more[p] = extra = self._rest(p)
+                    else:
+                        q = extra.get(c, -1)
+                        if q != -1:
+                            break
+                    extra[c] = cur
                 p = link[p]
             if p != -1:
                 if length[p] + 1 == length[q]:
@@ -145,11 +154,25 @@ class SuffixIndex:
                     own.append(0)
                     label1.append(label1[q])
                     target1.append(target1[q])
-                    rest = self._rest(q)
+                    extra = more.get(q)
+                    rest = dict(extra) if extra is not None else self._rest(q)
                     if rest:
                         more[clone] = rest
-                    while p != -1 and self._get(p, c) == q:
-                        self._set(p, c, clone)
+                    while p != -1:
+                        if label1[p] == c:
+                            if target1[p] != q:
+                                break
+                            target1[p] = clone
+                        else:
+                            extra = more.get(p)
+                            if extra is not None:
+                                if extra.get(c, -1) != q:
+                                    break
+                                extra[c] = clone
+                            elif self._get(p, c) == q:
+                                self._set(p, c, clone)
+                            else:
+                                break
                         p = link[p]
                     link[q] = clone
                     link[cur] = clone
