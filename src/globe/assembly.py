@@ -148,6 +148,7 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     from globe.service.assistant import OnlineAssistant
 
     fitted = fit_household(household, config)
+    activity = fitted.activity  # the filter's closure keeps this, not the counted sequences
     chooser = object_chooser(fitted.objects, config.gate, backend, marginal=config.models.object_marginal)
     s, fc = config.service, config.filter
     # The filter's movement evidence is learned with the models; the filter itself is rebuilt per
@@ -164,7 +165,7 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     return OnlineAssistant(household, fitted.activity, chooser, alignment=config.sequences.alignment,
                            action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
                            step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps, fetch_policy=policy,
-                           activity_filter=lambda: activity_filter(fitted.activity, emission, fc), emission=emission)
+                           activity_filter=lambda: activity_filter(activity, emission, fc), emission=emission)
 
 
 def describe(activity: ActivityModelBase, chooser: ObjectChooser) -> dict[str, dict[str, Any]]:
