@@ -85,3 +85,16 @@ def test_maps_follow_the_map_rules(households):
     assert err.value.field == f"nodes[{k}].start_location"
     h = household_from("B", parse_nodes(nodes), household_payload(households["B"])["days"])
     assert [d.locations for d in h.train] == [d.locations for d in households["B"].train]
+
+
+@pytest.mark.parametrize("where", ["after the header", "inside", "at the end", "two at the end", "only newlines"])
+def test_blank_lines_get_the_data_layers_answer(households, where):
+    h = households["B"]
+    objects, locations = h.objects, frozenset(n.node for n in h.nodes)
+    owners = {n.cls: n.node for n in h.nodes if n.movable}
+    lines = format_day(h.train[1], objects).rstrip("\n").split("\n")
+    text = {"after the header": "\n".join([lines[0], "", *lines[1:]]), "inside": "\n".join([*lines[:5], "", *lines[5:]]),
+            "at the end": "\n".join(lines) + "\n\n", "two at the end": "\n".join(lines) + "\n\n\n",
+            "only newlines": lines[0] + "\n\n\n"}[where]
+    assert outcome(parse_day, text, objects, locations, "d", owners) == \
+        outcome(parse_day_text, text, objects, locations, "d", "d", owners)

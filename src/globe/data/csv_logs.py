@@ -14,6 +14,8 @@ import csv
 import io
 import re
 from collections import Counter
+from itertools import chain
+from operator import sub
 from pathlib import Path
 from typing import Iterable, Literal, Sequence
 
@@ -308,7 +310,7 @@ def read_day(path: Path, objects: tuple[str, ...], locations: frozenset[str], na
 def household_step(days: Iterable[Day]) -> int | None:
     """The most common gap between consecutive rows over all days (ties: the smallest); None
     when no day has two rows."""
-    gaps = Counter(b - a for d in days for a, b in zip(d.minutes, d.minutes[1:]))
+    gaps = Counter(chain.from_iterable(map(sub, d.minutes[1:], d.minutes) for d in days))
     if not gaps:
         return None
     top = max(gaps.values())
@@ -319,9 +321,9 @@ def check_step(day: Day, lines: Sequence[int], step: int, resample: Resample = "
     """Every row ``step`` minutes after the previous one. Otherwise, with ``resample="locf"``,
     the day is resampled to the grid ``first minute + k * step`` (up to the last row's minute),
     each grid point taking the last observation at or before it; without it, an error."""
-    irregular = next((t for t in range(1, len(day)) if day.minutes[t] - day.minutes[t - 1] != step), None)
-    if irregular is None:
+    if all(map(step.__eq__, map(sub, day.minutes[1:], day.minutes))):  # the usual case, at C speed
         return day
+    irregular = next(t for t in range(1, len(day)) if day.minutes[t] - day.minutes[t - 1] != step)
     if resample != "locf":
         gap = day.minutes[irregular] - day.minutes[irregular - 1]
         raise DataError(f"{day.minutes[irregular]} is {gap} minutes after {day.minutes[irregular - 1]}; this household's step is "

@@ -105,7 +105,7 @@ class DayParser:
     def parse(self, text: str, name: str) -> tuple[Day, tuple[int, ...]]:
         header = text[: text.find("\n")] if "\n" in text else text
         plain = (header.split(",") == self._header and '"' not in text and "\r" not in text
-                 and "\n\n" not in text and not text.startswith("\ufeff"))
+                 and not text.startswith("\ufeff"))  # blank lines: see _fast_day
         if plain:
             day = self._fast_day(text, name)
             if day is not None:
@@ -119,6 +119,8 @@ class DayParser:
         lines = text.split("\n")
         if lines and not lines[-1]:
             lines.pop()
+        if "" in lines:  # a blank line (cheaper here than searching the text for two newlines)
+            return None
         parts = [line.split(",", 2) for line in lines[1:]]
         if not parts or min(map(len, parts)) < 3:
             return None
