@@ -14,7 +14,7 @@ import csv
 import io
 import re
 from collections import Counter
-from itertools import chain
+from itertools import chain, compress
 from operator import sub
 from pathlib import Path
 from typing import Iterable, Literal, Sequence
@@ -285,11 +285,9 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
 def _check_nesting(state: Sequence[str], objects: tuple[str, ...], owners: dict[str, str], column_of: dict[str, int],
                    source: str, line: int) -> None:
     """No object inside itself, directly or through other objects, at any step."""
-    for k, loc in enumerate(state):
-        if loc not in column_of:
-            continue
+    for k in compress(range(len(state)), map(column_of.__contains__, state)):  # objects inside objects
         seen = {owners.get(objects[k])}
-        cur = loc
+        cur = state[k]
         while cur in column_of:
             if cur in seen:
                 raise DataError(f"{owners[objects[k]]!r} is inside itself (via {cur!r})", source=source, line=line, field=objects[k])

@@ -43,15 +43,17 @@ class ActivityModel(ActivityModelBase):
             self.index_ = SuffixIndex(never_predicted=[DAY_START])
             self.frequency_: Counter[str] = Counter()
             self.by_step_: list[Counter[str]] = []
+        at_step: Counter[tuple[int, str]] = Counter()  # (step, activity): counted at C speed, then spread
         for day in days:
             day = tuple(day)
             self.training_data_.append(day)
             self.index_.add((DAY_START, *day))
             self.frequency_.update(day)
-            while len(self.by_step_) < len(day):
+            at_step.update(enumerate(day))
+        for (t, a), n in at_step.items():
+            while len(self.by_step_) <= t:
                 self.by_step_.append(Counter())
-            for t, a in enumerate(day):
-                self.by_step_[t][a] += 1
+            self.by_step_[t][a] += n
         self.index_.compact()
         self.classes_ = tuple(sorted(self.frequency_))
         return self

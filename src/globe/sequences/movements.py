@@ -43,17 +43,26 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
     raise ValueError(f"unknown alignment {alignment!r}; expected one of {', '.join(ALIGNMENTS)}")
 
 
-def moved_steps(day: Day, objects: Sequence[str]) -> list[tuple[int, tuple[str, ...]]]:
+def moved_steps(day: Day, objects: Sequence[str], memo: dict[tuple[int, int], tuple] | None = None) -> list[tuple[int, tuple[str, ...]]]:
     """(t, the objects whose location at t differs from t-1, in column order) for every step t at
     which something moved. Most steps move nothing, and the rows of such steps are often the
-    same tuple (the parser shares them), so those cost one identity check."""
+    same tuple (the parser shares them), so those cost one identity check. ``memo``, shared by
+    calls over the days of one household, keeps the answer per pair of row objects (routines
+    repeat the same changes day after day); it holds the rows, so their ids stay theirs."""
     rows = day.locations
     out = []
     for t in range(1, len(rows)):
         before, after = rows[t - 1], rows[t]
         if before is after or before == after:
             continue
-        out.append((t, tuple(compress(objects, map(ne, before, after)))))
+        if memo is None:
+            out.append((t, tuple(compress(objects, map(ne, before, after)))))
+            continue
+        key = (id(before), id(after))
+        hit = memo.get(key)
+        if hit is None:
+            hit = memo[key] = (before, after, tuple(compress(objects, map(ne, before, after))))
+        out.append((t, hit[2]))
     return out
 
 

@@ -82,7 +82,8 @@ class TrainingSequences:
 
 
 def training_sequences(household: Household, days: Sequence[Day], alignment: Alignment) -> TrainingSequences:
-    moves = [moved_steps(d, household.objects) for d in days]
+    memo: dict = {}  # what moved, per pair of row objects (see moved_steps)
+    moves = [moved_steps(d, household.objects, memo) for d in days]
     return TrainingSequences(
         [d.activities for d in days],
         [run for d, m in zip(days, moves) for run in run_objects(d, household.objects, alignment, m)],
