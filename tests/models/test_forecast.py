@@ -48,6 +48,7 @@ def test_durations_count_steps_since_the_run_began():
     assert durations(list("aabbba")).tolist() == [0, 1, 0, 1, 2, 0]
     assert durations(np.array([3, 3, 1, 1, 1, 3])).tolist() == [0, 1, 0, 1, 2, 0]
     assert durations([]).tolist() == []
+    assert durations(list("aabbbaa"), day_starts=[0, 4, 7]).tolist() == [0, 1, 0, 1, 0, 0, 1]
 
 
 def test_nothing_is_counted_across_days():

@@ -90,12 +90,8 @@ class MovementModel(CountingModel):
         e_size, m_size = (2 if self.run_end else 1), (2 if self.run_memory else 1)
         # Every day at once: the steps of all days in order, and the transitions u -> u + 1 inside a day.
         acts_all = act_of[step_labels]
-        starts = np.ones(len(acts_all), dtype=bool)  # a run starts where the activity changes or a day starts
-        starts[1:] = acts_all[1:] != acts_all[:-1]
         offsets = np.asarray(packed.offsets)
-        starts[offsets[:-1][offsets[:-1] < len(starts)]] = True
-        index = np.arange(len(acts_all))
-        dur_all = np.minimum(index - np.maximum.accumulate(np.where(starts, index, 0)), c - 1)
+        dur_all = np.minimum(durations(acts_all, offsets[:-1]), c - 1)
         inside = np.ones(max(len(acts_all) - 1, 0), dtype=bool)
         inside[offsets[1:-1][(offsets[1:-1] > 0) & (offsets[1:-1] < len(acts_all))] - 1] = False
         u = np.flatnonzero(inside)  # the step before each transition
@@ -268,12 +264,15 @@ def moved_in_run(dur: np.ndarray, change: np.ndarray) -> np.ndarray:
     return ((before - before[start]) > 0).astype(int)
 
 
-def durations(activities: Sequence[Any]) -> np.ndarray:
-    """Steps since the current run began, at every step (0 on a run's first step)."""
+def durations(activities: Sequence[Any], day_starts: Sequence[int] | np.ndarray = ()) -> np.ndarray:
+    """Steps since the current run began, at every step (0 on a run's first step); a run also
+    begins at every index of ``day_starts`` (days laid end to end)."""
     acts = np.asarray(activities)
     steps = np.arange(len(acts))
     starts = np.ones(len(acts), dtype=bool)
     starts[1:] = acts[1:] != acts[:-1]
+    begin = np.asarray(day_starts, dtype=int)
+    starts[begin[begin < len(acts)]] = True
     return steps - np.maximum.accumulate(np.where(starts, steps, 0))
 
 
