@@ -159,10 +159,10 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     policy = None
     if s.fetch_decision == "policy":
         movements = movement_model(config.lookahead, run_end=True).fit(household.train, household.objects)
-        forecaster_ = Forecaster(fitted.activity, movements, min_path_probability=config.lookahead.min_path_probability,
+        forecaster_ = Forecaster(activity, movements, min_path_probability=config.lookahead.min_path_probability,
                                  max_paths=config.lookahead.max_paths)
         policy = fetch_policy(forecaster_, config.policy, s.step_minutes)
-    return OnlineAssistant(household, fitted.activity, chooser, alignment=config.sequences.alignment,
+    return OnlineAssistant(household, activity, chooser, alignment=config.sequences.alignment,
                            action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
                            step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps, fetch_policy=policy,
                            activity_filter=lambda: activity_filter(activity, emission, fc), emission=emission)

@@ -75,7 +75,8 @@ class MovementModel(CountingModel):
         # A day's rows repeat until something moves: the packing numbered the distinct ones already.
         steps, row_labels, labels = packed.coded_rows(len(self.objects_))
         step_labels = packed.coded_activities()
-        self.activities_ = tuple(sorted(labels[i] for i in np.unique(step_labels).tolist())) + (UNKNOWN,)
+        seen_labels = np.unique(step_labels).tolist()
+        self.activities_ = tuple(sorted(labels[i] for i in seen_labels)) + (UNKNOWN,)
         places = np.flatnonzero(np.bincount(row_labels.ravel(), minlength=len(labels)))
         self.locations_ = tuple(sorted(labels[i] for i in places.tolist())) + (UNKNOWN,)
         self._act_index = {a: i for i, a in enumerate(self.activities_)}
@@ -86,7 +87,7 @@ class MovementModel(CountingModel):
         place_of[places] = [self._loc_index[labels[i]] for i in places.tolist()]
         table = place_of[row_labels]
         act_of = np.zeros(len(labels), dtype=int)
-        act_of[np.unique(step_labels)] = [self._act_index[labels[i]] for i in np.unique(step_labels).tolist()]
+        act_of[seen_labels] = [self._act_index[labels[i]] for i in seen_labels]
         e_size, m_size = (2 if self.run_end else 1), (2 if self.run_memory else 1)
         # Every day at once: the steps of all days in order, and the transitions u -> u + 1 inside a day.
         acts_all = act_of[step_labels]
@@ -101,25 +102,21 @@ class MovementModel(CountingModel):
         ends = (after != acts).astype(int) * (e_size - 1)  # things get put away when it ends ...
         earlier = moved_in_run(dur, change) if self.run_memory else 0  # ... what came out during it
         cell = ((acts[:, None] * c + dur[:, None]) * e_size + ends[:, None]) * m_size + earlier
-        cells = [np.broadcast_to(cell, change.shape).ravel()]  # (activity, steps into run, run ends, moved earlier)
-        changes = [change.ravel()]
-        moves = [(cols[None, :] * nl + src).ravel()]  # (object, place)
-        switches, switch_changes, switch_moves = [], [], []  # run ends: (activity ending, activity starting)
+        cell_codes = np.broadcast_to(cell, change.shape).ravel()  # (activity, steps into run, run ends, moved earlier)
+        pair_codes = (cols[None, :] * nl + src).ravel()  # (object, place)
+        switches = None  # run ends: (activity ending, activity starting), whether moved, (object, place)
         if self.run_next and self.run_end:
             b = np.flatnonzero(after != acts)
-            switches.append(np.repeat(acts[b] * na + after[b], nj))
-            switch_changes.append(change[b].ravel())
-            switch_moves.append((cols[None, :] * nl + src[b]).ravel())
+            switches = np.repeat(acts[b] * na + after[b], nj), change[b].ravel(), (cols[None, :] * nl + src[b]).ravel()
         # Only (object, place) pairs seen in training get cells: objects visit few places.
-        pair_codes = np.concatenate(moves) if moves else np.zeros(0, dtype=int)
         self._pairs = np.nonzero(np.bincount(pair_codes, minlength=nj * nl))[0]
         npairs = len(self._pairs)
         self._pair_object = self._pairs // nl
         lookup = np.zeros(nj * nl, dtype=int)
         lookup[self._pairs] = np.arange(npairs)
-        keys = (np.concatenate(cells) * npairs + lookup[pair_codes]) if cells else np.zeros(0, dtype=int)
+        keys = cell_codes * npairs + lookup[pair_codes]
         size = na * c * e_size * m_size * npairs
-        weights = np.concatenate(changes).astype(float) if changes else np.zeros(0)
+        weights = change.ravel().astype(float)
         seen = np.bincount(keys, minlength=size).astype(float).reshape(na, c, e_size, m_size, npairs)
         moved = np.bincount(keys, weights=weights, minlength=size).reshape(na, c, e_size, m_size, npairs)
         self._dest = self._count_destinations(acts, src, dst)
@@ -133,7 +130,7 @@ class MovementModel(CountingModel):
         p3 = (moved.sum(axis=(1, 3)) + k * p2[:, None]) / (seen.sum(axis=(1, 3)) + k)  # (A, E, P)
         p4 = (moved.sum(axis=3) + k * p3[:, None]) / (seen.sum(axis=3) + k)  # (A, C, E, P)
         self.hazard_ = (moved + k * p4[:, :, :, None]) / (seen + k)  # (A, C, E, M, P); E, M of size 1 if pooled
-        self._fit_switches(switches, switch_changes, switch_moves, lookup, npairs)
+        self._fit_switches(switches, lookup, npairs)
         self._dest_memo: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
         return self
 
@@ -149,33 +146,32 @@ class MovementModel(CountingModel):
         distinct, first, counts = np.unique(codes, return_index=True, return_counts=True)
         order = np.argsort(first, kind="stable")
         distinct, counts = distinct[order], counts[order]
-        x, rest = np.divmod(distinct, nl)[::-1]
-        rest, src = np.divmod(rest, nl)
+        rest, x = np.divmod(distinct, nl)
+        rest, source = np.divmod(rest, nl)
         a, j = np.divmod(rest, nj)
-        for a_, j_, s_, x_, n in zip(a.tolist(), j.tolist(), src.tolist(), x.tolist(), counts.tolist()):
+        for a_, j_, s_, x_, n in zip(a.tolist(), j.tolist(), source.tolist(), x.tolist(), counts.tolist()):
             dest[(a_, j_, s_)][x_] += n
             dest[(j_, s_)][x_] += n
             dest[(j_,)][x_] += n
         return dest
 
-    def _fit_switches(self, switches: list, changes: list, moves: list, lookup: np.ndarray, npairs: int) -> None:
+    def _fit_switches(self, switches: tuple[np.ndarray, np.ndarray, np.ndarray] | None, lookup: np.ndarray, npairs: int) -> None:
         """With ``run_next``: counts of moves at the last step of a run per (activity ending,
         activity starting, object, place): what is taken out for the next activity depends on
         which one it is. ``switch_index_`` maps a switch code a * A + b to its row (-1: never seen)."""
         na = len(self.activities_)
-        self.switch_index_ = np.full(na * na if switches else 0, -1, dtype=int)
+        self.switch_index_ = np.full(na * na if switches is not None else 0, -1, dtype=int)
         self.switch_seen_: np.ndarray = np.zeros((0, npairs))
         self.switch_moved_: np.ndarray = np.zeros((0, npairs))
-        if not switches:
+        if switches is None:
             return
-        codes = np.concatenate(switches)
-        pairs = np.concatenate(moves)
+        codes, changes, pairs = switches
         used = np.unique(codes)
         self.switch_index_[used] = np.arange(len(used))
         keys = self.switch_index_[codes] * npairs + lookup[pairs]
         size = len(used) * npairs
         self.switch_seen_ = np.bincount(keys, minlength=size).astype(float).reshape(len(used), npairs)
-        self.switch_moved_ = np.bincount(keys, weights=np.concatenate(changes).astype(float),
+        self.switch_moved_ = np.bincount(keys, weights=changes.astype(float),
                                          minlength=size).reshape(len(used), npairs)
 
     def switch_hazards(self, ending: np.ndarray, starting: np.ndarray, pairs: np.ndarray, at_end: np.ndarray) -> np.ndarray:

@@ -154,8 +154,7 @@ class SuffixIndex:
                     own.append(0)
                     label1.append(label1[q])
                     target1.append(target1[q])
-                    extra = more.get(q)
-                    rest = dict(extra) if extra is not None else self._rest(q)
+                    rest = self._rest(q)
                     if rest:
                         more[clone] = rest
                     while p != -1:

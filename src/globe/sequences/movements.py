@@ -50,13 +50,11 @@ def moved_steps(day: Day, objects: Sequence[str], memo: dict[tuple[int, int], tu
     calls over the days of one household, keeps the answer per pair of row objects (routines
     repeat the same changes day after day); it holds the rows, so their ids stay theirs."""
     rows = day.locations
+    memo = {} if memo is None else memo
     out = []
     for t in range(1, len(rows)):
         before, after = rows[t - 1], rows[t]
         if before is after or before == after:
-            continue
-        if memo is None:
-            out.append((t, tuple(compress(objects, map(ne, before, after)))))
             continue
         key = (id(before), id(after))
         hit = memo.get(key)

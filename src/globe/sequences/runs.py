@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Sequence, TypeVar
 
 from globe.data.records import Day, Household
 from globe.sequences.movements import Alignment, MovementEvent, activity_step_for, extract_movements, moved_steps
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,16 +37,24 @@ def run_bounds(activities: Sequence[str]) -> list[tuple[int, int]]:
     return bounds
 
 
+def _per_run(activities: Sequence[str], by_step: dict[int, list[T]]) -> list[tuple[int, int, tuple[T, ...]]]:
+    """(start, end, the items of steps start..end in step order) of every run of ``activities``."""
+    keys, i, out = sorted(by_step), 0, []
+    for s, e in run_bounds(activities):
+        found: list[T] = []
+        while i < len(keys) and keys[i] <= e:
+            found.extend(by_step[keys[i]])
+            i += 1
+        out.append((s, e, tuple(found)))
+    return out
+
+
 def activity_runs(day: Day, objects: tuple[str, ...], alignment: Alignment = "previous") -> list[ActivityRun]:
     """Split a day into activity runs; each movement joins the run of its activity step."""
     by_step: dict[int, list[MovementEvent]] = defaultdict(list)
     for e in extract_movements(day, objects, alignment):
         by_step[e.activity_step].append(e)
-    return [
-        ActivityRun(day.name, day.activities[s], s, e,
-                    tuple(ev for t in range(s, e + 1) for ev in by_step.get(t, ())))
-        for s, e in run_bounds(day.activities)
-    ]
+    return [ActivityRun(day.name, day.activities[s], s, e, events) for s, e, events in _per_run(day.activities, by_step)]
 
 
 Moves = list[tuple[int, tuple[str, ...]]]
@@ -57,18 +67,10 @@ def run_objects(day: Day, objects: tuple[str, ...], alignment: Alignment = "prev
     events: what the models count, a third of the time. ``moves``: the day's moved steps, when
     the caller has them."""
     acts = day.activities
-    by_step: dict[int, tuple[str, ...]] = {}
+    by_step: dict[int, list[str]] = defaultdict(list)
     for t, moved in moved_steps(day, objects) if moves is None else moves:
-        s = activity_step_for(acts, t, alignment)
-        by_step[s] = by_step[s] + moved if s in by_step else moved
-    keys, i, out = sorted(by_step), 0, []
-    for s, e in run_bounds(acts):
-        found: tuple[str, ...] = ()
-        while i < len(keys) and keys[i] <= e:
-            found += by_step[keys[i]]
-            i += 1
-        out.append((acts[s], found))
-    return out
+        by_step[activity_step_for(acts, t, alignment)].extend(moved)
+    return [(acts[s], moved) for s, _, moved in _per_run(acts, by_step)]
 
 
 @dataclass(frozen=True, slots=True)
