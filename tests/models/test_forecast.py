@@ -264,3 +264,64 @@ def test_shared_memos_do_not_keep_a_model_alive():
     del f, model
     gc.collect()
     assert ref() is None
+
+
+def _counted_one_by_one(days: Sequence[Day], objects: Sequence[str], cap: int, run_end: bool, run_memory: bool):
+    """Reference counts, one transition and one object at a time: cell -> (steps seen, moves),
+    and (activity, object, source) -> destinations in the order the moves happen."""
+    from collections import Counter
+
+    seen: Counter = Counter()
+    moved: Counter = Counter()
+    dest: dict = {}
+    for day in days:
+        acts, rows = day.activities, day.locations
+        start, came_out = 0, set()
+        for u in range(1, len(day)):
+            if u - 1 > 0 and acts[u - 1] != acts[u - 2]:  # a run begins at u - 1
+                start, came_out = u - 1, set()
+            a, d = acts[u - 1], min(u - 1 - start, cap - 1)
+            e = bool(run_end and acts[u] != a)
+            now = set()
+            for j in range(len(objects)):
+                cell = (a, d, e, run_memory and j in came_out, j, rows[u - 1][j])
+                seen[cell] += 1
+                if rows[u][j] != rows[u - 1][j]:
+                    moved[cell] += 1
+                    dest.setdefault((a, j, rows[u - 1][j]), Counter())[rows[u][j]] += 1
+                    now.add(j)
+            came_out |= now
+    return seen, moved, dest
+
+
+@pytest.mark.parametrize("run_end,run_memory", [(False, False), (True, False), (True, True)])
+def test_counts_are_those_of_every_transition_and_object(run_end, run_memory):
+    """The fit counts what stays once per distinct (cell, row of places) and looks only into the
+    transitions whose row changes; on random days the hazard of every cell seen is the one-by-one
+    count's rate (shrinkage next to nothing) and every destination count the same, in the order
+    the moves happened."""
+    import random
+
+    rng = random.Random(7)
+    for _ in range(25):
+        objects = tuple(f"o{i}" for i in range(rng.randint(1, 4)))
+        places = [f"p{i}" for i in range(rng.randint(1, 4))]
+        days = []
+        for k in range(rng.randint(1, 4)):
+            row, rows, acts = tuple(rng.choice(places) for _ in objects), [], []
+            for _ in range(rng.randint(1, 14)):
+                if rng.random() < 0.4:
+                    row = tuple(rng.choice(places) if rng.random() < 0.5 else p for p in row)
+                rows.append(row)
+                acts.append(rng.choice("abc"))
+            days.append(Day(f"d{k}", tuple(range(len(acts))), tuple(acts), tuple(rows)))
+        cap = rng.choice((2, 8))
+        mv = MovementModel(hazard_shrinkage=1e-12, duration_cap=cap, run_end=run_end, run_memory=run_memory).fit(days, objects)
+        seen, moved, dest = _counted_one_by_one(days, objects, cap, run_end, run_memory)
+        for (a, d, e, m, j, place), n in seen.items():
+            pair = int(np.searchsorted(mv._pairs, j * len(mv.locations_) + mv.location_index(place)))
+            assert mv.hazard_[mv.activity_index(a), d, int(e), int(m), pair] == pytest.approx(moved[(a, d, e, m, j, place)] / n,
+                                                                                               rel=1e-9, abs=1e-9)
+        got = [((mv.activities_[key[0]], key[1], mv.locations_[key[2]]), [(mv.locations_[x], n) for x, n in c.items()])
+               for key, c in mv._dest.items() if len(key) == 3]
+        assert got == [(k, list(c.items())) for k, c in dest.items()]

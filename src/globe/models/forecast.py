@@ -97,29 +97,46 @@ class MovementModel(CountingModel):
         inside[offsets[1:-1][(offsets[1:-1] > 0) & (offsets[1:-1] < len(acts_all))] - 1] = False
         u = np.flatnonzero(inside)  # the step before each transition
         acts, after, dur = acts_all[u], acts_all[u + 1], dur_all[u]
-        src, dst = table[steps[u]], table[steps[u + 1]]  # (transitions, objects)
-        change = src != dst
+        rs, rd = steps[u], steps[u + 1]  # each transition's rows of places, before and after
         ends = (after != acts).astype(int) * (e_size - 1)  # things get put away when it ends ...
-        earlier = moved_in_run(dur, change) if self.run_memory else 0  # ... what came out during it
-        cell = ((acts[:, None] * c + dur[:, None]) * e_size + ends[:, None]) * m_size + earlier
-        cell_codes = np.broadcast_to(cell, change.shape).ravel()  # (activity, steps into run, run ends, moved earlier)
-        pair_codes = (cols[None, :] * nl + src).ravel()  # (object, place)
-        switches = None  # run ends: (activity ending, activity starting), whether moved, (object, place)
-        if self.run_next and self.run_end:
-            b = np.flatnonzero(after != acts)
-            switches = np.repeat(acts[b] * na + after[b], nj), change[b].ravel(), (cols[None, :] * nl + src[b]).ravel()
+        cell = (((acts * c + dur) * e_size + ends) * m_size)  # (activity, steps into run, run ends, moved earlier = 0)
+        # Objects stay put at most transitions and a household has few distinct rows of places,
+        # so nothing is expanded to (transitions x objects): what stays is counted once per
+        # distinct (cell, row), and only the transitions whose row changes are looked into.
+        moving = np.flatnonzero(rs != rd)
+        src_m = table[rs[moving]]
+        mt, mj = np.nonzero(src_m != table[rd[moving]])  # every move, in transition order
         # Only (object, place) pairs seen in training get cells: objects visit few places.
-        self._pairs = np.nonzero(np.bincount(pair_codes, minlength=nj * nl))[0]
+        used_rows = np.unique(rs)
+        self._pairs = np.nonzero(np.bincount((cols[None, :] * nl + table[used_rows]).ravel(), minlength=nj * nl))[0]
         npairs = len(self._pairs)
         self._pair_object = self._pairs // nl
         lookup = np.zeros(nj * nl, dtype=int)
         lookup[self._pairs] = np.arange(npairs)
-        keys = cell_codes * npairs + lookup[pair_codes]
         size = na * c * e_size * m_size * npairs
-        weights = change.ravel().astype(float)
-        seen = np.bincount(keys, minlength=size).astype(float).reshape(na, c, e_size, m_size, npairs)
-        moved = np.bincount(keys, weights=weights, minlength=size).reshape(na, c, e_size, m_size, npairs)
-        self._dest = self._count_destinations(acts, src, dst)
+        group, per_group = np.unique(cell * len(table) + rs, return_counts=True)
+        g_cell, g_row = np.divmod(group, len(table))
+        seen_keys = (g_cell[:, None] * npairs + lookup[cols[None, :] * nl + table[g_row]]).ravel()
+        seen_counts = np.bincount(seen_keys, weights=np.repeat(per_group, nj), minlength=size)
+        move_t, move_pair = moving[mt], lookup[mj * nl + src_m[mt, mj]]
+        move_cell = cell[move_t]
+        if self.run_memory:  # ... what came out during it: the cells of objects that moved earlier in the run
+            change = np.zeros((len(u), nj), dtype=bool)
+            change[move_t, mj] = True
+            earlier = moved_in_run(dur, change)
+            et, ej = np.nonzero(earlier)
+            at_zero = cell[et] * npairs + lookup[ej * nl + table[rs[et], ej]]
+            seen_counts -= np.bincount(at_zero, minlength=size)  # counted with moved earlier = 0 above
+            seen_counts += np.bincount(at_zero + npairs, minlength=size)
+            move_cell = move_cell + earlier[move_t, mj]
+        seen = seen_counts.reshape(na, c, e_size, m_size, npairs)
+        moved = np.bincount(move_cell * npairs + move_pair, minlength=size).astype(float).reshape(na, c, e_size, m_size, npairs)
+        switches = None  # run ends: (activity ending, activity starting), whether moved, (object, place)
+        if self.run_next and self.run_end:
+            b = np.flatnonzero(after != acts)
+            src_b = table[rs[b]]
+            switches = np.repeat(acts[b] * na + after[b], nj), (src_b != table[rd[b]]).ravel(), (cols[None, :] * nl + src_b).ravel()
+        self._dest = self._count_destinations(acts[moving], src_m, table[rd[moving]])
         k = self.hazard_shrinkage
         to_object = np.zeros((npairs, nj))
         to_object[np.arange(npairs), self._pair_object] = 1.0
