@@ -48,3 +48,80 @@ def test_end_and_start_labels_are_never_predicted():
     index = SuffixIndex(never_predicted=["<s>"])
     index.add(["<s>", "a", "b"])
     assert set(index.successors(0)) == {"a", "b"}  # the root: not <s>, not </s>
+
+
+
+def _state_of(index):
+    """Every field an automaton is made of, as plain values."""
+    fields = {name: list(getattr(index, name)) for name in ("_names", "_link", "_len", "_own", "_label1", "_target1",
+                                                          "_start", "_labels", "_targets")}
+    return fields | {"_ids": list(index._ids.items()), "_last": index._last,
+                     "_more": {k: list(v.items()) for k, v in index._more.items()}}
+
+
+def _built_both_ways(batches):
+    """The same batches of sequences, through :meth:`SuffixIndex.add_all` and one by one in Python."""
+    from globe.models import suffix_index
+
+    together, one_by_one = SuffixIndex(), SuffixIndex()
+    for batch in batches:
+        together.add_all(batch)
+        for seq in batch:
+            one_by_one.add(seq)
+        one_by_one.compact()
+        assert _state_of(together) == _state_of(one_by_one)
+    assert type(together._len) is type(one_by_one._len) and together._own.typecode == one_by_one._own.typecode == "b"
+    return together, one_by_one, suffix_index._native is not None
+
+
+def test_add_all_builds_the_same_automaton(seed):
+    """add_all (compiled where the install built it) appends, clones and redirects exactly as the
+    Python loop: every array, the label numbering and each state's transition order are equal,
+    from an empty index and from one already compacted (the service learning a day)."""
+    rng = random.Random(seed + 2)
+    for _ in range(60):
+        alphabet = "abcdefg"[: rng.randint(1, 7)]
+        seqs = [[rng.choice(alphabet) for _ in range(rng.randint(0, 50))] for _ in range(rng.randint(1, 8))]
+        if rng.random() < 0.3:  # long runs, as activities have
+            seqs = [[c for c in seq for _ in range(rng.randint(1, 9))] for seq in seqs]
+        cut = rng.randint(0, len(seqs))
+        together, one_by_one, _ = _built_both_ways([seqs[:cut], seqs[cut:], []])
+        query = [rng.choice(alphabet + "z") for _ in range(30)]
+        assert list(together.scan(query)) == list(one_by_one.scan(query))
+        assert [together.successors(s) for s in range(len(together._len))] == \
+            [one_by_one.successors(s) for s in range(len(one_by_one._len))]
+
+
+def test_add_all_on_homer_activities_and_object_runs(households):
+    """The automata of the activity and object models on HOMER+ days, both ways (compiled, where
+    the install built it)."""
+    from globe.assembly import training_sequences
+
+    for h in households.values():
+        seqs = training_sequences(h, h.train, "previous")
+        _built_both_ways([[("<s>", *d) for d in seqs.activities[:40]], [("<s>", *d) for d in seqs.activities[40:]]])
+        by_activity: dict[str, list] = {}
+        for activity, objects in seqs.runs:
+            by_activity.setdefault(activity, []).append(objects)
+        for runs in by_activity.values():
+            _built_both_ways([runs])
+
+
+def test_add_all_refuses_what_it_cannot_number():
+    import pytest
+
+    index = SuffixIndex()
+    with pytest.raises(TypeError):
+        index.add_all([["a", ["unhashable"]]])
+
+
+def test_the_compiled_part_is_built_where_ci_runs():
+    """CI installs with a C compiler (llama.cpp needs one), so it must test the compiled path;
+    elsewhere the Python loop is a correct fallback and this only reports which one runs."""
+    import os
+
+    from globe.models import suffix_index
+
+    if os.environ.get("CI") == "true":
+        assert suffix_index._native is not None, "globe.models._suffix_automaton was not compiled"
+    assert suffix_index._native is None or callable(suffix_index._native.extend)

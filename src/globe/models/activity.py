@@ -44,17 +44,18 @@ class ActivityModel(ActivityModelBase):
             self.frequency_: Counter[str] = Counter()
             self.by_step_: list[Counter[str]] = []
         at_step: Counter[tuple[int, str]] = Counter()  # (step, activity): counted at C speed, then spread
+        added = []
         for day in days:
             day = tuple(day)
             self.training_data_.append(day)
-            self.index_.add((DAY_START, *day))
+            added.append((DAY_START, *day))
             self.frequency_.update(day)
             at_step.update(enumerate(day))
+        self.index_.add_all(added)  # compacted: typed arrays, a tenth of the memory
         for (t, a), n in at_step.items():
             while len(self.by_step_) <= t:
                 self.by_step_.append(Counter())
             self.by_step_[t][a] += n
-        self.index_.compact()
         self.classes_ = tuple(sorted(self.frequency_))
         return self
 

@@ -43,19 +43,22 @@ class ObjectModel(CountingModel):
             self.training_data_: list[tuple[str, tuple[str, ...]]] = []
             self.indexes_: dict[str, SuffixIndex] = {}
             self.frequency_: dict[str, Counter[str]] = {}
+        added: dict[str, list[tuple[str, ...]]] = {}  # each activity's runs, in order
         for activity, objects in runs:
             objects = tuple(objects)
             self.training_data_.append((activity, objects))
             if not objects:
                 continue
-            index = self.indexes_.get(activity)
-            if index is None:  # not setdefault: that would build an index (and a Counter) per run
-                index = self.indexes_[activity] = SuffixIndex(never_predicted=[RUN_START])
-                self.frequency_[activity] = Counter()
-            index.add(self._prefixed(objects))
+            mine = added.get(activity)
+            if mine is None:  # not setdefault: that would build a list per run
+                mine = added[activity] = []
+                if activity not in self.indexes_:
+                    self.indexes_[activity] = SuffixIndex(never_predicted=[RUN_START])
+                    self.frequency_[activity] = Counter()
+            mine.append(self._prefixed(objects))
             self.frequency_[activity].update(objects)
-        for index in self.indexes_.values():
-            index.compact()
+        for activity, mine in added.items():
+            self.indexes_[activity].add_all(mine)  # compacted: typed arrays
         return self
 
     def _prefixed(self, objects: Sequence[str]) -> tuple[str, ...]:

@@ -62,6 +62,7 @@ class RoutineModel(ActivityModelBase):
             self.stayed_: Counter[tuple] = Counter()  # ... of which the activity went on
             self.starts_: list[Counter[str]] = []  # step -> activities starting there
             self.runs_ = SuffixIndex(never_predicted=[DAY_START])
+        added = []
         for day in days:
             day = tuple(day)
             self.training_data_.append(day)
@@ -69,7 +70,7 @@ class RoutineModel(ActivityModelBase):
             if day:
                 self.first_[day[0]] += 1
             runs = runs_of(day)
-            self.runs_.add((DAY_START, *(a for a, _, _ in runs)))
+            added.append((DAY_START, *(a for a, _, _ in runs)))
             while len(self.starts_) < len(day):
                 self.starts_.append(Counter())
             seen: list[tuple] = []  # every step's keys, counted at once below
@@ -83,7 +84,7 @@ class RoutineModel(ActivityModelBase):
                         stayed.extend(keys)
             self.seen_.update(seen)
             self.stayed_.update(stayed)
-        self.runs_.compact()  # typed arrays: a tenth of the memory, the same answers
+        self.runs_.add_all(added)  # compacted: typed arrays, a tenth of the memory, the same answers
         self.classes_ = tuple(sorted(self.frequency_))
         return self
 

@@ -25,6 +25,11 @@ from typing import Callable, Hashable, Iterable, Iterator, MutableSequence
 
 import numpy as np
 
+try:  # compiled at install where a C compiler is found (optional): the same automaton, faster
+    from globe.models import _suffix_automaton as _native
+except ImportError:  # pragma: no cover - depends on the install
+    _native = None  # type: ignore[assignment]
+
 END = "</s>"  # closes every training sequence; never predicted
 _INT = "i"  # 32-bit signed on every platform numpy and CPython support here
 assert array(_INT).itemsize == 4
@@ -104,12 +109,39 @@ class SuffixIndex:
         more[label] = target
 
     # -- building ---------------------------------------------------------------------------
+    def add_all(self, sequences: Iterable[Iterable[str]]) -> None:
+        """:meth:`add` each of ``sequences``, then :meth:`compact` (what a fit does): in C where
+        the install compiled :mod:`globe.models._suffix_automaton` (the same arrays, a tenth of
+        the time or less), else in Python."""
+        batch = [(*seq, END) for seq in sequences]
+        self.compact()
+        if _native is None:
+            for labels in batch:
+                self._append(labels)
+            self.compact()
+        else:
+            (link, length, own, label1, target1, start, labels, targets), self._last = _native.extend(
+                self._ids, self._names, self._link, self._len, self._own, self._label1, self._target1, self._start,
+                self._labels, self._targets, self._last, batch)
+            self._link, self._len, self._own = array(_INT, link), array(_INT, length), array("b", own)
+            self._label1, self._target1 = array(_INT, label1), array(_INT, target1)
+            self._start, self._labels, self._targets = array(_INT, start), array(_INT, labels), array(_INT, targets)
+        self._counts = None
+        self._dist.clear()
+        self._derived.clear()
+
     def add(self, sequence: Iterable[str]) -> None:
         """Append one training sequence (an :data:`END` label is added after it)."""
+        self._append((*sequence, END))
+        self._counts = None
+        self._dist.clear()
+        self._derived.clear()
+
+    def _append(self, labels: Iterable[str]) -> None:
         ids, names, more = self._ids, self._names, self._more
         link, length, own, label1, target1 = self._link, self._len, self._own, self._label1, self._target1
         last = self._last
-        for label in (*sequence, END):
+        for label in labels:
             c = ids.get(label)
             if c is None:
                 c = ids[label] = len(names)
@@ -177,9 +209,6 @@ class SuffixIndex:
                     link[cur] = clone
             last = cur
         self._last = last
-        self._counts = None
-        self._dist.clear()
-        self._derived.clear()
 
     def compact(self) -> None:
         """Fold the transitions kept in dicts since the last call into the table, and the
