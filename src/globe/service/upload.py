@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import csv
 import io
+import operator
 import sys
+from itertools import chain, compress, repeat
 from typing import Any, Iterable, Mapping, Sequence
 
 from globe.data.csv_logs import (
@@ -126,8 +128,13 @@ class DayParser:
             return None
         raw_minutes, raw_activities, tails = zip(*parts)
         rows, minute_of, activity_of = self._rows, self._minutes, self._activities
+        # Objects rarely move, so a line's locations mostly repeat the line before's: only the
+        # lines where they change are looked up (comparing ~1 KB of text costs less than hashing it).
+        n = len(tails)
+        starts = [0, *compress(range(1, n), map(str.__ne__, tails[1:], tails[:-1]))]
+        changed = [tails[i] for i in starts]
         try:
-            for tail in set(tails).difference(rows):
+            for tail in set(changed).difference(rows):
                 row = self._row(tail, name)
                 if row is None:
                     return None
@@ -141,7 +148,9 @@ class DayParser:
         minutes = tuple(map(minute_of.__getitem__, raw_minutes))
         if not all(map(int.__lt__, minutes, minutes[1:])):
             return None
-        day = Day(name, minutes, tuple(map(activity_of.__getitem__, raw_activities)), tuple(map(rows.__getitem__, tails)), name)
+        spans = map(operator.sub, [*starts[1:], n], starts)
+        locations = tuple(chain.from_iterable(map(repeat, map(rows.__getitem__, changed), spans)))
+        day = Day(name, minutes, tuple(map(activity_of.__getitem__, raw_activities)), locations, name)
         return day, tuple(range(2, 2 + len(minutes)))
 
     def _row(self, tail: str, name: str) -> tuple[str, ...] | None:
