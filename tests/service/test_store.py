@@ -54,3 +54,25 @@ def test_training_days_are_stored_compressed_and_read_back(tmp_path, households)
     assert store.training_days("A") == texts
     store.close()  # checkpoints the write-ahead log into the file
     assert (tmp_path / "s.sqlite3").stat().st_size < sum(map(len, texts)) / 4
+
+
+def test_day_encoding_shared_by_threads_gives_the_blobs_of_encode_days(households):
+    """Two threads take the days of one DayEncoding between them (the registry's helper and the
+    thread that counts the models, once it is done): every blob is encode_days', each day
+    compressed once; a stopped encoding takes no more days."""
+    import threading
+
+    from globe.data.csv_logs import format_day
+    from globe.service.store import DayEncoding
+
+    texts = [format_day(d, households["B"].objects) for d in households["B"].train]
+    shared = DayEncoding(texts)
+    helper = threading.Thread(target=shared.run)
+    helper.start()
+    shared.run()
+    helper.join()
+    assert shared.blobs == Store.encode_days(texts)
+    stopped = DayEncoding(texts)
+    stopped.stop()
+    stopped.run()
+    assert stopped.blobs == [b""] * len(texts)

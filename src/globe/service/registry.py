@@ -27,7 +27,7 @@ from globe.errors import DataError, GlobeError, LimitError, StoreError
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import timepolicy
 from globe.service.assistant import Observation, OnlineAssistant
-from globe.service.store import HouseholdRow, Store, legacy_day
+from globe.service.store import DayEncoding, HouseholdRow, Store, legacy_day
 from globe.service.upload import DayParser
 
 log = logging.getLogger(__name__)
@@ -175,13 +175,19 @@ class Registry:
             self._creating.add(name)
         try:
             # The days are compressed for storage on another core while the models are counted
-            # (zlib releases the GIL); nothing is stored unless the build succeeds.
-            encoding = self._encoder.submit(Store.encode_days, day_texts)
+            # (zlib releases the GIL), then by both threads; nothing is stored unless the build succeeds.
+            encoding = DayEncoding(day_texts)
+            helper = self._encoder.submit(encoding.run)
             try:
                 with no_gc():
                     assistant = assembly.assistant(household, self.config, self.backend)
+            except BaseException:
+                encoding.stop()
+                raise
             finally:
-                encoded = encoding.result()
+                encoding.run()  # joins the helper (nothing left to take once stopped)
+                helper.result()
+            encoded = encoding.blobs
             with self._lock:
                 self.store.add_household(household, timezone, day_texts, encoded)
                 row = self.store.household(name)

@@ -11,6 +11,7 @@ service runs, writes fail with :class:`StoreUnavailableError` (503) rather than 
 from __future__ import annotations
 
 import datetime as dt
+import itertools
 import json
 import os
 import sqlite3
@@ -227,8 +228,8 @@ class Store:
     @staticmethod
     def encode_days(day_texts: Sequence[str]) -> list[bytes]:
         """Training days as they are stored: their CSV text, zlib-compressed (a tenth of the size).
-        Compression releases the GIL, so a caller may run this beside other work."""
-        return [zlib.compress(text.encode("utf-8"), 1) for text in day_texts]
+        Compression releases the GIL: :class:`DayEncoding` shares the work between threads."""
+        return [_encode_day(text) for text in day_texts]
 
     def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
                       encoded: Sequence[bytes] | None = None) -> None:
@@ -341,6 +342,34 @@ class Store:
 def _aware(text: str) -> dt.datetime:
     t = dt.datetime.fromisoformat(text)
     return t if t.tzinfo else t.replace(tzinfo=dt.timezone.utc)
+
+
+def _encode_day(text: str) -> bytes:
+    return zlib.compress(text.encode("utf-8"), 1)
+
+
+class DayEncoding:
+    """:meth:`Store.encode_days` of ``day_texts``, shared by the threads that call :meth:`run`:
+    each call compresses days no other call has taken, so a thread that would wait for a helper
+    helps it instead. A helper started before other work gets little done while that work holds
+    the GIL (it needs the GIL back after every day); the days left are then compressed by both
+    threads at once. The blobs are those of :meth:`Store.encode_days`, whoever made them."""
+
+    def __init__(self, day_texts: Sequence[str]) -> None:
+        self._texts = list(day_texts)
+        self._taken = itertools.count()  # next() is atomic: each day goes to one thread
+        self.blobs: list[bytes] = [b""] * len(self._texts)
+        self._stopped = False
+
+    def run(self) -> None:
+        for i in self._taken:
+            if i >= len(self._texts) or self._stopped:
+                return
+            self.blobs[i] = _encode_day(self._texts[i])
+
+    def stop(self) -> None:
+        """Take no more days (the blobs are then incomplete): the household will not be stored."""
+        self._stopped = True
 
 
 def _text(stored: bytes | str) -> str:
