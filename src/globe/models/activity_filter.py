@@ -120,18 +120,21 @@ class MovementEmission(CountingModel):
             raise ConfigError("MovementEmission.partial_fit: the object columns differ from the ones it was fitted on")
         # Counted per distinct (a_{s-1}, a_s) pair and (a_{s-1}, a_s, object moved), then spread
         # over the keys below: the same counts as one increment per step and key, a third of the time.
-        pairs: Counter[tuple[str, str]] = Counter()
-        moved_pairs: Counter[tuple[str, str, str]] = Counter()
         if day_moves is not None and len(day_moves) != len(days):
             raise ValueError(f"moved steps of {len(day_moves)} days for {len(days)} days")
+        all_steps: list[tuple[str, str]] = []  # every (a_{s-1}, a_s), every (a_{s-1}, a_s, object moved) ...
+        all_moves: list[tuple[str, str, str]] = []
+        all_objects: list[str] = []  # ... and every object moved: counted at once, in this order
         for i, day in enumerate(days):
             self.training_data_.append(day.name)
             acts = day.activities
-            pairs.update(zip(acts, acts[1:]))
+            all_steps.extend(zip(acts, acts[1:]))
             for t, moved in moved_steps(day, self.objects_) if day_moves is None else day_moves[i]:
                 b, a = acts[t - 1], acts[t]
-                moved_pairs.update((b, a, o) for o in moved)
-                self.overall_.update(moved)
+                all_moves.extend((b, a, o) for o in moved)
+                all_objects.extend(moved)
+        pairs, moved_pairs = Counter(all_steps), Counter(all_moves)
+        self.overall_.update(all_objects)
         steps, moves = self.steps_, self.moves_
         # every step counts under both attachments, with and without the change flag; a step
         # where the activity changes also counts under its switch (part 2: a_{s-1} -> a_s)
