@@ -39,11 +39,13 @@ def stages(out: Path) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", default=None, help="HOMER+ folder (else $GLOBE_DATA, else ../shared/data/homer_plus)")
-    parser.add_argument("--keep", default=None, help="keep both results folders here")
+    parser.add_argument("--keep", default=None, help="keep both results folders and the LLM answer cache here")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep) if args.keep else Path(tmp)
-        cache = Path(tmp) / "cache"
+        cache = root / "cache"
+        if cache.exists() and any(cache.iterdir()):
+            sys.exit(f"{cache} holds answers already: the cold run needs an empty cache (another --keep folder?)")
         cold_s = run(root / "cold", cache, args.data)
         cached_s = run(root / "cached", cache, args.data)
         cold, cached = stages(root / "cold"), stages(root / "cached")
