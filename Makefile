@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml setup.py src/globe/models/_suffix_automaton.c
+$(STAMP): pyproject.toml setup.py src/globe/models/_suffix_automaton.c src/globe/service/_day_fields.c
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install -e ".[all,dev]"
 	touch $(STAMP)

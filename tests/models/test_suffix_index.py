@@ -115,13 +115,15 @@ def test_add_all_refuses_what_it_cannot_number():
         index.add_all([["a", ["unhashable"]]])
 
 
-def test_the_compiled_part_is_built_where_ci_runs():
-    """CI installs with a C compiler (llama.cpp needs one), so it must test the compiled path;
+def test_the_compiled_parts_are_built_where_ci_runs():
+    """CI installs with a C compiler (llama.cpp needs one), so it must test the compiled paths;
     elsewhere the Python loop is a correct fallback and this only reports which one runs."""
     import os
 
     from globe.models import suffix_index
+    from globe.service import upload
 
     if os.environ.get("CI") == "true":
         assert suffix_index._native is not None, "globe.models._suffix_automaton was not compiled"
+        assert upload.day_fields is not upload._day_fields_python, "globe.service._day_fields was not compiled"
     assert suffix_index._native is None or callable(suffix_index._native.extend)

@@ -83,6 +83,31 @@ def parse_day(text: str, objects: tuple[str, ...], locations: frozenset[str], na
     return DayParser(objects, locations, owners).parse(text, name)
 
 
+def _day_fields_python(text: str) -> tuple[tuple[str, ...], tuple[str, ...], list[int], list[str]] | None:
+    """The cells the fast path reads from a day text: each line's minute and activity (lines
+    after the header), and the lines where the rest (its locations) differs from the line
+    before's, with that rest; None for a blank line (a final newline aside) or a line after the
+    header with fewer than three cells (the data layer reports them). Objects rarely move, so
+    only the changed locations are looked up: comparing ~1 KB of text costs less than hashing it."""
+    lines = text.split("\n")
+    if lines and not lines[-1]:
+        lines.pop()
+    if "" in lines:  # a blank line (cheaper here than searching the text for two newlines)
+        return None
+    parts = [line.split(",", 2) for line in lines[1:]]
+    if not parts or min(map(len, parts)) < 3:
+        return None
+    raw_minutes, raw_activities, tails = zip(*parts)
+    starts = [0, *compress(range(1, len(tails)), map(str.__ne__, tails[1:], tails[:-1]))]
+    return raw_minutes, raw_activities, starts, [tails[i] for i in starts]
+
+
+try:  # the same in C where the install compiled it (optional): no string made per line
+    from globe.service._day_fields import day_fields
+except ImportError:  # pragma: no cover - depends on the install
+    day_fields = _day_fields_python
+
+
 class DayParser:
     """Parses the day texts of one household (and each row's line), validated exactly like files
     on disk.
@@ -118,21 +143,12 @@ class DayParser:
         """The fast path of :meth:`parse`; None as soon as a row needs the full reader (which
         reports it, with its own message and line). Rows are split and looked up in bulk; only
         the cells not seen in an earlier row or day are checked."""
-        lines = text.split("\n")
-        if lines and not lines[-1]:
-            lines.pop()
-        if "" in lines:  # a blank line (cheaper here than searching the text for two newlines)
+        fields = day_fields(text)
+        if fields is None:
             return None
-        parts = [line.split(",", 2) for line in lines[1:]]
-        if not parts or min(map(len, parts)) < 3:
-            return None
-        raw_minutes, raw_activities, tails = zip(*parts)
+        raw_minutes, raw_activities, starts, changed = fields
         rows, minute_of, activity_of = self._rows, self._minutes, self._activities
-        # Objects rarely move, so a line's locations mostly repeat the line before's: only the
-        # lines where they change are looked up (comparing ~1 KB of text costs less than hashing it).
-        n = len(tails)
-        starts = [0, *compress(range(1, n), map(str.__ne__, tails[1:], tails[:-1]))]
-        changed = [tails[i] for i in starts]
+        n = len(raw_minutes)
         try:
             for tail in set(changed).difference(rows):
                 row = self._row(tail, name)
