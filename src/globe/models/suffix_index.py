@@ -220,6 +220,9 @@ class SuffixIndex:
             self._label1, self._target1 = array(_INT, self._label1), array(_INT, self._target1)
         if not self._more and len(self._start) == n + 1:
             return
+        if not self._more and len(self._start) == 1:  # never compacted, no state with a second transition
+            self._start = array(_INT, [0]) * (n + 1)
+            return
         start = np.frombuffer(self._start, dtype=np.int32)
         old = len(start) - 1
         owner = np.repeat(np.arange(old, dtype=np.int32), start[1:] - start[:-1])
