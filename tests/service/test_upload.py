@@ -122,3 +122,19 @@ def test_day_fields_compiled_equals_python(households, seed):
               "h\n1,a,b,c\n2,a,b,c\n3,a,b,d", "h\n1,é,b\n2,a,猫"]
     for text in texts:
         assert upload.day_fields(text) == upload._day_fields_python(text), repr(text[:80])
+
+
+def test_an_activity_that_is_not_valid_unicode_is_refused_by_name(households):
+    """JSON can carry a lone surrogate ("\\ud800") that no UTF-8 file can: such an activity is
+    refused like a control character, naming the day, the line and the field, instead of failing
+    later when the day is stored."""
+    h = households["A"]
+    payload = household_payload(h)
+    lines = payload["days"][1].split("\n")
+    minute, _, rest = lines[3].split(",", 2)
+    lines[3] = f"{minute},cook\ud800,{rest}"
+    days = [payload["days"][0], "\n".join(lines)]
+    with pytest.raises(DataError) as err:
+        household_from("A", parse_nodes(payload["nodes"]), days)
+    assert (err.value.source, err.value.line, err.value.field) == ("days[1]", 4, "activity")
+    assert "lone surrogate" in str(err.value)

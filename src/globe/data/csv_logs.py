@@ -32,6 +32,7 @@ Resample = Literal["none", "locf"]
 
 _MINUTE = re.compile(r"[0-9]{1,5}")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+_SURROGATE = re.compile("[\ud800-\udfff]")  # only in text that did not come from valid UTF-8 (e.g. JSON's "\\ud800")
 _BLANKS = " \t"
 
 
@@ -114,6 +115,9 @@ def _label(value: str, source: str, line: int, field: str, what: str = "label") 
         raise DataError(f"empty {what}", source=source, line=line, field=field)
     if _CONTROL.search(value):
         raise DataError(f"{what} {_short(value)} contains a control character", source=source, line=line, field=field)
+    if _SURROGATE.search(value):
+        raise DataError(f"{what} {_short(value)} contains a lone surrogate (not valid Unicode text)", source=source,
+                        line=line, field=field)
     return value
 
 
