@@ -87,8 +87,11 @@ class OnlineAssistant:
         self.lock = threading.RLock()
         self._locations = {label: label for label in household.locations}  # interned labels
         self._object_index = {o: i for i, o in enumerate(household.objects)}
-        self._start = tuple(self._locations[n.start_location] for o in household.objects
-                            for n in household.nodes if n.movable and n.cls == o)
+        starts: dict[str, list[str]] = {}  # each object's movable nodes' start locations, in map order
+        for n in household.nodes:
+            if n.movable:
+                starts.setdefault(n.cls, []).append(self._locations[n.start_location])
+        self._start = tuple(loc for o in household.objects for loc in starts.get(o, ()))
         self.observations = 0
         self.feedback = {"accepted": 0, "refused": 0}
         self.fallbacks: Counter[str] = Counter()

@@ -17,7 +17,7 @@ import os
 import sqlite3
 import threading
 import zlib
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Iterator, Sequence
 
@@ -93,6 +93,9 @@ MIGRATIONS: list[str] = [
     """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
+
+
+_NODE_FIELDS = tuple(f.name for f in fields(Node))  # a node as stored: dataclasses.asdict's keys, without its deep copies
 
 
 def _now() -> str:
@@ -240,7 +243,7 @@ class Store:
             raise ValueError(f"{len(blobs)} encoded days for {len(day_texts)} day texts")
         stmts: list[tuple[str, tuple]] = [
             ("INSERT INTO households (name, nodes, objects, created_at, timezone) VALUES (?, ?, ?, ?, ?)",
-             (household.name, json.dumps([asdict(n) for n in household.nodes]), json.dumps(household.objects), _now(), timezone)),
+             (household.name, json.dumps([{f: getattr(n, f) for f in _NODE_FIELDS} for n in household.nodes]), json.dumps(household.objects), _now(), timezone)),
         ]
         stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
                   for i, blob in enumerate(blobs)]
