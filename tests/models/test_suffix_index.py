@@ -127,3 +127,20 @@ def test_the_compiled_parts_are_built_where_ci_runs():
         assert suffix_index._native is not None, "globe.models._suffix_automaton was not compiled"
         assert upload.day_fields is not upload._day_fields_python, "globe.service._day_fields was not compiled"
     assert suffix_index._native is None or callable(suffix_index._native.extend)
+
+
+def test_a_damaged_index_is_an_error_not_a_bad_read():
+    """The compiled path checks every state number it will follow before it reads any."""
+    from array import array
+
+    import pytest
+
+    from globe.models import suffix_index
+
+    if suffix_index._native is None:
+        pytest.skip("globe.models._suffix_automaton was not compiled in this install")
+    index = SuffixIndex()
+    index.add_all([list("abcab"), list("bca")])
+    index._target1 = array("i", [t + 10_000 if t >= 0 else t for t in index._target1])
+    with pytest.raises(ValueError, match="damaged"):
+        index.add_all([list("ab")])

@@ -316,6 +316,19 @@ static PyObject *extend(PyObject *self, PyObject *args) {
     a.labels = views[6].buf;
     a.targets = views[7].buf;
     a.old = n;
+    /* every state number in range and the table well formed: a damaged index is an error, never a bad read */
+    {
+        const int32_t *link = views[0].buf, *target1 = views[4].buf;
+        Py_ssize_t nlab = views[6].len / 4;
+        int ok = a.start[0] == 0 && a.start[n] == nlab && views[6].len % 4 == 0;
+        for (Py_ssize_t s = 0; ok && s < n; s++)
+            ok = a.start[s] <= a.start[s + 1] && link[s] >= -1 && link[s] < n && target1[s] >= -1 && target1[s] < n;
+        for (Py_ssize_t i = 0; ok && i < nlab; i++) ok = a.targets[i] >= 0 && a.targets[i] < n;
+        if (!ok) {
+            PyErr_SetString(PyExc_ValueError, "extend: the index's arrays are damaged");
+            goto done;
+        }
+    }
     for (Py_ssize_t s = 0; s < n; s++)
         if (new_state(&a, ((int32_t *)views[1].buf)[s], ((int32_t *)views[0].buf)[s], ((int8_t *)views[2].buf)[s],
                       ((int32_t *)views[3].buf)[s], ((int32_t *)views[4].buf)[s]) < 0)
