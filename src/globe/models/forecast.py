@@ -99,7 +99,7 @@ class MovementModel(CountingModel):
         acts, after, dur = acts_all[u], acts_all[u + 1], dur_all[u]
         rs, rd = steps[u], steps[u + 1]  # each transition's rows of places, before and after
         ends = (after != acts).astype(int) * (e_size - 1)  # things get put away when it ends ...
-        cell = (((acts * c + dur) * e_size + ends) * m_size)  # (activity, steps into run, run ends, moved earlier = 0)
+        cell = ((acts * c + dur) * e_size + ends) * m_size  # (activity, steps into run, run ends, moved earlier = 0)
         # Objects stay put at most transitions and a household has few distinct rows of places,
         # so nothing is expanded to (transitions x objects): what stays is counted once per
         # distinct (cell, row), and only the transitions whose row changes are looked into.

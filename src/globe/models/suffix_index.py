@@ -114,25 +114,27 @@ class SuffixIndex:
         the install compiled :mod:`globe.models._suffix_automaton` (the same arrays, a tenth of
         the time or less), else in Python."""
         batch = [(*seq, END) for seq in sequences]
-        self.compact()
         if _native is None:
             for labels in batch:
                 self._append(labels)
             self.compact()
         else:
+            self.compact()  # the compiled loop starts from the compacted arrays
             (link, length, own, label1, target1, start, labels, targets), self._last = _native.extend(
                 self._ids, self._names, self._link, self._len, self._own, self._label1, self._target1, self._start,
                 self._labels, self._targets, self._last, batch)
             self._link, self._len, self._own = array(_INT, link), array(_INT, length), array("b", own)
             self._label1, self._target1 = array(_INT, label1), array(_INT, target1)
             self._start, self._labels, self._targets = array(_INT, start), array(_INT, labels), array(_INT, targets)
-        self._counts = None
-        self._dist.clear()
-        self._derived.clear()
+        self._forget_counts()
 
     def add(self, sequence: Iterable[str]) -> None:
         """Append one training sequence (an :data:`END` label is added after it)."""
         self._append((*sequence, END))
+        self._forget_counts()
+
+    def _forget_counts(self) -> None:
+        """Drop what was derived from the counts before the last append."""
         self._counts = None
         self._dist.clear()
         self._derived.clear()
