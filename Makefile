@@ -1,19 +1,22 @@
 # Two commands on a fresh machine: `make reproduce` (the main job) and `make test` (the checks).
 # Both create .venv and install the project with every extra on first use (and again when
-# pyproject.toml changes); the plain pip route is in the README.
+# pyproject.toml changes); the plain pip route is in the README. llama-cpp-python is compiled
+# once per machine without AMX kernels (tools/llama_wheel.py says why) into $(WHEELS).
 
 PYTHON ?= python3
 VENV ?= .venv
 OUT ?= results/reproduce
+WHEELS ?= .wheels
 STAMP := $(VENV)/.installed
 
 .PHONY: setup reproduce test lint typecheck
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml setup.py src/globe/models/_suffix_automaton.c src/globe/service/_day_fields.c
+$(STAMP): pyproject.toml setup.py src/globe/models/_suffix_automaton.c src/globe/service/_day_fields.c tools/llama_wheel.py
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
-	$(VENV)/bin/python -m pip install -e ".[all,dev]"
+	$(VENV)/bin/python tools/llama_wheel.py $(WHEELS)
+	$(VENV)/bin/python -m pip install --find-links $(WHEELS) -e ".[all,dev]"
 	touch $(STAMP)
 
 reproduce: $(STAMP)
@@ -23,7 +26,7 @@ typecheck: $(STAMP)
 	$(VENV)/bin/mypy
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks tools
 
 test: $(STAMP) typecheck lint
 	$(VENV)/bin/python -m pytest
