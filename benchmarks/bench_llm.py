@@ -5,9 +5,9 @@ Targets: <= 20 s per household cold on 2 cores (the paper: 192 s with a hosted m
 from the answer cache within 2x of the n-gram-only inference time.
 
 First, the scorer alone on real questions (every object of the household as a candidate, as the
-LLM-only baseline asks): each candidate scored on its own (the reference, the scorer before the
-shared-prefix trie) against the trie, with the time per question, the single-token decodes and
-the largest score difference (must be 0: the same decodes).
+LLM-only baseline asks): every token node decoded on its own (the reference) against one forest
+per question and against all the household's questions as forests at once, with the time per
+question, the rows decoded and the largest score difference (must be 0: the same arithmetic).
 Usage: python benchmarks/bench_llm.py [--data DIR] [--questions N] [--scorer-only]
 """
 
@@ -22,7 +22,7 @@ from globe.assembly import fit_household, object_chooser
 from globe.data.records import Household
 from globe.evaluation.protocol import evaluate_days
 from globe.evaluation.published import TABLE2
-from globe.reasoning.backends.embedded import EmbeddedBackend, _sequential_logprobs
+from globe.reasoning.backends.embedded import EmbeddedBackend, reference_logprobs
 from globe.reasoning.cache import AnswerCache
 from globe.reasoning.choice import ObjectChooser
 from globe.reasoning.context import ChoiceContext
@@ -49,28 +49,28 @@ def questions(h: Household, alignment, n: int, examples: int) -> list[tuple[str,
 
 
 def compare_scorers(backend: EmbeddedBackend, homes: list[Household], cfg, n: int) -> None:
-    shared = backend._shared()
-    llm = shared.llm
-    print(f"{'household':9s} {'prompts':>7s} {'decodes 1-by-1':>14s} {'decodes trie':>12s} {'1-by-1 s/prompt':>15s} "
-          f"{'trie s/prompt':>13s} {'speed-up':>8s} {'max |diff|':>10s}")
+    rt = backend._shared()
+    print(f"llama.cpp rows batch-invariant (forests used): {rt.batched}")
+    print(f"{'household':9s} {'prompts':>7s} {'rows alone':>10s} {'rows forest':>11s} {'rows all':>8s} "
+          f"{'alone s/q':>9s} {'forest s/q':>10s} {'all s/q':>7s} {'speed-up':>8s} {'max |diff|':>10s}")
     for h in homes:
         qs = questions(h, cfg.sequences.alignment, n, cfg.evaluation.personal_examples)
-        tails = [llm.tokenize(c.encode("utf-8"), add_bos=False) for c in qs[0][1]]
-        before = sum(len(t) - 1 for t in tails)
-        after = len({tuple(t[:d]) for t in tails for d in range(1, len(t))})
-        t_ref = t_new = diff = 0.0
-        for prefix, conts in qs:
-            shared.cached_head = []  # both start from a cold model cache: the prompt is evaluated in full
-            t = time.perf_counter()
-            ref = _sequential_logprobs(backend, prefix, conts)
-            t_ref += time.perf_counter() - t
-            shared.cached_head = []
-            t = time.perf_counter()
-            new = backend.continuation_logprobs(prefix, conts)
-            t_new += time.perf_counter() - t
-            diff = max(diff, max(abs(a - b) for a, b in zip(ref, new)))
         k = len(qs)
-        print(f"{h.name:9s} {k:7d} {before:14d} {after:12d} {t_ref / k:15.3f} {t_new / k:13.3f} {t_ref / t_new:7.2f}x {diff:10.1e}")
+        rows = rt.rows
+        t = time.perf_counter()
+        ref = [reference_logprobs(backend, prefix, conts) for prefix, conts in qs]
+        t_ref, rows_ref = time.perf_counter() - t, rt.rows - rows
+        rows = rt.rows
+        t = time.perf_counter()
+        one = [backend.continuation_logprobs(prefix, conts) for prefix, conts in qs]
+        t_one, rows_one = time.perf_counter() - t, rt.rows - rows
+        rows = rt.rows
+        t = time.perf_counter()
+        together = backend.continuation_logprobs_many(qs)
+        t_all, rows_all = time.perf_counter() - t, rt.rows - rows
+        diff = max(max(abs(a - b), abs(a - c)) for r, o, g in zip(ref, one, together) for a, b, c in zip(r, o, g))
+        print(f"{h.name:9s} {k:7d} {rows_ref:10d} {rows_one:11d} {rows_all:8d} {t_ref / k:9.3f} {t_one / k:10.3f} "
+              f"{t_all / k:7.3f} {t_ref / t_all:7.2f}x {diff:10.1e}")
 
 
 def main() -> None:

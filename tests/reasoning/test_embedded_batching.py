@@ -1,7 +1,8 @@
-"""The embedded backend's shared-prefix scoring equals scoring each candidate on its own."""
+"""The embedded backend's batched scoring equals scoring each token node on its own."""
 
 import pytest
 
+from globe.reasoning.cache import AnswerCache
 from globe.reasoning.context import ChoiceContext
 from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefix, diary_prefix
 
@@ -15,46 +16,64 @@ PROMPTS = [cloze_prefix(ChoiceContext("breakfast", ("bowl", "spoon"))), NULL_PRE
 
 
 def _token_counts(backend) -> list[int]:
-    llm = backend._shared().llm
-    return [len(llm.tokenize(c.encode("utf-8"), add_bos=False)) for c in CONTINUATIONS]
+    rt = backend._shared()
+    return [len(rt.tokenize(c, False)) for c in CONTINUATIONS]
 
 
 @pytest.mark.parametrize("prompt", PROMPTS, ids=["cloze", "null", "diary"])
-def test_trie_scores_equal_the_one_by_one_reference(embedded_llm, prompt):
-    from globe.reasoning.backends.embedded import _sequential_logprobs
+def test_batched_scores_equal_the_one_node_at_a_time_reference(embedded_llm, prompt):
+    from globe.reasoning.backends.embedded import reference_logprobs
 
     counts = _token_counts(embedded_llm)
     assert {1, 2} <= set(counts) and max(counts) >= 3  # the candidates cover 1, 2 and 3+ tokens
-    assert "\n" in PROMPTS[2]  # the diary is a multi-line prompt (head reused from the cache)
-    reference = _sequential_logprobs(embedded_llm, prompt, CONTINUATIONS)
+    assert "\n" in PROMPTS[2]  # the diary is a multi-line prompt
+    reference = reference_logprobs(embedded_llm, prompt, CONTINUATIONS)
     scores = embedded_llm.continuation_logprobs(prompt, CONTINUATIONS)
     assert len(scores) == len(CONTINUATIONS)
-    assert scores == reference  # the same single-token decodes and float64 sums: the same bits
-    assert max(range(len(scores)), key=scores.__getitem__) == max(range(len(reference)), key=reference.__getitem__)
+    assert scores == reference  # the same arithmetic per row and float64 sums: the same bits
 
 
-def test_scores_do_not_depend_on_order_subset_or_history(embedded_llm):
+def test_scores_do_not_depend_on_order_subset_or_the_other_questions(embedded_llm):
     prompt = PROMPTS[2]
     full = dict(zip(CONTINUATIONS, embedded_llm.continuation_logprobs(prompt, CONTINUATIONS)))
-    embedded_llm.continuation_logprobs(PROMPTS[0], CONTINUATIONS[::2])  # something else in between
     backwards = embedded_llm.continuation_logprobs(prompt, CONTINUATIONS[::-1])
     assert dict(zip(CONTINUATIONS[::-1], backwards)) == full
     subset = CONTINUATIONS[1:4] + [CONTINUATIONS[1]]  # shares "food" starts; a repeated name
     assert embedded_llm.continuation_logprobs(prompt, subset) == [full[c] for c in subset]
+    # asked together with other prompts (one forest, shared starts) and without the memo
+    together = embedded_llm.continuation_logprobs_many([(PROMPTS[0], CONTINUATIONS[::2]), (prompt, subset),
+                                                        (PROMPTS[1], CONTINUATIONS)])
+    assert together[1] == [full[c] for c in subset]
+    assert together[0] == embedded_llm.continuation_logprobs(PROMPTS[0], CONTINUATIONS)[::2]
 
 
-def test_shared_starts_are_decoded_once(embedded_llm, monkeypatch):
-    """One decode per distinct proper token prefix, fewer than one per token after the first."""
-    llm = embedded_llm._shared().llm
-    tails = [llm.tokenize(c.encode("utf-8"), add_bos=False) for c in CONTINUATIONS]
+def test_prefetch_stores_the_answers_one_by_one_questions_get(gguf_path, embedded_llm, tmp_path):
+    from globe.reasoning.backends.embedded import EmbeddedBackend
+
+    questions = [(ChoiceContext("breakfast", ("bowl",)), ("milk", "food_cereal", "spoon")),
+                 (ChoiceContext("breakfast", ("bowl", "milk")), ("food_cereal", "spoon")),
+                 (BREAKFAST, ("milk", "food_jam", "coffee_cup")),
+                 (ChoiceContext("brushing_teeth", ()), ("toothbrush", "tooth_paste"))]
+    batched = EmbeddedBackend(model_path=gguf_path, cache=AnswerCache(tmp_path / "a.sqlite3"))
+    batched.prefetch(questions + questions[:1])
+    rows_after_prefetch = batched._shared().rows
+    answers = [batched.choose(c, cands) for c, cands in questions]
+    assert all(a.cached for a in answers)  # every question was answered ahead, nothing decoded since
+    assert batched._shared().rows == rows_after_prefetch
+    one_by_one = EmbeddedBackend(model_path=gguf_path, cache=AnswerCache(tmp_path / "b.sqlite3"))
+    for (context, cands), answer in zip(questions, answers):
+        alone = one_by_one.choose(context, cands)
+        assert not alone.cached and (alone.answer, alone.scores) == (answer.answer, answer.scores)
+
+
+def test_shared_starts_are_decoded_once(embedded_llm):
+    """One row per distinct token prefix: the prompt's tokens and each candidate's proper
+    prefixes, shared by every candidate that starts with them."""
+    rt = embedded_llm._shared()
+    prompt = rt.tokenize(NULL_PREFIX, True)
+    tails = [rt.tokenize(c, False) for c in CONTINUATIONS]
     prefixes = {tuple(t[:d]) for t in tails for d in range(1, len(t))}
-    one_by_one = sum(len(t) - 1 for t in tails)
-    assert len(prefixes) < one_by_one  # the chosen names do share starts ("food", "coffee")
-    embedded_llm.continuation_logprobs(NULL_PREFIX, CONTINUATIONS)  # the prompt's own decode is not counted below
-    calls = []
-    real_eval = llm.eval
-    monkeypatch.setattr(llm, "eval", lambda tokens: (calls.append(list(tokens)), real_eval(tokens))[1])
+    assert len(prefixes) < sum(len(t) - 1 for t in tails)  # the chosen names do share starts ("food", "coffee")
+    before = rt.rows
     embedded_llm.continuation_logprobs(NULL_PREFIX, CONTINUATIONS)
-    prompt_calls = 1  # a one-line prompt is evaluated afresh in one batch
-    assert len(calls) == prompt_calls + len(prefixes)
-    assert all(len(c) == 1 for c in calls[prompt_calls:])
+    assert rt.rows - before == len(prompt) + len(prefixes)
