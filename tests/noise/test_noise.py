@@ -88,6 +88,27 @@ def test_output_loads_with_the_normal_loader_and_manifest_matches_the_difference
             assert diff == manifest, (t, level)
 
 
+def test_households_kept_at_writing_are_what_the_loader_reads_back(small, proposals, tmp_path):
+    """The suite uses the households generation kept instead of parsing the files again: they
+    must be the same data, day by day."""
+    from globe.noise.dataset import noisy_dataset
+
+    kept: dict = {}
+    for t in ("person", "pet"):
+        for level in LEVELS:
+            write_level(tmp_path, [small], proposals, t, level, kept)
+    assert len(kept) == 2 * len(LEVELS)
+    for (folder, name), noisy in kept.items():
+        read = load_household(folder, name)
+        assert (read.name, read.nodes, read.objects) == (noisy.name, noisy.nodes, noisy.objects)
+        for a, b in zip(read.train + read.test, noisy.train + noisy.test, strict=True):
+            assert (a.name, a.minutes, a.activities, a.locations) == (b.name, b.minutes, b.activities, b.locations)
+    from_memory = noisy_dataset(tmp_path, "pet", 0.5, 1.0, ["A"], dict(kept))
+    from_disk = noisy_dataset(tmp_path, "pet", 0.5, 1.0, ["A"])
+    assert from_memory.injected == from_disk.injected
+    assert [d.locations for d in from_memory.households[0].test] == [d.locations for d in from_disk.households[0].test]
+
+
 def test_generation_is_deterministic(small, proposals, seed):
     again = propose(small, "toddler", UniformScorer(), seed=seed, rate=1.0, temperature=2.0)
     assert again.injections == proposals[("A", "toddler")].injections

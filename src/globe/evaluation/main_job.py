@@ -110,13 +110,16 @@ def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: 
     robustness suite, written to ``out_dir``. Returns the noise summary and the suite's rows.
     ``clean_cache`` holds cross-validation results already computed on the clean households."""
     stages = stages or Stages(out_dir)
+    written: dict = {}  # the noisy households just generated: the suite need not read them back
     with stages.stage("homer-noise"):
         summary = read_summary(noise_dir)
         if not _same_noise(summary, config):
-            summary = generate_dataset(config.noise, households, noise_dir, assembly.noise_scorer(config), stages.note)
+            summary = generate_dataset(config.noise, households, noise_dir, assembly.noise_scorer(config), stages.note,
+                                       written)
     assert summary is not None
     with stages.stage("robustness suite"):
-        res = run_suite(config, households, noise_dir, backend, progress=stages.note, clean_cache=clean_cache)
+        res = run_suite(config, households, noise_dir, backend, progress=stages.note, clean_cache=clean_cache,
+                        loaded=written)
         write_robustness_results(out_dir, res, config.noise)
     return summary, res
 

@@ -85,11 +85,13 @@ class RobustnessResults:
 
 def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, backend: LLMBackend | None,
               methods: Sequence[str] = ("ngram", "globe", "globe_personal", "routine"),
-              progress: Callable[[str], None] | None = None, clean_cache: dict | None = None) -> RobustnessResults:
+              progress: Callable[[str], None] | None = None, clean_cache: dict | None = None,
+              loaded: dict[tuple[Path, str], Household] | None = None) -> RobustnessResults:
     """Robustness per noise type, consistency groups, and the two ablations (see the module doc).
 
     Each (dataset, training level, method, threshold) is evaluated once and reused by every table
-    that needs it; ``clean_cache`` holds cross-validation results already computed on ``clean``."""
+    that needs it; ``clean_cache`` holds cross-validation results already computed on ``clean``;
+    ``loaded`` the noisy households already in memory (by folder and name)."""
     names = [h.name for h in clean]
     n = cfg.noise
     methods = [m for m in methods if backend is not None or not METHODS[m].needs_llm]
@@ -108,7 +110,7 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
         return memo[key]
 
     res = RobustnessResults([], [], [], [])
-    loaded: dict = {}  # households read from the noise folders, shared by the datasets built from them
+    loaded = {} if loaded is None else loaded  # noisy households, shared by the datasets built from them
     datasets = [(clean_dataset(clean), 0.0)] + [
         (noisy_dataset(noise_root, t, n.train_level, n.test_level, names, loaded), n.train_level) for t in n.types]
     # every dataset's cross-validations at once, on several processes

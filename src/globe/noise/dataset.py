@@ -29,8 +29,10 @@ def level_dir(root: Path, noise_type: str, level: float) -> Path:
 
 
 def write_level(root: Path, households: Sequence[Household], proposals: dict[tuple[str, str], Proposals],
-                noise_type: str, level: float) -> list[Injection]:
-    """Write one (type, level) dataset; returns the injections it contains."""
+                noise_type: str, level: float, written_households: dict[tuple[Path, str], Household] | None = None
+                ) -> list[Injection]:
+    """Write one (type, level) dataset; returns the injections it contains. ``written_households``
+    receives each noisy household as :func:`noisy_dataset` would read it back (its key)."""
     folder = level_dir(root, noise_type, level)
     written: list[Injection] = []
     for h in households:
@@ -41,6 +43,8 @@ def write_level(root: Path, households: Sequence[Household], proposals: dict[tup
         for day in noisy.train + noisy.test:
             write_day(out / f"{day.name}.csv", day, h.objects)
         written.extend(chosen)
+        if written_households is not None:
+            written_households[(folder, h.name)] = noisy
     write_manifest(folder / "manifest.csv", written)
     return written
 
@@ -85,9 +89,11 @@ def write_summary(root: Path, data: dict) -> None:
 
 
 def generate_dataset(noise: NoiseConfig, households: Sequence[Household], noise_dir: Path, scorer: Scorer,
-                     progress: Callable[[str], None] | None = None) -> dict:
+                     progress: Callable[[str], None] | None = None,
+                     written_households: dict[tuple[Path, str], Household] | None = None) -> dict:
     """Propose at level 1.0 once per (home, type), then write every level (nested subsets) and
-    ``summary.json``; returns the summary."""
+    ``summary.json``; returns the summary. ``written_households`` receives the noisy households
+    as :func:`noisy_dataset` reads them (pass it on as ``loaded``: nothing is parsed again)."""
     proposals: dict[tuple[str, str], Proposals] = {}
     started = time.perf_counter()
     for noise_type in noise.types:
@@ -98,7 +104,7 @@ def generate_dataset(noise: NoiseConfig, households: Sequence[Household], noise_
                                                       temperature=noise.temperature)
     for noise_type in noise.types:
         for level in noise.levels:
-            write_level(noise_dir, households, proposals, noise_type, level)
+            write_level(noise_dir, households, proposals, noise_type, level, written_households)
     out = summary(proposals, noise.levels)
     out |= {"seed": noise.seed, "rate": noise.rate, "temperature": noise.temperature, "scorer": scorer.name,
             "seconds": round(time.perf_counter() - started, 2)}
@@ -131,7 +137,8 @@ def clean_dataset(households: Sequence[Household]) -> Dataset:
 def noisy_dataset(root: Path, noise_type: str, train_level: float, test_level: float, names: Sequence[str],
                   loaded: dict[tuple[Path, str], Household] | None = None) -> Dataset:
     """Train at ``train_level``, test at ``test_level``; ``loaded`` keeps households already read
-    (the suite reads each level's folder for several datasets)."""
+    (the suite reads each level's folder for several datasets) or just written
+    (:func:`generate_dataset`'s ``written_households``)."""
     loaded = {} if loaded is None else loaded
 
     def load(level: float, name: str) -> Household:
