@@ -55,6 +55,25 @@ def test_run_forked_runs_closures_in_order_and_does_not_nest():
     assert run_forked(lambda i: i, 1, 2) == [0]
 
 
+def test_run_forked_starts_the_costliest_first_and_keeps_index_order(tmp_path):
+    import time
+
+    from globe.evaluation.parallel import run_forked
+
+    log = tmp_path / "started"
+
+    def task(i: int) -> int:
+        with log.open("a") as fh:  # the order the tasks started in, seen across processes
+            fh.write(f"{i}\n")
+        time.sleep(0.05)
+        return i * i
+
+    assert run_forked(task, 6, 2, cost=[1, 5, 2, 9, 0, 3]) == [0, 1, 4, 9, 16, 25]
+    started = [int(x) for x in log.read_text().split()]
+    assert sorted(started) == list(range(6))
+    assert sorted(started[:2]) == [1, 3]  # the two costliest went first
+
+
 def test_missing_labels_on_other_processes_equal_one_process(households):
     from globe.evaluation.missing_labels import run_missing_labels
 

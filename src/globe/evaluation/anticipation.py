@@ -31,6 +31,11 @@ from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_fi
 from globe.evaluation.tuning import tuned_models
 
 
+TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0}
+"""Rough relative cost of one household's lookahead per method (the routine model's CV costs most):
+the parallel run starts the longest first."""
+
+
 def method_models(method: str, household: Household, config: GlobeConfig, cache: dict) -> ModelConfig:
     """The activity-model configuration a lookahead method forecasts with."""
     if method == "persistence":
@@ -76,7 +81,8 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
         return None if look is None else replace(look, forecaster=None), fetch, shared
 
     look, fetch = [], []
-    for result, evaluation, shared in run_forked(run, len(tasks), worker_count(config.evaluation.workers)):
+    cost = [TASK_COST.get(method or "", 1.0) for _, method in tasks]
+    for result, evaluation, shared in run_forked(run, len(tasks), worker_count(config.evaluation.workers), cost):
         cache.update(shared)
         look += [result] if result is not None else []
         fetch += [evaluation] if evaluation is not None else []

@@ -472,7 +472,7 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
     if progress:
         progress(f"missing labels: {len(tasks)} households x label shares (in parallel)")
     results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], lookahead=lookahead, cache=cache),
-                         len(tasks), workers)
+                         len(tasks), workers, [2.0 - fraction for _, fraction in tasks])  # fewer labels, more hypotheses
     return MissingLabelResults(missing_label_rows(results, config.lookahead.horizons), selection_rows, results)
 
 

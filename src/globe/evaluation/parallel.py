@@ -60,23 +60,29 @@ def _call_forked(i: int) -> object:
     return _FORKED(i)
 
 
-def run_forked(fn: Callable[[int], R], n: int, workers: int) -> list[R]:
+def run_forked(fn: Callable[[int], R], n: int, workers: int, cost: Sequence[float] | None = None) -> list[R]:
     """``[fn(i) for i in range(n)]``, on up to ``workers`` forked processes that inherit ``fn``
     (a closure over fitted models and caches: nothing is pickled but the index and the
     result). In this process when 1 worker, a single task, or no fork on this platform; inside
     a forked task, nested calls run in that task's process. One call at a time per process
-    (the closure is handed to the workers through a module global)."""
+    (the closure is handed to the workers through a module global). ``cost``, an estimate per
+    task, starts the longest first (fewer workers idle at the end); results keep index order."""
     global _FORKED
     if workers <= 1 or n <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         return [fn(i) for i in range(n)]
     if _FORKED is not None:  # already inside a forked run: no nested pools
         return [fn(i) for i in range(n)]
+    order = list(range(n)) if cost is None else sorted(range(n), key=lambda i: -cost[i])
     _FORKED = fn
     try:
         with ProcessPoolExecutor(max_workers=min(workers, n), mp_context=multiprocessing.get_context("fork")) as pool:
-            return list(pool.map(_call_forked, range(n)))  # type: ignore[arg-type]
+            done = list(pool.map(_call_forked, order))  # type: ignore[arg-type]
     finally:
         _FORKED = None
+    out: list = [None] * n
+    for i, result in zip(order, done):
+        out[i] = result
+    return out
 
 
 def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
