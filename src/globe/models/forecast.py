@@ -470,6 +470,7 @@ class ActivityPaths:
         self._dyn = dynamics_for(self.model)
         self._version = model_version(self.model)
         self._states: list[tuple[Any, int, str | None]] = []  # id -> (cursor, step, last activity)
+        self._keys: list[Any] = []  # id -> the dynamics' key of its cursor
         self._ids: dict[tuple, int] = {}
         self._children: dict[tuple[int, int], int] = {}
         self._ext_act = np.zeros((64, 4), dtype=int)  # per state: next activities in the model's order
@@ -499,20 +500,28 @@ class ActivityPaths:
             self._strrank[order] = np.arange(len(order))
         return self._strrank
 
-    def _state(self, cursor: Any, step: int, last: str | None) -> int:
-        key = (self._dyn.key(cursor), step, last)
-        sid = self._ids.get(key)
+    def _state(self, cursor: Any, step: int, last: str | None, key: Any = None) -> int:
+        full = (self._dyn.key(cursor) if key is None else key, step, last)
+        sid = self._ids.get(full)
         if sid is None:
-            sid = self._ids[key] = len(self._states)
+            sid = self._ids[full] = len(self._states)
             self._states.append((cursor, step, last))
+            self._keys.append(full[0])
         return sid
 
     def _child(self, sid: int, act: int) -> int:
+        """The state after ``sid`` and activity ``act``: its key comes from the parent's key
+        (:meth:`~globe.models.activity_filter._Dynamics.child_key`), so the cursor is advanced
+        only for a state not seen before."""
         out = self._children.get((sid, act))
         if out is None:
             cursor, step, _ = self._states[sid]
             name = self._name_list[act]
-            out = self._children[(sid, act)] = self._state(self._dyn.advance(cursor, step, name), step + 1, name)
+            key = self._dyn.child_key(cursor, self._keys[sid], step, name)
+            out = self._ids.get((key, step + 1, name))
+            if out is None:
+                out = self._state(self._dyn.advance(cursor, step, name), step + 1, name, key)
+            self._children[(sid, act)] = out
         return out
 
     def state(self, history: tuple[str, ...]) -> int:
@@ -545,24 +554,41 @@ class ActivityPaths:
             self._ext_best = np.concatenate([self._ext_best, np.full(grow, -1, dtype=int)])
             self._ext_done = np.concatenate([self._ext_done, np.zeros(grow, dtype=bool)])
         todo = np.unique(sids[~self._ext_done[sids]])
+        if not len(todo):
+            return
+        rows: list[int] = []  # every (state, column, activity, probability) to write, then written at once
+        cols: list[int] = []
+        act_ids: list[int] = []
+        probs: list[float] = []
+        best_rows: list[int] = []
+        best_cols: list[int] = []
+        names = self.names
         for sid in todo.tolist():
             cursor, step, last = self._states[sid]
-            dist = self._dyn.distribution(cursor, step)
+            dist = self._dyn.distribution(cursor, step, self._keys[sid])
             if not dist:
                 dist = {last: 1.0} if last is not None else {}
-            best = max(dist, key=lambda a: (dist[a], a), default=None)
-            acts = [self.local(a) for a, q in dist.items() if q > 0]
-            probs = [q for q in dist.values() if q > 0]
-            width = self._ext_act.shape[1]
-            if len(acts) > width:
-                more = len(acts) - width
-                self._ext_act = np.hstack([self._ext_act, np.zeros((len(self._ext_act), more), dtype=int)])
-                self._ext_p = np.hstack([self._ext_p, np.zeros((len(self._ext_p), more))])
-            self._ext_act[sid, : len(acts)] = acts
-            self._ext_p[sid, : len(probs)] = probs
-            if best is not None and dist[best] > 0:
-                self._ext_best[sid] = acts.index(self.names[best])
-            self._ext_done[sid] = True
+            positive = [(a, q) for a, q in dist.items() if q > 0]
+            acts = [names[a] if a in names else self.local(a) for a, _ in positive]
+            rows += [sid] * len(acts)
+            cols += range(len(acts))
+            act_ids += acts
+            probs += [q for _, q in positive]
+            top = max(dist.values(), default=0.0)
+            if top > 0:  # the most probable (ties: the larger name)
+                best = max(a for a, q in dist.items() if q == top)
+                best_rows.append(sid)
+                best_cols.append(acts.index(names[best]))
+        width = self._ext_act.shape[1]
+        need = max(cols, default=-1) + 1
+        if need > width:
+            more = need - width
+            self._ext_act = np.hstack([self._ext_act, np.zeros((len(self._ext_act), more), dtype=int)])
+            self._ext_p = np.hstack([self._ext_p, np.zeros((len(self._ext_p), more))])
+        self._ext_act[rows, cols] = act_ids
+        self._ext_p[rows, cols] = probs
+        self._ext_best[best_rows] = best_cols
+        self._ext_done[todo] = True
 
     def _beams(self, roots: np.ndarray, steps: int) -> list[_BeamLevel]:
         """The forward pass from every root state at once: level t holds the kept paths of t
