@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import pytest
@@ -11,6 +12,7 @@ from globe.models.activity import ActivityModel
 from globe.models.activity_filter import (
     ActivityFilter,
     MovementEmission,
+    dynamics_for,
     filtered_beliefs,
     filtered_scan,
     label_mask,
@@ -287,3 +289,258 @@ def test_routine_child_key_equals_the_key_of_the_advanced_history(households, or
                 seen_new_run += not same
             cursor = dyn.advance(cursor, t, a)
     assert seen_same_run and seen_new_run
+
+
+# -- the compiled step (globe.models._filter_core) against the Python one, to the bit ------------
+
+def _compiled_or_skip():
+    from globe.models import activity_filter
+
+    if activity_filter._native is None:
+        pytest.skip("globe.models._filter_core was not compiled in this install")
+    return activity_filter
+
+
+def _both(monkeypatch, model, emission, **kwargs):
+    """The same filter twice: the Python implementation and the compiled step (checked to be the
+    one each runs, so that the comparison cannot compare Python with itself)."""
+    activity_filter = _compiled_or_skip()
+    monkeypatch.setattr(activity_filter, "COMPILED", False)
+    python = ActivityFilter(model, emission, **kwargs)
+    monkeypatch.setattr(activity_filter, "COMPILED", True)
+    compiled = ActivityFilter(model, emission, **kwargs)
+    assert python._state is None and compiled._state is not None
+    return python, compiled
+
+
+def _hyps(flt):
+    return [(h.weight, h.history, h.cursor) for h in flt.hypotheses()]
+
+
+def _trace(flt, day, visible, objects, peek_every=1):
+    """Everything the filter shows over ``day``: each step's predictive and, after the update, its
+    posterior and hypotheses (dicts as item lists: their order counts), with a shallow-copy peek
+    at the step's movements first (which must leave the filter as it was)."""
+    flt.reset()
+    moved = moved_objects(day, objects)
+    out: list = [_hyps(flt), list(flt.posterior().items())]
+    for t in range(len(day)):
+        out.append(list(flt.predictive().items()))
+        if t % peek_every == 0:
+            before = _hyps(flt)
+            peek = copy.copy(flt)
+            peek.update(t, None, moved[t])
+            out += [list(peek.posterior().items()), list(peek.predictive().items()), _hyps(peek)]
+            assert _hyps(flt) == before
+        flt.update(t, day.activities[t] if visible[t] else None, moved[t])
+        out += [list(flt.posterior().items()), _hyps(flt)]
+    return out
+
+
+def _assert_same(python, compiled, day, visible, objects, peek_every=1):
+    want, got = _trace(python, day, visible, objects, peek_every), _trace(compiled, day, visible, objects, peek_every)
+    assert python._state is None and compiled._state is not None  # each still on its own path
+    assert len(got) == len(want)
+    for i, (g, w) in enumerate(zip(got, want)):
+        assert g == w, f"{day.name}: first difference at record {i}"
+
+
+def _routine_models(h, config):
+    from globe import assembly
+
+    out = []
+    for order, time_weight in ((3, 1.0), (2, 0.0)):
+        models = config.models.model_copy(update={"activity_estimator": "routine", "routine_order": order,
+                                                  "routine_time_weight": time_weight})
+        out.append(assembly.fit_household(h, config.model_copy(update={"models": models})).activity)
+    return out
+
+
+@pytest.mark.parametrize("name", ["A", "B", "C"])
+def test_compiled_step_gives_the_python_filters_numbers_on_homer_days(households, config, seed, monkeypatch, name):
+    """Routine models (with and without the time-of-day prior), each movement evidence setting the
+    missing-label stage searches and none (one day each), 0 / 25 / 50 / 100 % of labels visible,
+    peeks: every predictive, posterior and hypothesis is exactly the Python filter's (== on floats,
+    dicts in order)."""
+    import random
+
+    from globe import assembly
+    from globe.evaluation.missing_labels import filter_candidates
+
+    h = households[name]
+    models = _routine_models(h, config)
+    base = assembly.movement_emission(config.filter, previous_share=0.5, weight=1.0).fit(h.train, h.objects)
+    emissions = [None] + [base.with_params(**params) for params in filter_candidates(config.filter)]
+    rng = random.Random(seed)
+    days = rng.sample(list(h.test), 7) + rng.sample(list(h.train), len(emissions) - 7)
+    for i, day in enumerate(days):
+        model, emission = models[i % 2], emissions[(i + seed) % len(emissions)]
+        fraction = (0.0, 0.25, 0.5, 1.0)[i % 4]
+        visible = label_mask(len(day), fraction, (seed, i))
+        python, compiled = _both(monkeypatch, model, emission, max_hypotheses=config.filter.max_hypotheses,
+                                 min_weight=config.filter.min_weight)
+        _assert_same(python, compiled, day, visible, h.objects, peek_every=1 + i % 3)
+
+
+def test_compiled_step_gives_the_python_filters_numbers_for_ngram_and_persistence(households, seed, monkeypatch):
+    """The n-gram (longest context; Witten-Bell with the time-of-day prior) and persistence models,
+    whose state is their cursor, with and without movement evidence."""
+    h = households["A"]
+    days = [d.activities for d in h.train]
+    emission = MovementEmission(previous_share=1.0, boundary=True, switch=True, weight=0.5).fit(h.train, h.objects)
+    models = [ActivityModel().fit(days), ActivityModel(estimator="witten_bell", max_order=3, time_weight=1.0).fit(days),
+              PersistenceModel().fit(days)]
+    for i, model in enumerate(models):
+        for j, em in enumerate((None, emission)):
+            day = h.test[(i + j + seed) % len(h.test)]
+            python, compiled = _both(monkeypatch, model, em, max_hypotheses=16)
+            _assert_same(python, compiled, day, label_mask(len(day), (0.0, 0.5)[j], (seed, i)), h.objects, peek_every=4)
+
+
+class _OtherEmission:
+    """Movement evidence of another kind (a test double): the compiled step leaves it to Python."""
+
+    def log_likelihood(self, previous, current, moved):
+        return -0.5 * len(moved) if current == previous else -1.0
+
+    def upper_bound(self, activities, moved):
+        return 0.0
+
+
+def test_compiled_step_gives_the_python_filters_numbers_at_the_edges(households, monkeypatch):
+    """Impossible and unknown labels (the "nothing kept" branch), skipped steps, a reset half-way,
+    one hypothesis only, no pruning, and an emission the compiled step does not know put in
+    half-way (it goes on in Python from the compiled state)."""
+    h = households["B"]
+    model = RoutineModel(order=2).fit([d.activities for d in h.train])
+    emission = MovementEmission(previous_share=0.5, weight=0.5, boundary=True).fit(h.train, h.objects)
+    day = h.test[1]
+    moved = moved_objects(day, h.objects)
+    rare = min(model.classes_, key=lambda a: model.frequency_[a])
+    for kwargs in ({"max_hypotheses": 1}, {"max_hypotheses": 200, "min_weight": 0.0}, {}):
+        python, compiled = _both(monkeypatch, model, emission, **kwargs)
+        records: list[list] = [[], []]
+        for flt, rec in zip((python, compiled), records):
+            for t in (0, 1, 5, 6, 9, 20, 21, 40):  # gaps: skipped steps carry no evidence
+                label = {5: rare, 6: "never-seen", 21: rare}.get(t)
+                flt.update(t, label, moved[t] if t % 2 else None)
+                rec += [list(flt.predictive().items()), list(flt.posterior().items()), _hyps(flt)]
+                if t == 9:
+                    flt.reset()
+                    rec.append(_hyps(flt))
+            flt.emission = _OtherEmission()  # type: ignore[assignment]
+            flt.update(41, None, {"cup"})
+            rec += [list(flt.predictive().items()), list(flt.posterior().items()), _hyps(flt)]
+        assert records[0] == records[1]
+        assert compiled._state is None  # left for Python at step 41
+
+
+def test_compiled_beliefs_and_references_are_the_python_ones(households, config, monkeypatch):
+    """What the missing-label evaluation reads through the filter: filtered_beliefs (predictive and
+    nowcast, peeking with copy.copy) and filtered_references (prefixes of peeked hypotheses)."""
+    from globe import assembly
+    from globe.evaluation.missing_labels import FilterSetup, day_mask, filtered_references
+    from globe.evaluation.tuning import Selection
+
+    activity_filter = _compiled_or_skip()
+    h = households["C"]
+    (model, _), emission = _routine_models(h, config), assembly.movement_emission(
+        config.filter, previous_share=1.0, weight=0.5, boundary=True, switch=True).fit(h.train, h.objects)
+    setup = FilterSetup(h, config.models, model, emission, None, Selection({}), 0.0)
+    out = []
+    for compiled in (False, True):
+        monkeypatch.setattr(activity_filter, "COMPILED", compiled)
+        runs = []
+        for fraction, day in zip((0.0, 0.5), h.test[:2]):
+            mask = day_mask(config.filter, h.name, day, fraction)
+            flt = assembly.activity_filter(model, emission, config.filter)
+            assert (flt._state is not None) == compiled
+            predictive, now = filtered_beliefs(flt, day, mask, h.objects, nowcast=True)
+            refs = filtered_references(setup, config.filter, day, mask, 6, 1, 102, stride=3)
+            runs.append(([list(d.items()) for d in predictive], [list(d.items()) for d in now or []], refs))
+        out.append(runs)
+    assert out[0] == out[1]
+
+
+def test_compiled_step_chooses_the_same_movement_evidence(households, config, monkeypatch):
+    """The missing-label stage's search over movement evidence (CV on training days, no labels):
+    the same scores, to the bit, for candidates of every kind."""
+    from globe.evaluation.missing_labels import filter_candidates, score_filter_candidates
+
+    activity_filter = _compiled_or_skip()
+    h = households["A"]
+    models = config.models.model_copy(update={"activity_estimator": "routine", "object_marginal": True})
+    candidates = [c for c in filter_candidates(config.filter) if c["weight"] == 0.5][1::3]  # previous_share 0, 0.5, 1
+    assert {c["previous_share"] for c in candidates} == {0.0, 0.5, 1.0} and any(c["switch"] for c in candidates)
+    scores = []
+    for compiled in (False, True):
+        monkeypatch.setattr(activity_filter, "COMPILED", compiled)
+        scores.append(score_filter_candidates(h, config, models, candidates).scores)
+    assert scores[0] == scores[1] and len(scores[0]) == len(candidates) >= 3
+
+
+def test_a_full_compiled_core_is_replaced_for_new_filters_only(households, monkeypatch):
+    """A core numbers states for as long as filters may hold them; past _CORE_STATES the next filter
+    gets a fresh one, and a filter still on the old one goes on with the same numbers (its
+    movement evidence in the old core's numbers)."""
+    activity_filter = _compiled_or_skip()
+    h = households["A"]
+    model = RoutineModel(order=3).fit([d.activities for d in h.train])
+    emission = MovementEmission(previous_share=0.5, boundary=True, switch=True).fit(h.train, h.objects)
+    day = h.test[0]
+    moved = moved_objects(day, h.objects)
+    python, old = _both(monkeypatch, model, emission)
+    for t in range(30):  # no movements seen yet: the old filter has not needed its evidence
+        python.update(t, None, None)
+        old.update(t, None, None)
+    monkeypatch.setattr(activity_filter, "_CORE_STATES", 1)
+    new = ActivityFilter(model, emission)
+    assert new._state.core is not old._state.core
+    for t in range(30, len(day)):
+        new.update(t - 30, None, moved[t - 30])  # both cores in use, one emission
+        python.update(t, None, moved[t])
+        old.update(t, None, moved[t])
+        assert _hyps(old) == _hyps(python)
+    _assert_same(python, new, day, [False] * len(day), h.objects, peek_every=5)
+
+
+def test_the_compiled_core_checks_what_it_is_given(households):
+    """Bad input is an error, never a bad read: steps out of order, labels that are not str,
+    evidence of another core, a distribution that is not a dict, a missing history, a step already
+    under way on the same core, a core not initialised."""
+    activity_filter = _compiled_or_skip()
+    native = activity_filter._native
+    h = households["A"]
+    model = RoutineModel(order=2).fit([d.activities for d in h.train[:20]])
+    em = MovementEmission().fit(h.train[:20], h.objects)
+    flt = ActivityFilter(model, em)
+    state, dyn = flt._state, flt._dynamics
+    with pytest.raises(ValueError, match="step"):
+        state.advance(dyn, 3, None, None, None, 1e-4, 32, None)
+    with pytest.raises(ValueError, match="max_hypotheses"):
+        state.advance(dyn, 0, None, None, None, 1e-4, 0, None)
+    with pytest.raises(TypeError, match="str"):
+        state.advance(dyn, 0, 7, None, None, 1e-4, 32, None)
+    with pytest.raises(TypeError):
+        state.advance(dyn, 0, None, "not evidence", frozenset(), 1e-4, 32, em)
+    elsewhere = ActivityFilter(RoutineModel(order=3).fit([("a", "b")]))
+    other = activity_filter._compiled_evidence(em, elsewhere._dynamics, elsewhere._state.core, model.classes_)
+    with pytest.raises(ValueError, match="another core"):
+        state.advance(dyn, 0, None, other, frozenset(), 1e-4, 32, em)
+    with pytest.raises(IndexError):
+        state.cursor(dyn, 1)
+    with pytest.raises(ValueError):
+        native.Core(5, 1, print, print)
+    with pytest.raises(TypeError):
+        native.Core.__new__(native.Core).root(dyn)
+    bad = native.Core(native.OPAQUE, 0, lambda *args: ["a"], lambda dyn, key, step, a: a)
+    with pytest.raises(TypeError, match="dict"):
+        bad.root(dynamics_for(PersistenceModel().fit([("a", "b")]))).predictive(dyn)
+
+    def reenter(dyn_, key, step, beam, index):
+        beam.advance(dyn_, step, None, None, None, 1e-4, 32, None)  # the same core, mid-step
+
+    core = native.Core(native.OPAQUE, 0, reenter, lambda dyn, key, step, a: a)
+    pdyn = dynamics_for(PersistenceModel().fit([("a", "b")]))
+    with pytest.raises(RuntimeError, match="under way"):
+        core.root(pdyn).advance(pdyn, 0, None, None, None, 1e-4, 32, None)

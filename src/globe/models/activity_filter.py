@@ -21,6 +21,11 @@ day's possible activity *histories* instead:
 
 With every label visible there is exactly one history, so :func:`filtered_scan` returns exactly
 the model's ``scan_proba``. Training is counting only.
+
+The per-step work runs in C (:mod:`globe.models._filter_core`) where the install compiled it, for
+the routine, n-gram and persistence models and this module's movement evidence: the same
+operations in the same order, so the same weights to the bit, histories and dict orders (tested
+side by side). This Python code is the reference, and runs everything else.
 """
 
 from __future__ import annotations
@@ -42,6 +47,19 @@ from globe.models.baselines import PersistenceModel
 from globe.models.routine import DAY_START as RUN_DAY_START
 from globe.models.routine import RoutineModel
 from globe.sequences.movements import moved_steps
+
+try:  # compiled at install where a C compiler is found (optional): the same filter, faster
+    from globe.models import _filter_core as _native
+except ImportError:  # pragma: no cover - depends on the install
+    _native = None  # type: ignore[assignment]
+
+COMPILED = True
+"""Whether filters made from now on take the compiled step where it is built (for their whole
+life). Tests and benchmarks set it to False to run the Python implementation, the reference."""
+
+_CORE_STATES = 2_000_000
+"""States a compiled core numbers before the next filter over its model starts a fresh one (its
+memos are bounded; its state numbers cannot be forgotten while a filter may hold them)."""
 
 
 class NextActivityModel(Protocol):
@@ -153,6 +171,10 @@ class MovementEmission(CountingModel):
         self._base: dict[tuple, float] = {}
         self._memo: dict[tuple, float] = {}
         self._evidence: dict[tuple, tuple[float, dict]] = {}
+        # the compiled filter's evidence by model dynamics (weakly: it dies with the model), see
+        # _compiled_evidence; its logs by context depend on the counts only (shared by with_params)
+        self._compiled: weakref.WeakKeyDictionary[Any, tuple] = weakref.WeakKeyDictionary()
+        self._contexts: weakref.WeakKeyDictionary[Any, tuple] = weakref.WeakKeyDictionary()
         return self
 
     def with_params(self, **params: Any) -> "MovementEmission":
@@ -166,6 +188,7 @@ class MovementEmission(CountingModel):
             setattr(other, name, value)
         other._validate_params()
         other._base, other._memo, other._evidence = {}, {}, {}
+        other._compiled = weakref.WeakKeyDictionary()
         return other
 
     def evidence(self, activities: Collection[str], moved: frozenset[str]) -> tuple[float, dict]:
@@ -268,6 +291,7 @@ class _Dynamics:
         self._memo: dict[Hashable, dict[str, float]] = {}
         self._child_keys: dict[Hashable, Hashable] = {}
         self.version = model_version(model)
+        self.core: Any = None  # the compiled filter's numbers and memos over these dynamics (_compiled_core)
 
     @property
     def model(self) -> Any:
@@ -367,14 +391,29 @@ class _RoutineDynamics(_Dynamics):
 
     def _compute(self, cursor: Any, step: int) -> dict[str, float]:
         runs, state, matched = cursor
-        model = self.model
         if not runs:
-            return model._distribution([], step)
+            return self.model._distribution([], step)
         current, first, _ = runs[-1]
-        skey = (current, step - first, step)
-        stay = self._stay.get(skey)
+        stay = self.stay(current, step - first, step)
+        nxt, z = self.next_runs(state, matched, current, step)
+        # (the compiled filter mixes the two parts the same way: _filter_core.c, routine_dist)
+        dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}
+        dist[current] = stay if z > 0 else 1.0
+        return dist
+
+    def stay(self, current: str, duration: int, step: int) -> float:
+        """P(the run of ``current`` goes on at ``step`` | it has lasted ``duration`` steps), memoised."""
+        key = (current, duration, step)
+        stay = self._stay.get(key)
         if stay is None:
-            stay = self._stay[skey] = model.stay_probability(current, step - first, step)
+            stay = self._stay[key] = self.model.stay_probability(current, duration, step)
+        return stay
+
+    def next_runs(self, state: int, matched: int, current: str, step: int) -> tuple[dict[str, float], float]:
+        """The next run's activity (not ``current``) after the runs matched by ``(state, matched)``:
+        the run n-gram times the start prior, unnormalised, and its total. It depends on the last
+        ``order`` run labels only, and on ``step`` only through the prior."""
+        model = self.model
         nxt = witten_bell_distribution(model.runs_, state, matched, model.order, model.classes_)
         nxt.pop(current, None)
         if model.time_weight > 0:
@@ -382,10 +421,7 @@ class _RoutineDynamics(_Dynamics):
             if prior is None:
                 prior = self._prior[step] = windowed_prior(model.starts_, step, model.time_window, model.classes_)
             nxt = {b: p * prior[b] ** model.time_weight for b, p in nxt.items()}
-        z = sum(nxt.values())
-        dist = {b: (1.0 - stay) * p / z for b, p in nxt.items()} if z > 0 else {}
-        dist[current] = stay if z > 0 else 1.0
-        return dist
+        return nxt, sum(nxt.values())
 
 
 class _NgramDynamics(_Dynamics):
@@ -436,6 +472,76 @@ def dynamics_for(model: NextActivityModel) -> _Dynamics:
     return dyn
 
 
+# -- the compiled step (globe.models._filter_core) -----------------------------------------------
+
+def _compiled_core(dyn: _Dynamics) -> Any:
+    """The compiled core over ``dyn`` (made on first use, shared by every filter over it), or None
+    where the compiled step is not built or does not know these dynamics (Python runs them)."""
+    if _native is None:
+        return None
+    if dyn.core is not None and dyn.core.size <= _CORE_STATES:
+        return dyn.core
+    if type(dyn) is _RoutineDynamics and dyn.model.order >= 1:
+        # the run n-gram part depends on the step only through the time-of-day prior
+        dyn.core = _native.Core(_native.ROUTINE, int(dyn.model.order), _compiled_distribution, _compiled_child,
+                                _RoutineDynamics.stay, _compiled_next_runs, not dyn.model.time_weight > 0)
+    elif type(dyn) in (_NgramDynamics, _PersistenceDynamics):  # their key is their cursor
+        dyn.core = _native.Core(_native.OPAQUE, 0, _compiled_distribution, _compiled_child)
+    return dyn.core
+
+
+def _compiled_emission(emission: Any) -> bool:
+    """Whether the compiled step knows ``emission`` (none, or exactly a MovementEmission)."""
+    return emission is None or type(emission) is MovementEmission
+
+
+def _compiled_distribution(dyn: _Dynamics, key: Hashable, step: int, beam: Any, index: int) -> dict[str, float]:
+    """What the compiled step asks when its memo misses: ``dyn``'s distribution of ``key`` at
+    ``step``; the cursor of the history (``beam``'s ``index``-th) is built only if ``dyn``'s memo misses too."""
+    dist = dyn._memo.get((key, step))
+    return dist if dist is not None else dyn.distribution(beam.cursor(dyn, index), step, key)
+
+
+def _compiled_next_runs(dyn: _RoutineDynamics, step: int, beam: Any, index: int) -> tuple[dict[str, float], float]:
+    """What the compiled step asks when its memo of :meth:`_RoutineDynamics.next_runs` misses (for
+    ``beam``'s ``index``-th history at ``step``; it mixes the result with the stay probability as
+    :meth:`_RoutineDynamics._compute` does)."""
+    runs, state, matched = beam.cursor(dyn, index)
+    return dyn.next_runs(state, matched, runs[-1][0], step)
+
+
+def _compiled_child(dyn: _Dynamics, key: Hashable, step: int, activity: str) -> Hashable:
+    """The compiled step's child key where the key is the cursor (n-gram, persistence)."""
+    return dyn.child_key(key, key, step, activity)
+
+
+def _log_odds(em: MovementEmission, part: int, activity: str, changed: bool | None, following: str | None,
+              obj: str) -> float:
+    """One term of :meth:`MovementEmission.part_log_likelihood`: the same expression, the same float."""
+    p = em.probability(activity, obj, part, changed, following)
+    return math.log(p) - math.log1p(-p)
+
+
+def _compiled_evidence(em: MovementEmission, dyn: _Dynamics, core: Any, activities: Sequence[str]) -> Any:
+    """``em`` over the model's ``activities`` in the numbers of ``core`` (over ``dyn``), memoised on
+    the emission. Its logs by context depend on the counts only, so every
+    :meth:`~MovementEmission.with_params` setting shares them (each is asked from Python once per
+    model)."""
+    memo = em._compiled.get(dyn)
+    if memo is not None and memo[0] is core and (memo[1] is activities or memo[1] == activities):
+        return memo[2]
+    contexts = em._contexts.get(dyn)
+    if contexts is None or contexts[0] is not core:
+        contexts = em._contexts[dyn] = (core, core.contexts(tuple(em.objects_), MovementEmission._nothing, _log_odds))
+    lam = em.previous_share
+    upper = tuple(set(activities) | set(em.activities_))  # as upper_bound iterates them
+    switches = tuple(em.switches_) if em.switch and em.boundary else ()
+    evidence = core.evidence(contexts[1], upper, switches, em.weight, lam, math.log(lam) if lam > 0 else math.nan,
+                             math.log1p(-lam) if lam < 1 else math.nan, math.log1p(-0.0), em.boundary, em.switch)
+    em._compiled[dyn] = (core, activities, evidence)
+    return evidence
+
+
 # -- the filter ----------------------------------------------------------------------------------
 
 @dataclass(frozen=True, slots=True)
@@ -467,14 +573,19 @@ class ActivityFilter:
         self.max_hypotheses = max_hypotheses
         self.min_weight = min_weight
         self._dynamics = dynamics_for(model)
+        self._compiled = COMPILED
+        self._evidence_memo: tuple | None = None  # (emission, activities, core, its compiled evidence)
         self.reset()
 
     def reset(self) -> None:
-        """Start a new day: one empty history."""
+        """Start a new day: one empty history (kept by the compiled step where it applies)."""
         self.step = -1
-        start = self._dynamics.start()
-        self._beam = [Hypothesis(1.0, (), start)]
-        self._keys: list[Hashable] = [self._dynamics.key(start)]
+        core = _compiled_core(self._dynamics) if self._compiled and _compiled_emission(self.emission) else None
+        self._state: Any = None if core is None else core.root(self._dynamics)
+        if self._state is None:
+            start = self._dynamics.start()
+            self._beam = [Hypothesis(1.0, (), start)]
+            self._keys: list[Hashable] = [self._dynamics.key(start)]
 
     def _next(self, h: Hypothesis, key: Hashable = None) -> dict[str, float]:
         dist = self._dynamics.distribution(h.cursor, len(h.history), key)
@@ -484,6 +595,8 @@ class ActivityFilter:
 
     def predictive(self) -> dict[str, float]:
         """P(the activity at the next step | everything seen so far), mixed over the beam."""
+        if self._state is not None:
+            return self._state.predictive(self._dynamics)
         out: dict[str, float] = {}
         for h, key in zip(self._beam, self._keys):
             for a, p in self._next(h, key).items():
@@ -493,6 +606,8 @@ class ActivityFilter:
 
     def posterior(self) -> dict[str, float]:
         """P(the activity at the last updated step | everything seen so far)."""
+        if self._state is not None:
+            return self._state.posterior()
         out: dict[str, float] = {}
         for h in self._beam:
             if h.history:
@@ -501,6 +616,8 @@ class ActivityFilter:
 
     def hypotheses(self) -> list[Hypothesis]:
         """The weighted histories a_0..a_step kept now (most probable first, weights sum to 1)."""
+        if self._state is not None:
+            return [Hypothesis(w, history, cursor) for w, history, cursor in self._state.hypotheses(self._dynamics)]
         return list(self._beam)
 
     def update(self, step: int, label: str | None, moved: Collection[str] | None) -> None:
@@ -512,6 +629,11 @@ class ActivityFilter:
         self._advance(label, None if moved is None else frozenset(moved))
 
     def _advance(self, label: str | None, moved: frozenset[str] | None) -> None:
+        if self._state is not None:
+            if _compiled_emission(self.emission):
+                self._advance_compiled(label, moved)
+                return
+            self._leave_compiled()
         self.step += 1
         first = self.step == 0
         evidence = self._evidence(moved) if moved is not None and not first else None
@@ -568,6 +690,31 @@ class ActivityFilter:
         self._beam = [Hypothesis(w / total, h.history + (a,), dyn.advance(h.cursor, len(h.history), a))
                       for _, (w, h, a, _) in kept]
         self._keys = [key for key, _ in kept]
+
+    def _advance_compiled(self, label: str | None, moved: frozenset[str] | None) -> None:
+        """:meth:`_advance` in C: the same weights (to the bit), histories and orders."""
+        self.step += 1
+        evidence = None
+        if moved is not None and self.step != 0 and self.emission is not None:
+            evidence = self._evidence_of(self.emission)
+        self._state = self._state.advance(self._dynamics, self.step, label, evidence, moved, self.min_weight,
+                                          self.max_hypotheses, self.emission)
+
+    def _evidence_of(self, em: MovementEmission) -> Any:
+        """The compiled evidence of ``em`` (:func:`_compiled_evidence`), remembered for this filter's
+        next steps."""
+        activities = getattr(self.model, "classes_", ())
+        memo = self._evidence_memo
+        if memo is None or memo[0] is not em or memo[1] is not activities or memo[2] is not self._state.core:
+            core = self._state.core
+            memo = self._evidence_memo = (em, activities, core, _compiled_evidence(em, self._dynamics, core, activities))
+        return memo[3]
+
+    def _leave_compiled(self) -> None:
+        """Go on in Python from the compiled state (the emission became one the C step does not know)."""
+        self._beam = self.hypotheses()
+        self._keys = self._state.keys()
+        self._state = None
 
     def _bounded(self) -> frozenset[str]:
         """Activities whose movement evidence is at most 1 (those its upper bound covers)."""
