@@ -21,7 +21,7 @@ from globe.models.forecast import Forecaster, MovementModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.choice import NextObjectModel, ObjectChooser
 from globe.reasoning.gate import UncertaintyGate
 from globe.sequences.runs import TrainingSequences, training_sequences
 
@@ -122,7 +122,7 @@ def llm_backend(llm: LLMConfig) -> LLMBackend | None:
                          cache=_answer_cache(llm))
 
 
-def object_chooser(objects: ObjectModel, gate: GateConfig, backend: LLMBackend | None, *, marginal: bool) -> ObjectChooser:
+def object_chooser(objects: NextObjectModel, gate: GateConfig, backend: LLMBackend | None, *, marginal: bool) -> ObjectChooser:
     """GLOBE's uncertainty gate over ``objects`` when there is a backend, else the plain n-gram."""
     if backend is None:
         return ObjectChooser(objects, marginal=marginal)

@@ -49,6 +49,7 @@ from globe.evaluation.tuning import Selection, folds, grid, select, tuned_models
 from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
 from globe.models.base import ActivityModelBase
 from globe.models.forecast import Forecaster, first_locations
+from globe.reasoning.choice import NextObjectModel
 
 Progress = Callable[[str], None]
 METHOD = "routine"
@@ -116,7 +117,8 @@ class _FoldFilter:
         if ("models", fold) not in self.memo:
             cfg = self.config.model_copy(update={"models": self.models})
             fitted = assembly.fit_household(self.household, cfg, days=days)
-            chooser = assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=self.models.object_marginal)
+            chooser = assembly.object_chooser(_MemoObjects(fitted.objects), cfg.gate, None,
+                                              marginal=self.models.object_marginal)
             self.memo[("models", fold)] = fitted.activity, chooser
         self.activity, self.chooser = self.memo[("models", fold)]
         if ("emission", fold) not in self.memo:  # the counts do not depend on the candidate
@@ -124,6 +126,31 @@ class _FoldFilter:
                 days, self.household.objects)
         self.emission = self.memo[("emission", fold)].with_params(**self.params)
         return self
+
+
+class _MemoObjects:
+    """A fold's object model whose next-object distributions are remembered: every candidate
+    evidence asks it the same (activity, objects so far) questions on the same held-out days."""
+
+    def __init__(self, model: NextObjectModel) -> None:
+        self.model = model
+        self._memo: dict[tuple[str, tuple[str, ...]], dict[str, float]] = {}
+
+    def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]:
+        key = (activity, tuple(history))
+        out = self._memo.get(key)
+        if out is None:
+            out = self._memo[key] = self.model.predict_proba(activity, history)
+        return out
+
+    def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]:
+        return self.model.ranked(activity, distribution)
+
+    def candidates(self, activity: str) -> tuple[str, ...]:
+        return self.model.candidates(activity)
+
+    def recent_runs(self, activity: str, k: int) -> tuple[tuple[str, ...], ...]:
+        return self.model.recent_runs(activity, k)
 
 
 def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], list[str]]:
@@ -188,6 +215,9 @@ class _FixedScan:
 
     def ranked(self, distribution: dict[str, float]) -> list[str]:
         return self.model.ranked(distribution)
+
+    def top(self, distribution: dict[str, float]) -> str | None:
+        return self.model.top(distribution)
 
 
 @dataclass(slots=True)

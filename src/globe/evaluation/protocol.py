@@ -26,6 +26,7 @@ NO_PREDICTION = "<none>"
 class ActivityPredictor(Protocol):
     def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]: ...
     def ranked(self, distribution: dict[str, float]) -> list[str]: ...
+    def top(self, distribution: dict[str, float]) -> str | None: ...  # ranked(...)[0], None if empty
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -95,8 +96,9 @@ class Evaluation:
     inference_s: float
 
 
-def _top(ranked: list[str]) -> str:
-    return ranked[0] if ranked else NO_PREDICTION
+def _top(model: ActivityPredictor, distribution: dict[str, float]) -> str:
+    best = model.top(distribution)
+    return NO_PREDICTION if best is None else best
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,7 +138,7 @@ def evaluate_days(
     for day in days:
         acts = day.activities
         dists = activity_model.scan_proba(acts)
-        predicted = [_top(activity_model.ranked(d)) for d in dists]
+        predicted = [_top(activity_model, d) for d in dists]
         for t in range(1, len(acts)):
             act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1], true=acts[t],
                                               predicted=predicted[t], confidence=dists[t].get(predicted[t], 0.0),

@@ -116,6 +116,9 @@ class _MemoScan:
     def ranked(self, distribution: dict[str, float]) -> list[str]:
         return self.model.ranked(distribution)
 
+    def top(self, distribution: dict[str, float]) -> str | None:
+        return self.model.top(distribution)
+
 
 class _FoldModels:
     """Both models of one configuration, fitted on a fold of training days. Fits (and activity
