@@ -30,7 +30,6 @@ from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_figure, lookahead_figure, save_figure
 from globe.evaluation.tuning import tuned_models
 
-
 TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0}
 """Rough relative cost of one household's lookahead per method (the routine model's CV costs most):
 the parallel run starts the longest first."""

@@ -76,7 +76,7 @@ def run_forked(fn: Callable[[int], R], n: int, workers: int, cost: Sequence[floa
     _FORKED = fn
     try:
         with ProcessPoolExecutor(max_workers=min(workers, n), mp_context=multiprocessing.get_context("fork")) as pool:
-            done = list(pool.map(_call_forked, order))  # type: ignore[arg-type]
+            done = list(pool.map(_call_forked, order))
     finally:
         _FORKED = None
     out: list = [None] * n
