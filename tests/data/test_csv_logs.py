@@ -53,6 +53,39 @@ def _load(home: Path):
     return load_household(home.parent, "A")
 
 
+def _written_row_by_row(day, objects) -> str:
+    """What format_day wrote before it joined pieces: csv.writer, one row at a time."""
+    import csv
+    import io
+
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(("minute", "activity") + tuple(objects))
+    for minute, activity, state in zip(day.minutes, day.activities, day.locations):
+        writer.writerow((minute, activity, *state))
+    return out.getvalue()
+
+
+def test_format_day_writes_what_the_csv_writer_writes_for_any_cells(households, seed):
+    import random
+
+    from globe.data.records import Day
+
+    h = households["B"]
+    for day in h.train[:5] + h.test:
+        assert format_day(day, h.objects) == _written_row_by_row(day, h.objects)
+    rng = random.Random(seed)
+    alphabet = ["a", "b", ",", '"', "\n", "\r", " ", "", "é", "x y"]
+    for n_objects in (0, 1, 2, 5):
+        objects = tuple(f"o{i}" for i in range(n_objects))
+        rows = [tuple("".join(rng.choices(alphabet, k=rng.randint(0, 3))) for _ in objects) for _ in range(6)]
+        acts = ["".join(rng.choices(alphabet, k=rng.randint(0, 3))) for _ in range(4)]
+        n = 40
+        day = Day("train/001", tuple(range(0, 10 * n, 10)), tuple(rng.choice(acts) for _ in range(n)),
+                  tuple(rng.choice(rows) for _ in range(n)))
+        assert format_day(day, objects) == _written_row_by_row(day, objects), (n_objects, rows, acts)
+
+
 def test_missing_column_names_file_line_and_field(home):
     day = home / "train" / "001.csv"
     _edit(day, 1, lambda s: s.replace("minute,", "minutes,"))

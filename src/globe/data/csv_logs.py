@@ -414,13 +414,29 @@ def load_household(root: Path, name: str, *, step_minutes: int | None = None, re
 
 
 def format_day(day: Day, objects: tuple[str, ...]) -> str:
-    """Serialise a day exactly as the shipped files are written (LF line ends, no quoting)."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(FIXED_COLUMNS + objects)
+    """Serialise a day exactly as the shipped files are written (LF line ends, no quoting): what
+    ``csv.writer`` writes row by row. A day repeats a few rows of places many times, so each
+    distinct row (and activity) is formatted once and the lines are joined from those pieces (the
+    writer formats each field on its own, so the pieces join to the same text)."""
+    rows: dict[tuple[str, ...], str] = {}
+    names: dict[str, str] = {}
+    parts = [_csv_line(FIXED_COLUMNS + objects) + "\n"]
     for minute, activity, state in zip(day.minutes, day.activities, day.locations):
-        writer.writerow((minute, activity, *state))
-    return out.getvalue()
+        text = rows.get(state)
+        if text is None:  # formatted after a first field, so a lone empty cell is written as a row's middle cell is
+            text = rows[state] = _csv_line(("0", *state))[1:]
+        head = names.get(activity)
+        if head is None:
+            head = names[activity] = _csv_line(("0", activity))[1:]
+        parts.append(f"{minute}{head}{text}\n")
+    return "".join(parts)
+
+
+def _csv_line(fields: Sequence[object]) -> str:
+    """One row as ``csv.writer`` writes it, without its line end."""
+    out = io.StringIO()
+    csv.writer(out, lineterminator="\n").writerow(fields)
+    return out.getvalue()[:-1]
 
 
 def _write_atomic(path: Path, text: str) -> None:
