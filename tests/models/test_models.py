@@ -56,6 +56,16 @@ def test_object_model_restricted_to_the_activity_and_backs_off():
     assert m.predict("dance") is None
 
 
+def test_recent_runs_follow_new_runs_and_new_fits():
+    """The person's recent runs are remembered per activity; learning or refitting must show."""
+    m = ObjectModel().fit([("eat", ("bowl",)), ("eat", ("plate",)), ("work", ("laptop",))])
+    assert m.recent_runs("eat", 2) == (("bowl",), ("plate",))
+    m.partial_fit([("eat", ("cup",))])
+    assert m.recent_runs("eat", 2) == (("plate",), ("cup",))
+    m.fit([("eat", ("spoon",)), ("eat", ("fork",)), ("work", ("pen",))])  # as many runs as the first fit
+    assert m.recent_runs("eat", 2) == (("spoon",), ("fork",))
+
+
 def test_run_start_token_conditions_the_first_object():
     m = ObjectModel(run_start_token=True).fit(RUNS)
     assert m.predict_proba("eat", ()) == {"bowl": pytest.approx(2 / 3), "plate": pytest.approx(1 / 3)}

@@ -35,6 +35,7 @@ class ObjectModel(CountingModel):
     def fit(self, runs: Iterable[tuple[str, Sequence[str]]]) -> "ObjectModel":
         """Train from scratch on (activity, objects moved in that run) pairs."""
         self._reset()
+        self.__dict__.pop("_recent", None)
         return self.partial_fit(runs)
 
     def partial_fit(self, runs: Iterable[tuple[str, Sequence[str]]]) -> "ObjectModel":
@@ -68,13 +69,20 @@ class ObjectModel(CountingModel):
         """The last ``k`` observed runs of ``activity`` in which something moved, oldest first:
         this person's own examples, shown to the LLM."""
         self._check_fitted()
-        found: list[tuple[str, ...]] = []
-        for a, objects in reversed(self.training_data_):
-            if len(found) == k:
-                break
-            if a == activity and objects:
-                found.append(objects)
-        return tuple(reversed(found))
+        key = (activity, k, len(self.training_data_))  # between fits runs are only added: the length dates it
+        memo = self.__dict__.setdefault("_recent", {})
+        out = memo.get(key)
+        if out is None:
+            found: list[tuple[str, ...]] = []
+            for a, objects in reversed(self.training_data_):
+                if len(found) == k:
+                    break
+                if a == activity and objects:
+                    found.append(objects)
+            if len(memo) > 10_000:
+                memo.clear()
+            out = memo[key] = tuple(reversed(found))
+        return out
 
     def candidates(self, activity: str) -> tuple[str, ...]:
         """O(a): every object seen moving during ``activity`` in training, sorted."""
