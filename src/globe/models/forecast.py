@@ -29,21 +29,40 @@ For each object the first departure from its current place at step u has probabi
 h_u * prod_{v<u} (1 - h_v) along a path (its place stays the current one until it departs, so the
 hazards are read at that place); summing over paths gives P(first departure at u, to x).
 Training is counting only.
+
+The hot loops run in C (:mod:`globe.models._forecast_core`) where the install compiled it: the
+hazards, departures and destinations of every level of paths, the first new places, and the
+forward pass (for the routine model with its own state numbers and distributions mixed there; for
+any other model asking it per new state). The same operations in the same order, so the same
+bits, paths and activity numbering (tested side by side on HOMER+ queries); what depends only on
+the training places and destinations is shared by the movement models of one set of days (the
+settings cross-validation compares). This numpy and Python code is the reference, and the
+fallback where the C part is not built.
 """
 
 from __future__ import annotations
 
 import weakref
 from collections import Counter, defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from globe.data.records import Day
-from globe.models.activity_filter import dynamics_for, model_version
+from globe.models.activity_filter import _RoutineDynamics, dynamics_for, model_version
 from globe.models.base import ActivityModelBase, CountingModel
 from globe.models.packed_days import PackedDays
+from globe.models.routine import DAY_START as RUN_DAY_START
+
+try:  # compiled at install where a C compiler is found (optional): the same numbers, faster
+    from globe.models import _forecast_core as _native
+except ImportError:  # pragma: no cover - depends on the install
+    _native = None  # type: ignore[assignment]
+
+COMPILED = True
+"""Whether forecasts take the compiled path where it is built. Tests and benchmarks set it to False
+to run the numpy and Python code, the reference."""
 
 UNKNOWN = "<unknown>"
 
@@ -137,6 +156,9 @@ class MovementModel(CountingModel):
             src_b = table[rs[b]]
             switches = np.repeat(acts[b] * na + after[b], nj), (src_b != table[rd[b]]).ravel(), (cols[None, :] * nl + src_b).ravel()
         self._dest = self._count_destinations(acts[moving], src_m, table[rd[moving]])
+        self._places_key = (self.objects_, self.locations_, self.activities_, self.destination_shrinkage,
+                            self._dest_counted, self._pairs.tobytes())
+        self._places: _Places | None = None
         k = self.hazard_shrinkage
         to_object = np.zeros((npairs, nj))
         to_object[np.arange(npairs), self._pair_object] = 1.0
@@ -163,6 +185,7 @@ class MovementModel(CountingModel):
         distinct, first, counts = np.unique(codes, return_index=True, return_counts=True)
         order = np.argsort(first, kind="stable")
         distinct, counts = distinct[order], counts[order]
+        self._dest_counted = distinct.tobytes() + counts.tobytes()  # what the counters hold, in their order
         rest, x = np.divmod(distinct, nl)
         rest, source = np.divmod(rest, nl)
         a, j = np.divmod(rest, nj)
@@ -203,6 +226,18 @@ class MovementModel(CountingModel):
         r = np.where(known, rows, 0)[:, None]
         mixed = (self.switch_moved_[r, pairs] + k * at_end) / (self.switch_seen_[r, pairs] + k)
         return np.where(known[:, None], mixed, at_end)
+
+    def shared_places(self) -> "_Places":
+        """The memos of what depends on the training places and destinations only, not on the
+        hazards (destination rows, targets, each row of places' cells): shared by every movement
+        model fitted on the same days and objects, whatever its setting (equal counts, equal values)."""
+        self._check_fitted()
+        if self._places is None:
+            places = _SHARED_PLACES.get(self._places_key)
+            if places is None:
+                places = _SHARED_PLACES[self._places_key] = _Places()
+            self._places = places
+        return self._places
 
     # -- lookups ----------------------------------------------------------------------------
     def activity_index(self, activity: str) -> int:
@@ -479,11 +514,68 @@ class ActivityPaths:
         self._ext_done = np.zeros(64, dtype=bool)
         self._root = self._state(self._dyn.start(), 0, None)
         self._histories: dict[tuple[str, ...], int] = {}
+        self._engine: Any = None  # the compiled forward pass, made on first use (:meth:`_compiled_pass`)
 
     def check(self) -> None:
         """Forget every memo when the model has been fitted again or has learnt more days."""
         if model_version(self.model) != self._version or len(self._states) > self.memo_size:
             self._reset()
+
+    def _compiled_pass(self) -> Any:
+        """The compiled forward pass over this model (:class:`globe.models._forecast_core.Paths`),
+        or None where it is not built. For the routine model it numbers the states itself (a
+        fresh one past ``memo_size`` states); for any other it extends this object's states, asking
+        for their distributions and children (:meth:`_child`) as :meth:`_beams` does."""
+        if not (COMPILED and _native is not None):
+            return None
+        if self._engine is None or (self._routine() and self._engine.size > self.memo_size):
+            if self._routine():
+                model = self._dyn.model
+                self._engine = _native.Paths(_native.ROUTINE, model.order, not model.time_weight > 0, self.names,
+                                             self._name_list, RUN_DAY_START)
+            else:
+                self._engine = _native.Paths(_native.OPAQUE, 0, False, self.names, self._name_list, None)
+        return self._engine
+
+    def _routine(self) -> bool:
+        """Whether the compiled forward pass numbers this model's states itself (its keys are the
+        last ``order`` run labels and the current run's start)."""
+        return type(self._dyn) is _RoutineDynamics and 1 <= self._dyn.model.order <= 64
+
+    def _roots(self, engine: Any, histories: Sequence[tuple[str, ...]]) -> np.ndarray:
+        """The state after each history (``engine``'s numbers for the routine model, else this object's)."""
+        if engine is None or not self._routine():
+            return np.array([self.state(h) for h in histories], dtype=int)
+        return np.frombuffer(engine.roots(histories), dtype=np.int64)
+
+    def _forward(self, engine: Any, roots: np.ndarray, steps: int) -> list[_BeamLevel]:
+        """:meth:`_beams`, in C where ``engine`` is not None. The routine model's distributions are
+        mixed there from its stay probabilities and next-run distributions (asked from the
+        dynamics once each; a next run depends on the last ``order`` run labels only, so it is
+        matched from them), exactly as :meth:`_RoutineDynamics._compute` mixes them; any other
+        model's are asked per new state, as :meth:`_ensure` asks them."""
+        if engine is None:
+            return self._beams(roots, steps)
+        dyn = self._dyn
+        if isinstance(dyn, _RoutineDynamics) and self._routine():
+            runs = dyn.model.runs_
+
+            def next_runs(labels: tuple[str, ...], current: str, step: int) -> tuple[dict[str, float], float]:
+                state, matched = runs.match(labels)
+                return dyn.next_runs(state, matched, current, step)
+
+            def first(step: int) -> dict[str, float]:
+                return dyn.distribution(dyn.start(), step)
+
+            levels = engine.beams(roots, steps, self.min_path_probability, self.max_paths, dyn.stay, next_runs, first)
+        else:
+            def distribution(sid: int) -> tuple[dict[str, float], str | None]:
+                cursor, step, last = self._states[sid]
+                return dyn.distribution(cursor, step, self._keys[sid]), last
+
+            levels = engine.beams(roots, steps, self.min_path_probability, self.max_paths, distribution, self._child, None)
+        return [_BeamLevel(*(np.frombuffer(x, dtype=np.float64 if i == 1 else np.int64) for i, x in enumerate(level)))
+                for level in levels]
 
     def local(self, activity: str) -> int:
         i = self.names.get(activity)
@@ -644,7 +736,8 @@ class ActivityPaths:
     def paths(self, history: Sequence[str], steps: int) -> list[tuple[float, tuple[str, ...]]]:
         """The next ``steps`` activities after ``history``: (probability, path), most likely first."""
         self.check()
-        levels = self._beams(np.array([self.state(tuple(history))]), steps)
+        engine = self._compiled_pass()
+        levels = self._forward(engine, self._roots(engine, [tuple(history)]), steps)
         if not levels or not len(levels[-1].p):
             return []
         out = []
@@ -665,7 +758,8 @@ class ActivityPaths:
         if len(heads) > 1 or not heads <= {0, 1}:
             raise ValueError("every history of a batch must end at m - 1 or every one at m")
         head = heads.pop() if heads else 0
-        roots = np.array([self.state(h) for h in histories], dtype=int)
+        engine = self._compiled_pass()
+        roots = self._roots(engine, histories)
         prev = np.full(nq, -1, dtype=int)
         dur0 = np.full(nq, -1, dtype=int)
         for q, (h, m) in enumerate(zip(histories, starts)):
@@ -675,7 +769,7 @@ class ActivityPaths:
                     d += 1
                 prev[q], dur0[q] = self.local(a), d
         steps = horizon + 2 - head
-        beams = self._beams(roots, steps)
+        beams = self._forward(engine, roots, steps)
         final = beams[-1] if beams else _BeamLevel(*(np.zeros(0, dtype=int),) * 6)
         order = np.lexsort((final.lex, -final.p, final.query))  # each query's paths, most likely first
         fq, fw = final.query[order], final.p[order]
@@ -749,10 +843,8 @@ class Forecaster:
     def _check_version(self) -> None:
         version = self._models_version()
         if version != self._version:
-            self._source_memo: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+            self._own = _Places()
             self._translate = np.zeros(0, dtype=int)
-            self._rows = _Rows(np.zeros(0, dtype=int), np.zeros((0, 0)))
-            self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
             self._version = version
         if self._paths.model is not self.activity:  # the activity model was replaced
             self._paths = ActivityPaths.shared(self.activity, min_path_probability=self.min_path_probability,
@@ -763,20 +855,30 @@ class Forecaster:
         probabilities summing to 1 (the forward pass; pruned as configured)."""
         return self._paths.paths(history, steps)
 
-    def _sources(self, row: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _compiled(self) -> bool:
+        """Whether this forecast takes the compiled path (:data:`COMPILED`, where it is built)."""
+        return COMPILED and _native is not None
+
+    def _places(self) -> _Places:
+        """The memos the path in use reads: this forecaster's own (the reference), or those shared
+        with every movement model fitted on the same days (compiled)."""
+        return self.movements.shared_places() if self._compiled() else self._own
+
+    def _sources(self, row: Sequence[str], places: _Places | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Location indices of ``row``, their (object, place) cells and whether each was seen."""
         key = tuple(row)
-        out = self._source_memo.get(key)
+        memo = (self._own if places is None else places).sources
+        out = memo.get(key)
         if out is None:
-            if len(self._source_memo) >= 4096:
-                self._source_memo.clear()
+            if len(memo) >= 4096:
+                memo.clear()
             mv = self.movements
             sources = np.array([mv.location_index(x) for x in row], dtype=int)
             pairs = mv._pairs
             codes = np.arange(len(sources)) * len(mv.locations_) + sources
             idx = np.minimum(np.searchsorted(pairs, codes), max(len(pairs) - 1, 0))
             found = pairs[idx] == codes if len(pairs) else np.zeros(len(sources), dtype=bool)
-            out = self._source_memo[key] = (sources, idx, found)
+            out = memo[key] = (sources, idx, found)
         return out
 
     def _mv_activities(self) -> np.ndarray:
@@ -806,9 +908,8 @@ class Forecaster:
         mv._check_fitted()
         nj = len(mv.objects_)
         nq = len(queries)
-        hazard = mv.hazard_
-        _, nc, ne, nm, npairs = hazard.shape
-        memory = nm == 2
+        memory = mv.hazard_.shape[3] == 2
+        places = self._places()
         starts = np.zeros(nq, dtype=int)
         src = np.zeros((nq, nj), dtype=int)
         cells = np.zeros((nq, nj), dtype=int)
@@ -820,7 +921,7 @@ class Forecaster:
                 raise ValueError(f"need the locations of steps 0..m and the activities of 0..m-1 or 0..m; got "
                                  f"{len(locations)} location rows and {n} activities")
             starts[q] = m
-            src[q], cells[q], seen[q] = self._sources(locations[m])
+            src[q], cells[q], seen[q] = self._sources(locations[m], places)
             if memory and n:  # objects already moved in the run under way (movements seen up to step m)
                 last = activities[n - 1]
                 r0 = n - 1  # the first step of the last known activity's run
@@ -833,8 +934,23 @@ class Forecaster:
             trees = self.trees([tuple(a) for a, _ in queries], starts.tolist(), horizon)
         translate = self._mv_activities()
         departure = np.zeros((nq, horizon + 1, nj))
-        targets, real, _ = self._target_table()
+        targets, real, _ = self._target_table(places)
         destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
+        if self._compiled():
+            self._propagate_compiled(trees, translate, src, cells, seen, earlier, departure, destination)
+        else:
+            self._propagate(trees, translate, src, cells, seen, earlier, departure, destination)
+        return Forecasts(starts, mv.objects_, mv.locations_, trees, departure, destination, targets, real)
+
+    def _propagate(self, trees: TreeBatch, translate: np.ndarray, src: np.ndarray, cells: np.ndarray, seen: np.ndarray,
+                   earlier: np.ndarray, departure: np.ndarray, destination: np.ndarray) -> None:
+        """Fill ``departure`` and ``destination`` level by level over the paths of ``trees`` (the
+        numpy reference of :meth:`_propagate_compiled`)."""
+        mv = self.movements
+        hazard = mv.hazard_
+        _, nc, ne, nm, npairs = hazard.shape
+        memory = nm == 2
+        nq, _, nj = departure.shape
         flat = hazard.reshape(-1)
         no_cells, all_seen = npairs == 0, bool(seen.all())
         switching = ne == 2 and len(mv.switch_index_) > 0
@@ -874,17 +990,50 @@ class Forecaster:
             for r in range(int(rank.max(initial=-1)) + 1):  # in order, as a running sum would
                 mine = rank == r
                 destination[level.group_query[mine], i - 1] += contrib[mine]
-        return Forecasts(starts, mv.objects_, mv.locations_, trees, departure, destination, targets, real)
+
+    def _propagate_compiled(self, trees: TreeBatch, translate: np.ndarray, src: np.ndarray, cells: np.ndarray,
+                            seen: np.ndarray, earlier: np.ndarray, departure: np.ndarray, destination: np.ndarray) -> None:
+        """:meth:`_propagate` in C (:mod:`globe.models._forecast_core`): the same operations in the
+        same order, so the same bits; every destination row the levels read is filled in first."""
+        mv = self.movements
+        hazard = mv.hazard_
+        nq, nsteps, nj = departure.shape
+        shape = (*hazard.shape, nj, nq, nsteps)
+        model = (hazard.reshape(-1), mv._p1, mv.switch_index_, mv.switch_seen_, mv.switch_moved_, cells, seen, earlier)
+        index, values = self._filled_rows(trees, translate, src)
+        where = (nq, nsteps, nj, destination.shape[3], len(mv.locations_))
+        survive = np.ones((len(trees.levels[0].act) if trees.levels else 0, nj))
+        for i, level in enumerate(trees.levels[1:], start=1):
+            nodes = (level.query, translate[level.up], level.dur_up, level.ends, level.first_up, translate[level.act],
+                     level.parent, level.weight, level.group)
+            after = np.empty((len(level.act), nj))
+            per = np.zeros((len(level.group_query), nj))
+            _native.level(shape, float(mv.hazard_shrinkage), model, nodes, survive, after, per, departure, i - 1)
+            _native.destinations(where, per, level.group_query, translate[level.group_act], src, index, values,
+                                 destination, i - 1)
+            survive = after
+
+    def _filled_rows(self, trees: TreeBatch, translate: np.ndarray, src: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The destination rows' index and values with every (activity, object, place) the levels
+        of ``trees`` read filled in."""
+        na = len(self.movements.activities_)
+        places = self._places()
+        wanted = [level.group_query * na + translate[level.group_act] for level in trees.levels[1:]]
+        if wanted:
+            q, a = np.divmod(np.unique(np.concatenate(wanted)), na)
+            self._destination_rows(a, src[q], gather=False, places=places)
+        return places.rows.index, places.rows.values
 
     def trees(self, histories: Sequence[tuple[str, ...]], starts: Sequence[int], horizon: int) -> TreeBatch:
         """The forward pass of :meth:`forecast_many` alone (shareable between movement models)."""
         self._check_version()
         return self._paths.trees(histories, starts, horizon)
 
-    def _target_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _target_table(self, places: _Places | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per object, the places it was ever seen going to (ascending; padded): (objects x
         targets) location indices, which are real, and location -> position per object."""
-        if self._targets is None:
+        places = self._own if places is None else places
+        if places.targets is None:
             mv = self.movements
             nj, nl = len(mv.objects_), len(mv.locations_)
             seen = [sorted(mv._dest.get((j,), {})) for j in range(nj)]
@@ -896,24 +1045,26 @@ class Forecaster:
                 targets[j, : len(xs)] = xs
                 real[j, : len(xs)] = True
                 position[j, xs] = np.arange(len(xs))
-            self._targets = (targets, real, position)
-        return self._targets
+            places.targets = (targets, real, position)
+        return places.targets
 
-    def _destination_rows(self, acts: np.ndarray, sources: np.ndarray) -> np.ndarray:
+    def _destination_rows(self, acts: np.ndarray, sources: np.ndarray, gather: bool = True,
+                          places: _Places | None = None) -> np.ndarray:
         """(groups x objects x targets): where each object goes from ``sources[g]`` when it
         moves during activity ``acts[g]`` (over the object's targets; memoised per activity,
-        object and place)."""
+        object and place; ``gather=False`` only fills the memo)."""
         mv = self.movements
+        places = self._own if places is None else places
         nj, nl = sources.shape[1], len(mv.locations_)
-        _, _, position = self._target_table()
+        targets, _, position = self._target_table(places)
         codes = (acts[:, None] * nj + np.arange(nj)) * nl + sources
-        table = self._rows
+        table = places.rows
         if len(table.index) < len(mv.activities_) * nj * nl:
             table.index = np.full(len(mv.activities_) * nj * nl, -1, dtype=int)
         rows = table.index[codes]
         missing = np.unique(codes[rows < 0])
         if len(missing):
-            new = np.zeros((len(missing), self._target_table()[0].shape[1]))
+            new = np.zeros((len(missing), targets.shape[1]))
             for r, code in enumerate(missing.tolist()):
                 a, rest = divmod(code, nj * nl)
                 j, src = divmod(rest, nl)
@@ -922,13 +1073,27 @@ class Forecaster:
             table.index[missing] = np.arange(len(table.values), len(table.values) + len(missing))
             table.values = np.concatenate([table.values, new]) if len(table.values) else new
             rows = table.index[codes]
-        return table.values[rows]
+        return table.values[rows] if gather else table.values
 
 
 @dataclass(slots=True)
 class _Rows:
     index: np.ndarray
     values: np.ndarray
+
+
+@dataclass(slots=True, weakref_slot=True)
+class _Places:
+    """Memos of a forecaster that do not depend on the hazards: each row of places' location
+    indices and cells, each object's targets, the destination rows. A forecaster's own (the
+    reference path), or :meth:`MovementModel.shared_places` (the compiled path)."""
+
+    sources: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    rows: _Rows = field(default_factory=lambda: _Rows(np.zeros(0, dtype=int), np.zeros((0, 0))))
+    targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+
+_SHARED_PLACES: "weakref.WeakValueDictionary[tuple, _Places]" = weakref.WeakValueDictionary()
 
 
 @dataclass(frozen=True, slots=True)
@@ -965,7 +1130,14 @@ class Forecasts:
 
 
 def first_locations(destination: np.ndarray, targets: np.ndarray, horizons: int) -> tuple[np.ndarray, np.ndarray]:
-    """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array."""
+    """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array (in C
+    where it is built: the same sums in the same order, the same picks)."""
+    if COMPILED and _native is not None and horizons >= 0:
+        nq, nsteps, nj, _ = destination.shape
+        shape = (nq, min(horizons, nsteps), nj)
+        at, p = _native.first_locations(destination.shape, horizons, np.ascontiguousarray(destination, dtype=float),
+                                        np.ascontiguousarray(targets, dtype=np.int64))
+        return np.frombuffer(at, dtype=np.int64).reshape(shape), np.frombuffer(p).reshape(shape)
     joint = np.cumsum(destination[:, :horizons], axis=1)
     best = joint.argmax(axis=3)
     prob = np.take_along_axis(joint, best[..., None], axis=3)[..., 0]
