@@ -1,0 +1,41 @@
+"""tools/llama_wheel.py: the version it builds is the one pyproject pins, without AMX on x86."""
+
+import importlib.util
+import platform
+from pathlib import Path
+
+import pytest
+
+TOOL = Path(__file__).resolve().parent.parent / "tools" / "llama_wheel.py"
+
+
+@pytest.fixture(scope="module")
+def tool():
+    spec = importlib.util.spec_from_file_location("llama_wheel", TOOL)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_pinned_version_is_the_one_installed(tool):
+    version = tool.pinned_version()
+    assert version.count(".") >= 2
+    llama_cpp = pytest.importorskip("llama_cpp")
+    assert llama_cpp.__version__ == version  # make setup installed what the tool builds
+
+
+def test_amx_is_turned_off_on_x86_and_the_callers_arguments_are_kept(tool, monkeypatch):
+    monkeypatch.setenv("CMAKE_ARGS", "-DGGML_OPENMP=ON")
+    args = tool.cmake_args()
+    assert args.startswith("-DGGML_OPENMP=ON")
+    if platform.machine().lower() in ("x86_64", "amd64"):
+        for flag in ("-mno-amx-tile", "-mno-amx-int8", "-mno-amx-bf16"):
+            assert args.count(flag) == 2  # C and C++
+    else:
+        assert "amx" not in args
+
+
+def test_the_installed_build_has_no_amx_kernels():
+    llama_cpp = pytest.importorskip("llama_cpp")
+    assert "AMX_INT8 = 1" not in llama_cpp.llama_print_system_info().decode()
