@@ -58,14 +58,18 @@ def test_growth_predicts_nodes_and_leaves_without_changing_the_forest():
         assert predicted == (len(forest.nodes), len(forest.leaves()))
 
 
-def test_a_request_with_many_leaves_is_split_within_the_limit():
+def test_a_request_with_many_leaves_or_nodes_is_split_within_the_limits():
     tails = tuple((t, 1000 + t) for t in range(150)) + tuple((t,) for t in range(150, 160))
-    parts = _split(Request((2, 3), tails))
-    assert [t for p in parts for t in p.tails] == list(tails)
-    for part in parts:
-        forest = Forest()
-        forest.add(part)
-        assert len(forest.leaves()) <= MAX_LEAVES
+    long_tails = tuple(tuple(range(100 * t, 100 * t + 30)) for t in range(1, 12))  # 29 nodes each
+    for request, cells in ((Request((2, 3), tails), 1024), (Request((2,) + tuple(range(3, 200)), long_tails), 512)):
+        parts = _split(request, cells)
+        assert len(parts) > 1
+        assert [t for p in parts for t in p.tails] == list(request.tails)
+        for part in parts:
+            forest = Forest()
+            forest.add(part)
+            assert len(forest.leaves()) <= MAX_LEAVES
+            assert len(forest.nodes) <= cells - MAX_ROWS
 
 
 def _random_request(rng: random.Random) -> Request:

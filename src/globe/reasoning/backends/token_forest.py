@@ -279,8 +279,9 @@ class Runtime:
 
     def _check(self, request: Request) -> None:
         longest = len(request.prompt) + max((len(t) for t in request.tails), default=0)
-        if longest >= self.n_ctx - 16:
-            raise ValueError(f"prompt of {len(request.prompt)} tokens does not fit n_ctx={self.n_ctx}")
+        if longest >= min(self.n_ctx, self.cells - MAX_ROWS) - 16:
+            raise ValueError(f"prompt of {len(request.prompt)} tokens and a tail of {longest - len(request.prompt)} "
+                             f"do not fit n_ctx={self.n_ctx}")
         if not request.prompt or any(not t for t in request.tails):
             raise ValueError("a request needs a prompt and non-empty tails")
 
@@ -291,7 +292,7 @@ class Runtime:
             self._check(r)
         if not self.batched:
             return [self._score_alone(r) for r in requests]
-        parts = [(i, part) for i, r in enumerate(requests) for part in _split(r)]
+        parts = [(i, part) for i, r in enumerate(requests) for part in _split(r, self.cells)]
         scores: list[list[float]] = [[] for _ in requests]
         group: list[tuple[int, Request]] = []
         forest = Forest()
@@ -363,18 +364,23 @@ class Runtime:
         return batched == alone
 
 
-def _split(request: Request) -> list[Request]:
+def _split(request: Request, cells: int) -> list[Request]:
     """``request`` as consecutive parts of its tails, each with fewer leaves than a forest may
-    hold (a leaf per distinct tail without its last token, at most)."""
+    hold (a leaf per distinct tail without its last token, at most) and nodes that fit ``cells``
+    (a tail adds at most its tokens but the last)."""
     parts: list[Request] = []
     tails: list[tuple[int, ...]] = []
     keys: set[tuple[int, ...]] = set()
+    budget = cells - MAX_ROWS - len(request.prompt)
+    nodes = 0
     for tail in request.tails:
         key = tail[:-1]
-        if key not in keys and len(keys) == MAX_LEAVES - 1:
+        if key not in keys and tails and (len(keys) == MAX_LEAVES - 1 or nodes + len(key) > budget):
             parts.append(Request(request.prompt, tuple(tails)))
-            tails, keys = [], set()
-        keys.add(key)
+            tails, keys, nodes = [], set(), 0
+        if key not in keys:
+            keys.add(key)
+            nodes += len(key)
         tails.append(tail)
     return parts + [Request(request.prompt, tuple(tails))]
 
