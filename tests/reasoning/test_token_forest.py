@@ -101,7 +101,7 @@ def test_big_forests_over_many_batches_score_like_nodes_alone(embedded_llm, seed
         for used in rng.sample(words, 4):
             prompt = tuple(rt.tokenize(f"While {activity}, the person used the {used}. Next, the person used the", True))
             requests.append(Request(prompt, tuple(rng.sample(tails, rng.randint(1, len(tails))))))
-    assert any(len(_split(r)) > 1 for r in requests)  # some need several forests
+    assert any(len(_split(r, rt.cells)) > 1 for r in requests)  # some need several forests
     with rt.lock:
         decodes = rt.decodes
         batched = rt.score(requests)
