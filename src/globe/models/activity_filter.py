@@ -35,7 +35,7 @@ import math
 import weakref
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any, Callable, Collection, Hashable, Protocol, Sequence
+from typing import Any, Callable, Collection, Hashable, Protocol, Sequence, cast
 
 from globe.data.records import Day
 from globe.errors import ConfigError
@@ -257,8 +257,8 @@ class MovementEmission(CountingModel):
         lam = self.previous_share if previous is not None else 0.0
         changed = None if previous is None else previous != current
         parts = []
-        if lam > 0.0:
-            parts.append(math.log(lam) + self.part_log_likelihood(0, previous, moved, changed, current))  # type: ignore[arg-type]
+        if lam > 0.0 and previous is not None:  # lam > 0 only when there is a previous activity
+            parts.append(math.log(lam) + self.part_log_likelihood(0, previous, moved, changed, current))
         if lam < 1.0:
             parts.append(math.log1p(-lam) + self.part_log_likelihood(1, current, moved, changed))
         top = max(parts)
@@ -382,9 +382,7 @@ class _RoutineDynamics(_Dynamics):
         order = self.model.order
         if order < 1:
             return super().child_key(cursor, key, step, activity)
-        tokens: tuple[str, ...]
-        start: int
-        tokens, start = key  # type: ignore[misc]
+        tokens, start = cast(tuple[tuple[str, ...], int], key)
         if start >= 0 and tokens[-1] == activity:
             return key
         return (tokens + (activity,))[-order:], step
