@@ -544,3 +544,55 @@ def test_the_compiled_core_checks_what_it_is_given(households):
     pdyn = dynamics_for(PersistenceModel().fit([("a", "b")]))
     with pytest.raises(RuntimeError, match="under way"):
         core.root(pdyn).advance(pdyn, 0, None, None, None, 1e-4, 32, None)
+
+
+_HASH_SEED_SCRIPT = """
+import random, sys
+from globe.data.records import Day
+from globe.models import activity_filter
+from globe.models.activity import ActivityModel
+from globe.models.activity_filter import ActivityFilter, MovementEmission, moved_objects
+
+activity_filter.COMPILED = sys.argv[1] == "compiled"
+rng = random.Random(7)
+objects = tuple(f"object_{i:02d}" for i in range(12))
+acts = ["cook", "eat", "wash", "read"]
+
+def day(name, n=60):
+    a = [rng.choice(acts) for _ in range(n)]
+    places, now = [], ["shelf"] * len(objects)
+    for _ in range(n):
+        for j in rng.sample(range(len(objects)), rng.choice([0, 0, 1, 3, 4, 5])):  # several at once
+            now[j] = rng.choice(["shelf", "table", "sink", "counter"])
+        places.append(tuple(now))
+    return Day(name, tuple(range(360, 360 + 10 * n, 10)), tuple(a), tuple(places))
+
+train = [day(f"train/{i:03d}") for i in range(20)]
+test = day("test/000")
+em = MovementEmission(previous_share=0.5).fit(train, objects)
+flt = ActivityFilter(ActivityModel().fit([d.activities for d in train]), em)
+moved = moved_objects(test, objects)
+for t in range(len(test)):
+    flt.update(t, None, moved[t])
+    print(repr(sorted(flt.posterior().items())))
+print(repr([em.log_likelihood("cook", "eat", m) for m in moved]))
+"""
+
+
+@pytest.mark.parametrize("path", ["python", "compiled"])
+def test_beliefs_do_not_depend_on_the_hash_seed(path):
+    """Several objects moving at once: their terms are summed in name order, not in the set's
+    (which follows PYTHONHASHSEED), so another process gets the same numbers to the bit."""
+    import os
+    import subprocess
+    import sys
+
+    if path == "compiled":
+        _compiled_or_skip()
+    outputs = set()
+    for seed in ("0", "1", "2", "3"):
+        run = subprocess.run([sys.executable, "-c", _HASH_SEED_SCRIPT, path], capture_output=True, text=True,
+                             env=dict(os.environ, PYTHONHASHSEED=seed), check=True)
+        assert run.stdout.count("\n") > 60
+        outputs.add(run.stdout)
+    assert len(outputs) == 1

@@ -1076,14 +1076,18 @@ static Py_ssize_t moved_entry(Evidence *e, PyObject *em, PyObject *moved) {
     memset(&m, 0, sizeof(m));
     Py_ssize_t size = PySet_GET_SIZE(moved);
     m.obj = PyMem_Malloc((size_t)(size ? size : 1) * sizeof(Py_ssize_t));
-    PyObject *it = PyObject_GetIter(moved), *item;
+    /* in name order, as `for o in sorted(moved)`: a set's own order follows the process's hash
+       seed, and the sum of the objects' terms would too */
+    PyObject *names = PySequence_List(moved), *it = NULL, *item;
+    if (names != NULL && PyList_Sort(names) == 0) it = PyObject_GetIter(names);
+    Py_XDECREF(names);
     if (m.obj == NULL || it == NULL) {
         Py_XDECREF(it);
         moved_free(&m);
         if (!PyErr_Occurred()) PyErr_NoMemory();
         return -1;
     }
-    while ((item = PyIter_Next(it)) != NULL) { /* the set's own order, as `for o in moved` */
+    while ((item = PyIter_Next(it)) != NULL) {
         PyObject *o = PyDict_GetItemWithError(e->contexts->objects, item);
         Py_DECREF(item);
         if (o == NULL && PyErr_Occurred()) break;

@@ -244,7 +244,7 @@ class MovementEmission(CountingModel):
             if len(self._memo) >= 500_000:
                 self._memo.clear()
             ll = self._nothing(part, activity, changed, following)
-            for o in moved:
+            for o in sorted(moved):  # a fixed order: a set's follows the hash seed, and so would the sum
                 if o in self.rate_:
                     p = self.probability(activity, o, part, changed, following)
                     ll += math.log(p) - math.log1p(-p)
