@@ -39,8 +39,21 @@ def cmake_args() -> str:
     """CMAKE_ARGS for the build: the caller's, plus AMX off on x86 (the flags exist only there)."""
     args = os.environ.get("CMAKE_ARGS", "")
     if platform.machine().lower() in ("x86_64", "amd64"):
+        if re.search(r"-DCMAKE_(C|CXX)_FLAGS\b", args):  # CMake keeps the last -D: one would be lost
+            sys.exit("CMAKE_ARGS sets CMAKE_C_FLAGS or CMAKE_CXX_FLAGS, which this build needs for "
+                     f"'{AMX_OFF}': add those flags to yours and build with pip yourself, or unset them")
         args += f" -DCMAKE_C_FLAGS='{AMX_OFF}' -DCMAKE_CXX_FLAGS='{AMX_OFF}'"
     return args.strip()
+
+
+def usable(wheel: Path) -> bool:
+    """Whether ``wheel`` (name-version[-build]-python-abi-platform.whl) installs into this
+    interpreter: a wheel folder may hold builds for other Pythons or machines."""
+    python, abi, plat = wheel.name[:-len(".whl")].split("-")[-3:]
+    here = f"cp{sys.version_info.major}{sys.version_info.minor}"
+    return (any(tag in ("py3", here) for tag in python.split("."))
+            and any(tag in ("none", "abi3", here) for tag in abi.split("."))
+            and any(tag == "any" or tag.endswith(platform.machine().lower()) for tag in plat.split(".")))
 
 
 def main() -> None:
@@ -48,14 +61,14 @@ def main() -> None:
         sys.exit(__doc__)
     wheels = Path(sys.argv[1]).resolve()
     version = pinned_version()
-    built = sorted(wheels.glob(f"llama_cpp_python-{version}-*.whl"))
+    built = sorted(w for w in wheels.glob(f"llama_cpp_python-{version}-*.whl") if usable(w))
     if not built:
         wheels.mkdir(parents=True, exist_ok=True)
         print(f"building llama-cpp-python {version} without AMX kernels into {wheels} (4-7 minutes, once)", flush=True)
         subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-cache-dir", "--no-binary",
                         "llama-cpp-python", "-w", str(wheels), f"llama-cpp-python=={version}"],
                        env=dict(os.environ, CMAKE_ARGS=cmake_args()), check=True)
-        built = sorted(wheels.glob(f"llama_cpp_python-{version}-*.whl"))
+        built = sorted(w for w in wheels.glob(f"llama_cpp_python-{version}-*.whl") if usable(w))
         if not built:
             sys.exit(f"pip reported success but left no llama_cpp_python-{version} wheel in {wheels}")
     # --force-reinstall: an environment may hold a build of the same version with AMX kernels

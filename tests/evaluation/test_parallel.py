@@ -2,6 +2,8 @@
 
 from dataclasses import replace
 
+import pytest
+
 from globe.config import GlobeConfig
 from globe.evaluation.parallel import precompute_selections, run_parallel, worker_count
 from globe.evaluation.tuning import selection_key, tuned_models
@@ -65,13 +67,15 @@ def test_run_forked_starts_the_costliest_first_and_keeps_index_order(tmp_path):
     def task(i: int) -> int:
         with log.open("a") as fh:  # the order the tasks started in, seen across processes
             fh.write(f"{i}\n")
-        time.sleep(0.05)
+        time.sleep(0.2)  # long enough that a third task cannot start before the second is logged
         return i * i
 
     assert run_forked(task, 6, 2, cost=[1, 5, 2, 9, 0, 3]) == [0, 1, 4, 9, 16, 25]
     started = [int(x) for x in log.read_text().split()]
     assert sorted(started) == list(range(6))
     assert sorted(started[:2]) == [1, 3]  # the two costliest went first
+    with pytest.raises(ValueError, match="cost estimates"):
+        run_forked(task, 6, 2, cost=[1, 2])
 
 
 def test_missing_labels_on_other_processes_equal_one_process(households):

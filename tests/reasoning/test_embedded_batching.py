@@ -13,6 +13,8 @@ OBJECTS = ("milk", "food_cereal", "food_jam", "food_peanut_butter", "tooth_paste
 CONTINUATIONS = [cloze_continuation(o) for o in OBJECTS]
 BREAKFAST = ChoiceContext("breakfast", ("bowl",), (("bowl", "food_cereal", "milk"), ("bowl", "food_jam"), ("bowl", "milk")))
 PROMPTS = [cloze_prefix(ChoiceContext("breakfast", ("bowl", "spoon"))), NULL_PREFIX, diary_prefix(BREAKFAST)]
+LONG_DIARY = diary_prefix(ChoiceContext("breakfast", ("bowl",), tuple(
+    ("bowl", "food_cereal", "milk", "coffee_cup", "coffee_filter", OBJECTS[i % len(OBJECTS)]) for i in range(12))))
 
 
 def _token_counts(backend) -> list[int]:
@@ -20,9 +22,12 @@ def _token_counts(backend) -> list[int]:
     return [len(rt.tokenize(c, False)) for c in CONTINUATIONS]
 
 
-@pytest.mark.parametrize("prompt", PROMPTS, ids=["cloze", "null", "diary"])
+@pytest.mark.parametrize("prompt", PROMPTS + [LONG_DIARY], ids=["cloze", "null", "diary", "long-diary"])
 def test_batched_scores_equal_the_one_node_at_a_time_reference(embedded_llm, prompt):
     from globe.reasoning.backends.embedded import reference_logprobs
+
+    if prompt is LONG_DIARY:  # past 256 tokens llama.cpp pads the cache to 512 cells: other kernels
+        assert 256 < len(embedded_llm._shared().tokenize(prompt, True)) < embedded_llm.n_ctx - 32
 
     counts = _token_counts(embedded_llm)
     assert {1, 2} <= set(counts) and max(counts) >= 3  # the candidates cover 1, 2 and 3+ tokens
@@ -77,3 +82,22 @@ def test_shared_starts_are_decoded_once(embedded_llm):
     before = rt.rows
     embedded_llm.continuation_logprobs(NULL_PREFIX, CONTINUATIONS)
     assert rt.rows - before == len(prompt) + len(prefixes)
+
+
+def test_a_question_too_long_for_the_context_does_not_stop_the_others_being_batched(gguf_path, embedded_llm, tmp_path):
+    from globe.errors import LLMError
+    from globe.reasoning.backends.embedded import EmbeddedBackend
+
+    runs = tuple(("bowl", "food_cereal", "milk", "coffee_cup", "coffee_filter", "toothbrush") for _ in range(40))
+    too_long = (ChoiceContext("breakfast", ("bowl",), runs), ("milk", "food_jam"))
+    questions = [(ChoiceContext("breakfast", ("bowl",)), ("milk", "food_cereal", "spoon")),
+                 (BREAKFAST, ("milk", "food_jam", "coffee_cup")),
+                 (ChoiceContext("brushing_teeth", ()), ("toothbrush", "tooth_paste"))]
+    backend = EmbeddedBackend(model_path=gguf_path, cache=AnswerCache(tmp_path / "a.sqlite3"))
+    rt = backend._shared()
+    decodes = rt.decodes
+    backend.prefetch(questions + [too_long])  # the long one is left out of the batch, not the others
+    assert rt.decodes - decodes <= 3
+    assert all(backend.choose(c, cands).cached for c, cands in questions)
+    with pytest.raises(LLMError, match="n_ctx"):
+        backend.choose(*too_long)

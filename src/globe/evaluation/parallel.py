@@ -68,6 +68,8 @@ def run_forked(fn: Callable[[int], R], n: int, workers: int, cost: Sequence[floa
     (the closure is handed to the workers through a module global). ``cost``, an estimate per
     task, starts the longest first (fewer workers idle at the end); results keep index order."""
     global _FORKED
+    if cost is not None and len(cost) != n:
+        raise ValueError(f"run_forked: {len(cost)} cost estimates for {n} tasks")
     if workers <= 1 or n <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         return [fn(i) for i in range(n)]
     if _FORKED is not None:  # already inside a forked run: no nested pools

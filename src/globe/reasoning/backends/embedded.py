@@ -52,8 +52,8 @@ part of every cache key, so answers computed another way are not reused."""
 
 
 def reference_logprobs(backend: "EmbeddedBackend", prefix: str, continuations: list[str]) -> list[float]:
-    """Reference: each continuation's tokens decoded one node at a time after the prompt, nothing
-    batched (what the forest must equal to the bit). Kept for tests and ``benchmarks/bench_llm.py``."""
+    """Reference: each continuation's tokens decoded node by node after the prompt, each with its
+    parent and nothing else (what the forest must equal to the bit). Kept for tests and ``benchmarks/bench_llm.py``."""
     rt = backend._shared()
     request = Request(backend._prompt_tokens(rt, prefix), tuple(tuple(rt.tokenize(c, False)) for c in continuations))
     with rt.lock:
@@ -102,6 +102,13 @@ class EmbeddedBackend(LLMBackend):
     def continuation_logprobs_many(self, asks: Sequence[tuple[str, Sequence[str]]], memo: bool = False) -> list[list[float]]:
         """:meth:`continuation_logprobs` of several (prompt, continuations) at once: the distinct
         pairs not memoised are scored together as forests (see the module doc)."""
+        known = self._scores(asks, memo)
+        return [[known[(prefix, c)] for c in conts] for prefix, conts in asks]
+
+    def _scores(self, asks: Sequence[tuple[str, Sequence[str]]], memo: bool,
+                skip_unfit: bool = False) -> dict[tuple[str, str], float]:
+        """Scores of every (prompt, continuation) of ``asks``; with ``skip_unfit`` a prompt too
+        long for the context is left out (instead of failing the whole batch)."""
         rt = self._shared()
         with rt.lock:
             known: dict[tuple[str, str], float] = {}
@@ -112,9 +119,13 @@ class EmbeddedBackend(LLMBackend):
                         known[(prefix, c)] = self._memo[(prefix, c)]
                     else:
                         todo.setdefault(prefix, {})[c] = None
-            prompts = sorted(todo)  # prompts that start alike end up in one forest
-            requests = [Request(self._prompt_tokens(rt, p), tuple(tuple(rt.tokenize(c, False)) for c in todo[p]))
-                        for p in prompts]
+            prompts: list[str] = []
+            requests: list[Request] = []
+            for p in sorted(todo):  # prompts that start alike end up in one forest
+                request = Request(self._prompt_tokens(rt, p), tuple(tuple(rt.tokenize(c, False)) for c in todo[p]))
+                if not skip_unfit or rt.fits(request):
+                    prompts.append(p)
+                    requests.append(request)
             for prefix, scores in zip(prompts, rt.score(requests)):
                 for c, value in zip(todo[prefix], scores):
                     known[(prefix, c)] = value
@@ -122,7 +133,7 @@ class EmbeddedBackend(LLMBackend):
                         if len(self._memo) >= MEMO_SIZE:  # bounded: a long-running service asks forever
                             self._memo.clear()
                         self._memo[(prefix, c)] = value
-            return [[known[(prefix, c)] for c in conts] for prefix, conts in asks]
+            return known
 
     def prompt(self, context: ChoiceContext) -> str:
         return diary_prefix(context) if context.examples else cloze_prefix(context)
@@ -180,10 +191,10 @@ class EmbeddedBackend(LLMBackend):
                 asks.append((self.prompt(context), conts))
                 if not context.examples:
                     asks.append((NULL_PREFIX, conts))
-            try:
-                self.continuation_logprobs_many(asks, memo=True)
+            try:  # a prompt too long for the context is left to its own question, which reports it
+                self._scores(asks, memo=True, skip_unfit=True)
             except (RuntimeError, ValueError, OSError, LLMError):
-                pass  # a prompt that cannot be scored: each question then reports its own failure
+                pass  # each question then reports its own failure
             for context, candidates in chunk:
                 try:
                     self.choose(context, candidates)

@@ -20,9 +20,10 @@ its batch or cache:
   over 512 cache cells to a split one.
 
 Whether this holds for the llama.cpp build at hand is *checked*, not assumed: at load, a probe
-forest is scored both ways (batched, and one node at a time after its own path) and must agree to
-the bit. If it does not, every question is scored one node at a time, which never depends on
-anything else asked (slower, the same semantics). Either way a candidate's score depends only on
+forest is scored both ways (batched, and each node on its own path: decoded again with its parent
+and nothing else) and must agree to the bit, prompts past 256 tokens included. If it does not,
+every question is scored node by node, which never depends on anything else asked (slower, the
+same semantics). Either way a candidate's score depends only on
 its prompt and its own text, so answers are reproducible, order-free and cacheable.
 """
 
@@ -277,6 +278,14 @@ class Runtime:
         lse = float(top) + math.log(float(np.exp(logits - top).sum(dtype=np.float64)))
         return {tok: float(logits[tok]) - lse for tok in tokens}
 
+    def fits(self, request: Request) -> bool:
+        """Whether :meth:`score` can take ``request`` (its prompt and tails fit the context)."""
+        try:
+            self._check(request)
+        except ValueError:
+            return False
+        return True
+
     def _check(self, request: Request) -> None:
         longest = len(request.prompt) + max((len(t) for t in request.tails), default=0)
         if longest >= min(self.n_ctx, self.cells - MAX_ROWS) - 16:
@@ -329,8 +338,9 @@ class Runtime:
 
     def _score_alone(self, request: Request) -> list[float]:
         """Each node decoded with its own path only: the prompt in fixed batches, then the tails'
-        nodes one token at a time, depth first (a node's ancestors are the cells in place, each
-        computed the same way)."""
+        nodes depth first, each decoded again with its parent (a node's ancestors are the cells
+        in place, each computed the same way). Never one row alone: a single query row over 512
+        cache cells or more takes another attention kernel than the forest's batches."""
         forest = Forest()
         forest.add(request)
         nodes = forest.nodes
@@ -343,9 +353,10 @@ class Runtime:
         stack = sorted(nodes[end].children.values(), reverse=True)
         while stack:
             i = stack.pop()
-            self._llama.llama_memory_seq_rm(self.memory, 0, nodes[i].pos, -1)
-            self._decode([(nodes[i].token, nodes[i].pos, (0,), True)])
-            probs[i] = self._log_probs(0, nodes[i].wanted)
+            parent = nodes[nodes[i].parent]
+            self._llama.llama_memory_seq_rm(self.memory, 0, parent.pos, -1)
+            self._decode([(parent.token, parent.pos, (0,), False), (nodes[i].token, nodes[i].pos, (0,), True)])
+            probs[i] = self._log_probs(1, nodes[i].wanted)
             stack.extend(sorted(nodes[i].children.values(), reverse=True))
         return [_path_sum(probs, path, tail) for path, tail in zip(forest.requests[0][2], request.tails)]
 
@@ -356,9 +367,11 @@ class Runtime:
                                                     " milk carton box", " plate", " toaster", " spoon")]
         head = self.tokenize("While making breakfast in the kitchen, the person used the pan, then the", False)
         long = self.tokenize(" spatula, then the bowl, then the cup. " * 6, False)
+        longer = self.tokenize(" spatula, then the bowl, then the cup. " * 24, False)  # past 256 tokens
         requests = [Request(tuple(bos + head), tuple(map(tuple, words))),
                     Request(tuple(bos + head + words[0]), tuple(map(tuple, words[3:]))),
-                    Request(tuple(bos + head + long), tuple(map(tuple, words[:5])))]
+                    Request(tuple(bos + head + long), tuple(map(tuple, words[:5]))),
+                    Request(tuple(bos + head + longer), tuple(map(tuple, words[2:])))]
         batched = self._score_forest(requests)
         alone = [self._score_alone(r) for r in requests]
         return batched == alone
@@ -398,7 +411,16 @@ def _path_sum(probs: dict[int, dict[int, float]], path: list[int], tail: Sequenc
     return total
 
 
-@functools.lru_cache(maxsize=4)
+_RUNTIMES_LOCK = threading.Lock()
+
+
 def runtime(path: str, n_threads: int, n_ctx: int) -> Runtime:
-    """One runtime per (file, threads, context) per process."""
+    """One runtime per (file, threads, context) per process, loaded once even when several
+    threads ask for it at the same time."""
+    with _RUNTIMES_LOCK:
+        return _runtime(path, n_threads, n_ctx)
+
+
+@functools.lru_cache(maxsize=None)
+def _runtime(path: str, n_threads: int, n_ctx: int) -> Runtime:
     return Runtime(path, n_threads, n_ctx)
