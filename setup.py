@@ -15,12 +15,13 @@ from setuptools import Extension, setup
 # The filter's and the forecaster's numbers must have the bits of the Python arithmetic: no fused
 # multiply-adds (each module checks this at import and refuses to load otherwise).
 EXACT_FLOATS = [] if sys.platform == "win32" else ["-ffp-contract=off"]
+COMMON = "src/globe/models/_c_common.h"  # helpers both include (shipped in the sdist, rebuilds them)
 
 setup(ext_modules=[
     Extension("globe.models._suffix_automaton", ["src/globe/models/_suffix_automaton.c"], optional=True),
     Extension("globe.service._day_fields", ["src/globe/service/_day_fields.c"], optional=True),
-    Extension("globe.models._filter_core", ["src/globe/models/_filter_core.c"], optional=True,
+    Extension("globe.models._filter_core", ["src/globe/models/_filter_core.c"], depends=[COMMON], optional=True,
               extra_compile_args=EXACT_FLOATS),
-    Extension("globe.models._forecast_core", ["src/globe/models/_forecast_core.c"], optional=True,
+    Extension("globe.models._forecast_core", ["src/globe/models/_forecast_core.c"], depends=[COMMON], optional=True,
               extra_compile_args=EXACT_FLOATS),
 ])

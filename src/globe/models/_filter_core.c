@@ -34,6 +34,8 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "_c_common.h"
+
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF /* GCC ignores it: setup.py passes -ffp-contract=off */
 #endif
@@ -82,17 +84,10 @@ typedef struct {
     Py_ssize_t cap, n;
 } Map;
 
-static uint64_t mix(uint64_t h) {
-    h ^= h >> 31;
-    h *= 0x94D049BB133111EBULL;
-    h ^= h >> 29;
-    return h;
-}
-
 static uint64_t hash3(int64_t a, int64_t b, int64_t c) {
-    uint64_t h = mix((uint64_t)a * 0x9E3779B97F4A7C15ULL + 1);
-    h = mix(h ^ ((uint64_t)b * 0xBF58476D1CE4E5B9ULL + 2));
-    return mix(h ^ ((uint64_t)c * 0xD6E8FEB86659FD93ULL + 3));
+    uint64_t h = mix64((uint64_t)a * 0x9E3779B97F4A7C15ULL + 1);
+    h = mix64(h ^ ((uint64_t)b * 0xBF58476D1CE4E5B9ULL + 2));
+    return mix64(h ^ ((uint64_t)c * 0xD6E8FEB86659FD93ULL + 3));
 }
 
 static int map_get(const Map *m, int64_t a, int64_t b, int64_t c, int64_t *out) {
@@ -157,21 +152,6 @@ static void map_free(Map *m) {
     PyMem_Free(m->keys);
     PyMem_Free(m->values);
     memset(m, 0, sizeof(Map));
-}
-
-/* Make room for `need` items in the array *p of *cap items of `size` bytes. */
-static int reserve(void **p, Py_ssize_t *cap, Py_ssize_t need, size_t size) {
-    if (need <= *cap) return 0;
-    Py_ssize_t cap2 = *cap ? *cap : 16;
-    while (cap2 < need) cap2 *= 2;
-    void *q = PyMem_Realloc(*p, (size_t)cap2 * size);
-    if (q == NULL) {
-        PyErr_NoMemory();
-        return -1;
-    }
-    *p = q;
-    *cap = cap2;
-    return 0;
 }
 
 /* -- remembered distributions -------------------------------------------------------------------- */
@@ -1206,21 +1186,6 @@ static int merge(Beam *b, PyObject *dyn, Py_ssize_t parent, int32_t act, double 
     return 0;
 }
 
-/* Stable merge sort of idx[0..n) by before(ctx, a, b) (a strictly first). */
-typedef int (*Before)(const void *ctx, Py_ssize_t a, Py_ssize_t b);
-
-static void sort_indices(Py_ssize_t *idx, Py_ssize_t *tmp, Py_ssize_t n, Before before, const void *ctx) {
-    if (n < 2) return;
-    Py_ssize_t h = n / 2;
-    sort_indices(idx, tmp, h, before, ctx);
-    sort_indices(idx + h, tmp, n - h, before, ctx);
-    Py_ssize_t i = 0, j = h, k = 0;
-    while (i < h && j < n) tmp[k++] = before(ctx, idx[j], idx[i]) ? idx[j++] : idx[i++];
-    while (i < h) tmp[k++] = idx[i++];
-    while (j < n) tmp[k++] = idx[j++];
-    memcpy(idx, tmp, (size_t)n * sizeof(Py_ssize_t));
-}
-
 typedef struct {
     const Merged *m;
     const Beam *b;
@@ -1862,14 +1827,6 @@ static int probe_sum(void) {
 bad:
     Py_DECREF(sum);
     return -1;
-}
-
-/* 1 where a * b + c is rounded twice, as Python rounds each operation (no fused multiply-add). */
-static int no_contraction(void) {
-    volatile double a = 1.0 + 1.0 / 1073741824.0, b = 1.0 - 1.0 / 1073741824.0, c = -1.0;
-    double x = a, y = b, z = c;
-    double r = x * y + z;
-    return r == 0.0;
 }
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_filter_core",

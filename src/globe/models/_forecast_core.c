@@ -30,6 +30,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "_c_common.h"
+
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF /* GCC ignores it: setup.py passes -ffp-contract=off */
 #endif
@@ -407,13 +409,6 @@ typedef struct {
     char *used;
 } Table;
 
-static uint64_t mix64(uint64_t h) {
-    h ^= h >> 31;
-    h *= 0x94D049BB133111EBULL;
-    h ^= h >> 29;
-    return h;
-}
-
 static uint64_t hash_key(const int64_t *k, Py_ssize_t w) {
     uint64_t h = 0x9E3779B97F4A7C15ULL;
     for (Py_ssize_t i = 0; i < w; i++) h = mix64(h ^ ((uint64_t)k[i] * 0xBF58476D1CE4E5B9ULL + (uint64_t)i));
@@ -474,21 +469,6 @@ static void table_free(Table *t) {
     t->keys = t->values = NULL;
     t->used = NULL;
     t->cap = t->n = 0;
-}
-
-/* Make room for `need` items of `size` bytes in the array *p of *cap items. */
-static int reserve(void **p, Py_ssize_t *cap, Py_ssize_t need, size_t size) {
-    if (need <= *cap) return 0;
-    Py_ssize_t cap2 = *cap ? *cap : 64;
-    while (cap2 < need) cap2 *= 2;
-    void *q = PyMem_Realloc(*p, (size_t)cap2 * size);
-    if (q == NULL) {
-        PyErr_NoMemory();
-        return -1;
-    }
-    *p = q;
-    *cap = cap2;
-    return 0;
 }
 
 #define MAX_ORDER 64
@@ -850,21 +830,6 @@ static int ensure(Paths *s, PyObject *stay_fn, PyObject *next_fn, PyObject *firs
 
 /* -- the beam step -- */
 
-typedef int (*Before)(const void *ctx, Py_ssize_t a, Py_ssize_t b); /* 1: a goes strictly before b */
-
-/* Stable merge sort of idx[0..n) (tmp: room for n). */
-static void merge_sort(Py_ssize_t *idx, Py_ssize_t *tmp, Py_ssize_t n, Before before, const void *ctx) {
-    if (n < 2) return;
-    Py_ssize_t h = n / 2;
-    merge_sort(idx, tmp, h, before, ctx);
-    merge_sort(idx + h, tmp, n - h, before, ctx);
-    Py_ssize_t i = 0, j = h, k = 0;
-    while (i < h && j < n) tmp[k++] = before(ctx, idx[j], idx[i]) ? idx[j++] : idx[i++];
-    while (i < h) tmp[k++] = idx[i++];
-    while (j < n) tmp[k++] = idx[j++];
-    memcpy(idx, tmp, (size_t)n * sizeof(Py_ssize_t));
-}
-
 typedef struct {           /* the extensions of one step, in the forward pass's order */
     Py_ssize_t *entry;     /* the path (entry of the level before) extended */
     int32_t *act;          /* by this activity */
@@ -996,7 +961,7 @@ static int keep_query(Paths *s, const Step *st, const Level *from, Scratch *c, P
     }
     if (nk == 0) c->kept[nk++] = top; /* nothing above the floor: the most probable (first of ties) */
     if (nk > st->most) {
-        merge_sort(c->kept, c->tmp, nk, most_probable_first, &cand);
+        sort_indices(c->kept, c->tmp, nk, most_probable_first, &cand);
         nk = st->most;
     }
     double z = 0.0;
@@ -1009,7 +974,7 @@ static int keep_query(Paths *s, const Step *st, const Level *from, Scratch *c, P
     }
     Kept order = {&cand, c->kept};
     for (Py_ssize_t k = 0; k < nk; k++) c->idx[k] = k;
-    merge_sort(c->idx, c->tmp, nk, lexicographic, &order);
+    sort_indices(c->idx, c->tmp, nk, lexicographic, &order);
     for (Py_ssize_t r = 0; r < nk; r++) to->lex[base + c->idx[r]] = r; /* each kept path's rank in path order */
     return 0;
 }
@@ -1219,14 +1184,6 @@ static PyTypeObject PathsType = {
 };
 
 /* -- module -------------------------------------------------------------------------------------- */
-
-/* 1 where a * b + c is rounded twice, as numpy rounds each operation (no fused multiply-add). */
-static int no_contraction(void) {
-    volatile double a = 1.0 + 1.0 / 1073741824.0, b = 1.0 - 1.0 / 1073741824.0, c = -1.0;
-    double x = a, y = b, z = c;
-    double r = x * y + z;
-    return r == 0.0;
-}
 
 static PyMethodDef methods[] = {
     {"level", level, METH_VARARGS, "the hazards, survivals and departures of one level of paths (see the module doc)"},
