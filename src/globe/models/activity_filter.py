@@ -246,10 +246,15 @@ class MovementEmission(CountingModel):
             ll = self._nothing(part, activity, changed, following)
             for o in sorted(moved):  # a fixed order: a set's follows the hash seed, and so would the sum
                 if o in self.rate_:
-                    p = self.probability(activity, o, part, changed, following)
-                    ll += math.log(p) - math.log1p(-p)
+                    ll += self._log_odds(part, activity, changed, following, o)
             out = self._memo[key] = ll
         return out
+
+    def _log_odds(self, part: int, activity: str, changed: bool | None, following: str | None, obj: str) -> float:
+        """log(p / (1 - p)) for ``obj`` moving in this context: one moved object's term of
+        :meth:`part_log_likelihood` (the compiled filter asks it too, for the same floats)."""
+        p = self.probability(activity, obj, part, changed, following)
+        return math.log(p) - math.log1p(-p)
 
     def log_likelihood(self, previous: str | None, current: str, moved: frozenset[str]) -> float:
         """``weight`` * log P(exactly ``moved`` moved | a_{s-1} = previous, a_s = current)."""
@@ -513,13 +518,6 @@ def _compiled_child(dyn: _Dynamics, key: Hashable, step: int, activity: str) -> 
     return dyn.child_key(key, key, step, activity)
 
 
-def _log_odds(em: MovementEmission, part: int, activity: str, changed: bool | None, following: str | None,
-              obj: str) -> float:
-    """One term of :meth:`MovementEmission.part_log_likelihood`: the same expression, the same float."""
-    p = em.probability(activity, obj, part, changed, following)
-    return math.log(p) - math.log1p(-p)
-
-
 def _compiled_evidence(em: MovementEmission, dyn: _Dynamics, core: Any, activities: Sequence[str]) -> Any:
     """``em`` over the model's ``activities`` in the numbers of ``core`` (over ``dyn``), memoised on
     the emission. Its logs by context depend on the counts only, so every
@@ -530,7 +528,7 @@ def _compiled_evidence(em: MovementEmission, dyn: _Dynamics, core: Any, activiti
         return memo[2]
     contexts = em._contexts.get(dyn)
     if contexts is None or contexts[0] is not core:
-        contexts = em._contexts[dyn] = (core, core.contexts(tuple(em.objects_), MovementEmission._nothing, _log_odds))
+        contexts = em._contexts[dyn] = (core, core.contexts(tuple(em.objects_), MovementEmission._nothing, MovementEmission._log_odds))
     lam = em.previous_share
     upper = tuple(set(activities) | set(em.activities_))  # as upper_bound iterates them
     switches = tuple(em.switches_) if em.switch and em.boundary else ()
