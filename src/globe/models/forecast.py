@@ -64,6 +64,12 @@ COMPILED = True
 """Whether forecasts take the compiled path where it is built. Tests and benchmarks set it to False
 to run the numpy and Python code, the reference."""
 
+
+def _compiled() -> bool:
+    """Whether forecasts take the compiled path now (:data:`COMPILED`, where it is built)."""
+    return COMPILED and _native is not None
+
+
 UNKNOWN = "<unknown>"
 
 
@@ -526,7 +532,7 @@ class ActivityPaths:
         or None where it is not built. For the routine model it numbers the states itself (a
         fresh one past ``memo_size`` states); for any other it extends this object's states, asking
         for their distributions and children (:meth:`_child`) as :meth:`_beams` does."""
-        if not (COMPILED and _native is not None):
+        if not _compiled():
             return None
         if self._engine is None or (self._routine() and self._engine.size > self.memo_size):
             if self._routine():
@@ -855,14 +861,10 @@ class Forecaster:
         probabilities summing to 1 (the forward pass; pruned as configured)."""
         return self._paths.paths(history, steps)
 
-    def _compiled(self) -> bool:
-        """Whether this forecast takes the compiled path (:data:`COMPILED`, where it is built)."""
-        return COMPILED and _native is not None
-
     def _places(self) -> _Places:
         """The memos the path in use reads: this forecaster's own (the reference), or those shared
         with every movement model fitted on the same days (compiled)."""
-        return self.movements.shared_places() if self._compiled() else self._own
+        return self.movements.shared_places() if _compiled() else self._own
 
     def _sources(self, row: Sequence[str], places: _Places | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Location indices of ``row``, their (object, place) cells and whether each was seen."""
@@ -936,7 +938,7 @@ class Forecaster:
         departure = np.zeros((nq, horizon + 1, nj))
         targets, real, _ = self._target_table(places)
         destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
-        if self._compiled():
+        if _compiled():
             self._propagate_compiled(trees, translate, src, cells, seen, earlier, departure, destination)
         else:
             self._propagate(trees, translate, src, cells, seen, earlier, departure, destination)
@@ -1132,7 +1134,7 @@ class Forecasts:
 def first_locations(destination: np.ndarray, targets: np.ndarray, horizons: int) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array (in C
     where it is built: the same sums in the same order, the same picks)."""
-    if COMPILED and _native is not None and horizons >= 0:
+    if _compiled() and horizons >= 0:
         nq, nsteps, nj, _ = destination.shape
         shape = (nq, min(horizons, nsteps), nj)
         at, p = _native.first_locations(destination.shape, horizons, np.ascontiguousarray(destination, dtype=float),
