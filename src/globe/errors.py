@@ -1,14 +1,27 @@
-"""One exception hierarchy for GLOBE: every front end catches :class:`GlobeError`."""
+"""One exception hierarchy for GLOBE: every front end catches :class:`GlobeError`.
+
+Each class carries the HTTP status the service answers it with (``http_status``, inherited;
+500 for the root: an error the service did not expect) and any headers that answer needs, so the
+service maps errors to responses in one handler without knowing the classes.
+"""
 
 from __future__ import annotations
+
+from typing import ClassVar
 
 
 class GlobeError(Exception):
     """Root of every error GLOBE raises on purpose."""
 
+    http_status: ClassVar[int] = 500
+    http_headers: ClassVar[dict[str, str]] = {}
+    field: str | None = None  # the input that is wrong, where known
+
 
 class ConfigError(GlobeError, ValueError):
     """A configuration value is missing, malformed or out of range."""
+
+    http_status = 422
 
 
 class DataError(GlobeError, ValueError):
@@ -17,6 +30,8 @@ class DataError(GlobeError, ValueError):
     Formatted like a compiler message so editors link it:
     ``HouseholdA/train/012.csv:57: column 'minute': 610 is not after 620``.
     """
+
+    http_status = 422
 
     def __init__(
         self,
@@ -58,6 +73,8 @@ class ModelFileError(GlobeError, ValueError):
 class LLMError(GlobeError):
     """An LLM backend gave no usable answer. Only the gate catches it (and falls back)."""
 
+    http_status = 503
+
 
 class LLMUnavailableError(LLMError):
     """The backend could not be reached or loaded."""
@@ -87,6 +104,8 @@ class MissingExtraError(GlobeError, ImportError):
 class StoreError(GlobeError):
     """The service's database failed."""
 
+    http_status = 503
+
 
 class LLMCacheError(LLMError):
     """The on-disk answer cache failed (locked, missing, corrupt): the gate falls back to the n-gram."""
@@ -95,12 +114,15 @@ class LLMCacheError(LLMError):
 class AuthenticationError(GlobeError):
     """No credentials, or credentials the service does not know (HTTP 401)."""
 
+    http_status = 401
+    http_headers = {"WWW-Authenticate": "Bearer"}
     field = "authorization"
 
 
 class PermissionDeniedError(GlobeError):
     """Valid credentials that do not reach this resource (HTTP 403)."""
 
+    http_status = 403
     field = "authorization"
 
 
@@ -110,3 +132,23 @@ class LimitError(DataError):
 
 class StoreUnavailableError(StoreError):
     """The database file disappeared or was replaced while the service ran: writes are refused."""
+
+
+class UnknownHouseholdError(GlobeError, KeyError):
+    """The service holds no household of that name (HTTP 404)."""
+
+    http_status = 404
+
+    def __init__(self, name: str) -> None:
+        super().__init__(f"unknown household {name!r}")
+        self.name = name
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class DuplicateHouseholdError(GlobeError):
+    """A household of that name exists already (HTTP 409)."""
+
+    http_status = 409
+    field = "name"

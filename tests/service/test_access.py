@@ -164,7 +164,7 @@ def test_request_json_is_parsed_and_refused_as_the_standard_library_does(body):
     import asyncio
     import json
 
-    from globe.service.app import _FastJSONRequest
+    from globe.service.fastjson import FastJSONRequest as _FastJSONRequest
 
     pieces = [body[:3], b"", body[3:7], body[7:]]  # as it may arrive; the Guard sends one piece
 

@@ -18,17 +18,27 @@ from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Any, Iterator, Mapping, Sequence
 
 from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
-from globe.errors import DataError, GlobeError, LimitError, StoreError
+from globe.errors import DataError, DuplicateHouseholdError, GlobeError, LimitError, StoreError, UnknownHouseholdError
+from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import timepolicy
 from globe.service.assistant import Observation, OnlineAssistant
+from globe.service.schemas import (
+    FeedbackCounts,
+    HouseholdInfo,
+    ModelOut,
+    ModelSettings,
+    ObservationAck,
+    Prediction,
+    StatsOut,
+)
 from globe.service.store import DayEncoding, HouseholdRow, Store, legacy_day
-from globe.service.upload import DayParser
+from globe.service.upload import DayParser, household_from, parse_nodes
 
 log = logging.getLogger(__name__)
 
@@ -53,20 +63,6 @@ def no_gc() -> Iterator[None]:
             _gc_pauses -= 1
             if _gc_pauses == 0:
                 gc.enable()
-
-
-class UnknownHouseholdError(GlobeError, KeyError):
-    def __init__(self, name: str) -> None:
-        super().__init__(f"unknown household {name!r}")
-        self.name = name
-        self.field = None
-
-    def __str__(self) -> str:
-        return str(self.args[0])
-
-
-class DuplicateHouseholdError(GlobeError):
-    field = "name"
 
 
 @dataclass(slots=True)
@@ -162,6 +158,27 @@ class Registry:
             raise LimitError(f"{len(obs.locations)} locations in one observation (at most {s.max_locations})", field="locations")
 
     # -- households ------------------------------------------------------------------------------
+    def create_uploaded(self, name: str, timezone: str | None, node_rows: Sequence[Mapping[str, Any]],
+                        day_texts: list[str]) -> HouseholdInfo:
+        """Validate a household sent over HTTP (its map's rows and its days' texts) against the
+        configured limits and the rules of files on disk, then :meth:`create` it."""
+        s = self.config.service
+        if len(node_rows) > s.max_nodes:
+            raise LimitError(f"{len(node_rows)} nodes (at most {s.max_nodes})", field="nodes")
+        if len(day_texts) > s.max_days:
+            raise LimitError(f"{len(day_texts)} days (at most {s.max_days})", field="days")
+        zone = check_timezone(timezone or s.timezone)
+        nodes = parse_nodes(node_rows, max_label=s.max_label_length)
+        try:
+            with no_gc():
+                household = household_from(name, nodes, day_texts, max_label=s.max_label_length)
+        except DataError as err:
+            where = err.source or "days"
+            detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
+            raise type(err)(detail, field=f"{where}.{err.field}" if err.field else where) from None
+        assistant = self.create(household, zone, day_texts)
+        return HouseholdInfo(name=name, timezone=zone, objects=list(household.objects), days_learned=assistant.days_learned)
+
     def create(self, household: Household, timezone: str, day_texts: list[str]) -> OnlineAssistant:
         """Build, then store, a validated household (the build fails before anything is stored).
         The name is reserved while it builds, so other requests are not held up meanwhile."""
@@ -271,6 +288,62 @@ class Registry:
                 s.deleted = True
                 self._recent.pop(name, None)
                 self.failed.pop(name, None)
+
+    # -- a household's requests --------------------------------------------------------------------
+    def observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
+                client_id: str | None) -> ObservationAck:
+        """One observation: validated completely, committed to the store, then applied, all under
+        the household's lock, and only then acknowledged. A retry with a known ``client_id``
+        returns the first acknowledgement."""
+        s = self.config.service
+        if client_id is not None and len(client_id) > s.max_label_length:
+            raise LimitError(f"id longer than {s.max_label_length} characters", field="id")
+        row = self.row(name)
+        time = timepolicy.to_zone(time, timepolicy.zone(row.timezone))
+        activity = activity.strip() if activity is not None else None
+        obs = Observation(time, activity, locations)
+        self.check_labels(obs)
+        with self.locked(name) as a:
+            if client_id is not None:
+                found = self.store.find_observation(name, client_id)
+                if found is not None:
+                    return ObservationAck(id=client_id, day=found[1].get("day", ""), step=found[1].get("step", 0),
+                                          duplicate=True)
+            timepolicy.check_bounds(time, created=row.created_at, now=timepolicy.utcnow(), skew=s.max_clock_skew)
+            a.validate(obs)
+            place = a.placement(time)
+            ack = {"day": place.day, "step": place.step}
+            stored = self.store.add_observation(name, time, activity, dict(locations), client_id, ack)
+            a.observe(obs)
+            return ObservationAck(id=client_id if client_id is not None else str(stored), duplicate=False, **ack)
+
+    def predict(self, name: str) -> Prediction:
+        with self.locked(name) as a:
+            return a.predict()
+
+    def feedback(self, name: str, obj: str, accepted: bool) -> FeedbackCounts:
+        """What the person said about a fetched object: stored, then counted."""
+        with self.locked(name) as a:
+            if obj not in a.household.objects:
+                raise DataError(f"unknown object {obj[:64]!r}", field="object")
+            self.store.add_feedback(name, obj, accepted)
+            a.record_feedback(accepted)
+            return FeedbackCounts(**a.stats()["feedback"])
+
+    def stats(self, name: str) -> StatsOut:
+        """The household's counts, with the effective settings of its built models and chooser."""
+        row = self.row(name)
+        with self.locked(name) as a:
+            built = assembly.describe(a.activity_model, a.chooser)
+            return StatsOut(**a.stats(), timezone=row.timezone, created_at=row.created_at.isoformat(),
+                            chooser=built["chooser"], models=ModelSettings(activity=built["activity"],
+                                                                           objects=built["objects"]))
+
+    def export_model(self, name: str) -> ModelOut:
+        """Both models as :func:`globe.models.io.model_to_dict` writes them."""
+        with self.locked(name) as a:
+            return ModelOut.model_validate({"activity": model_to_dict(a.activity_model),
+                                            "objects": model_to_dict(a.chooser.model)})
 
     def names(self) -> list[str]:
         """Every stored household (also those imported by the CLI while the service ran)."""

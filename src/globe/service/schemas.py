@@ -6,6 +6,7 @@ app (the limits are configurable, these bounds are the hard ceilings)."""
 from __future__ import annotations
 
 import datetime as dt
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
@@ -81,6 +82,64 @@ class FeedbackIn(_Body):
     accepted: StrictBool
 
 
+class FeedbackCounts(_Body):
+    accepted: int = Field(..., description="fetches the person accepted")
+    refused: int = Field(..., description="fetches the person refused")
+
+
+class ModelSettings(_Body):
+    activity: dict[str, Any] = Field(..., description="the activity model's kind and parameters, read from the built model")
+    objects: dict[str, Any] = Field(..., description="the object model's kind and parameters, read from the built model")
+
+
+class StatsOut(_Body):
+    household: str
+    status: str = Field(..., description="'learning' until a first day is learned, then 'ready'")
+    days_learned: int
+    observations: int = Field(..., description="observations applied since the household was created")
+    current_day: str | None = Field(..., description="the day the last observation belongs to (null before any)")
+    steps_today: int
+    feedback: FeedbackCounts
+    activities_known: int
+    training_days: int
+    quarantined: int = Field(..., description="stored observations set aside because they could not be replayed")
+    llm_fallbacks: dict[str, int] = Field(..., description="predictions that fell back to the n-gram choice, by reason")
+    timezone: str
+    created_at: str
+    chooser: dict[str, Any] = Field(..., description="the object chooser's kind and settings, read from the built object")
+    models: ModelSettings
+
+
+class ModelFile(_Body):
+    """One model as :func:`globe.models.io.model_to_dict` writes it."""
+
+    format: str
+    version: int
+    kind: str
+    params: dict[str, Any]
+    data: list[Any] = Field(..., description="the observed sequences the model counted")
+
+
+class ModelOut(_Body):
+    activity: ModelFile
+    objects: ModelFile
+
+
+class HealthOut(_Body):
+    status: str = Field(..., description="'ok', or 'degraded' when writes are refused or a household cannot be built")
+    version: str
+    database: str = Field(..., description="'ok', or why writes are refused")
+    households: int
+    built: int = Field(..., description="households whose models are in memory")
+    failed: list[str] = Field(..., description="households that could not be built")
+
+
 class ErrorOut(_Body):
     detail: str
     field: str | None = None
+
+
+ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    code: {"model": ErrorOut} for code in (401, 403, 404, 409, 413, 422, 503)
+}
+"""The error answers every endpoint but ``/health`` documents."""

@@ -1,0 +1,39 @@
+"""What the routes depend on, importable so that tests can override it
+(``app.dependency_overrides[deps.get_registry] = ...``): the registry of households and the
+caller, authenticated from the ``Authorization`` header and authorised per route."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from globe.service import auth
+from globe.service.registry import Registry
+
+
+def get_registry(request: Request) -> Registry:
+    """The households this process serves (built in the app's lifespan)."""
+    return request.app.state.registry
+
+
+def get_caller(request: Request, registry: Annotated[Registry, Depends(get_registry)]) -> auth.Caller:
+    """Who sends the request (401 without a known, unrevoked token)."""
+    return auth.authenticate(registry.store, request.headers.get("authorization"))
+
+
+def require_admin(caller: Annotated[auth.Caller, Depends(get_caller)]) -> auth.Caller:
+    """An admin token (403 for a household token)."""
+    caller.require_admin()
+    return caller
+
+
+def require_member(name: str, caller: Annotated[auth.Caller, Depends(get_caller)]) -> auth.Caller:
+    """An admin token, or the token of household ``name`` (403 for another household's)."""
+    caller.require_household(name)
+    return caller
+
+
+RegistryDep = Annotated[Registry, Depends(get_registry)]
+AdminDep = Annotated[auth.Caller, Depends(require_admin)]
+MemberDep = Annotated[auth.Caller, Depends(require_member)]

@@ -1,0 +1,21 @@
+"""``GET /health``: the only endpoint without a token (says nothing about any household's data)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from globe import __version__
+from globe.service.deps import RegistryDep
+from globe.service.fastjson import FastJSONRoute
+from globe.service.schemas import HealthOut
+
+router = APIRouter(route_class=FastJSONRoute)
+
+
+@router.get("/health")
+def health(registry: RegistryDep) -> HealthOut:
+    problem = registry.store.problem()
+    failed = sorted(registry.failed)
+    degraded = problem is not None or bool(failed)
+    return HealthOut(status="degraded" if degraded else "ok", version=__version__, database=problem or "ok",
+                     households=len(registry.names()), built=registry.built(), failed=failed)

@@ -1,0 +1,28 @@
+"""``/households`` (admin): list, create from a map and day logs, delete with all its data."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response
+
+from globe.service.deps import AdminDep, RegistryDep
+from globe.service.fastjson import FastJSONRoute
+from globe.service.schemas import ERROR_RESPONSES, HouseholdCreate, HouseholdInfo
+
+router = APIRouter(route_class=FastJSONRoute)
+
+
+@router.get("/households", responses=ERROR_RESPONSES)
+def list_households(registry: RegistryDep, caller: AdminDep) -> list[str]:
+    return registry.names()
+
+
+@router.post("/households", status_code=201, response_model=HouseholdInfo, responses=ERROR_RESPONSES)
+def create_household(body: HouseholdCreate, registry: RegistryDep, caller: AdminDep) -> HouseholdInfo:
+    nodes = [n.model_dump(by_alias=True) for n in body.nodes]
+    return registry.create_uploaded(body.name, body.timezone, nodes, body.days)
+
+
+@router.delete("/households/{name}", status_code=204, responses=ERROR_RESPONSES)
+def delete_household(name: str, registry: RegistryDep, caller: AdminDep) -> Response:
+    registry.delete(name)
+    return Response(status_code=204)
