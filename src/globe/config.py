@@ -130,6 +130,12 @@ class ServiceConfig(_Section):
         dt.timedelta(days=1), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
         description="ISO 8601 duration (P1D, PT6H): times this far ahead of the server clock or before creation minus this are refused",
     )
+    max_ahead: dt.timedelta = Field(
+        dt.timedelta(minutes=10), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
+        description="observations further ahead of the server clock than this (within max_clock_skew) are stored and "
+                    "acknowledged but held pending until the clock is within this of them, so a glitched clock cannot "
+                    "lock a household",
+    )
     timezone: str | None = Field(None, description="default IANA time zone of new households; None = the server's")
     allowed_hosts: tuple[str, ...] = Field(
         ("127.0.0.1", "localhost", "::1"), description="Host header names accepted (DNS-rebinding guard); '*' = any"

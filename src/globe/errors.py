@@ -152,3 +152,15 @@ class DuplicateHouseholdError(GlobeError):
 
     http_status = 409
     field = "name"
+
+
+class HouseholdUnavailableError(StoreError):
+    """A stored household cannot be built from its rows (damaged, or written by another GLOBE):
+    it answers 503 with the reason, and can still be deleted or exported."""
+
+
+class DuplicateObservationError(GlobeError):
+    """An observation id the household already acknowledged for a different observation (HTTP 409)."""
+
+    http_status = 409
+    field = "id"

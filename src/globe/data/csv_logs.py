@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import re
+import unicodedata
 from collections import Counter
 from itertools import chain, compress
 from operator import sub
@@ -31,7 +32,8 @@ HOME_CATEGORIES = frozenset({"home"})
 Resample = Literal["none", "locf"]
 
 _MINUTE = re.compile(r"[0-9]{1,5}")
-_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+_BIDI = re.compile("[\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069]")  # text-direction marks, embeddings, isolates
 _SURROGATE = re.compile("[\ud800-\udfff]")  # only in text that did not come from valid UTF-8 (e.g. JSON's "\\ud800")
 _BLANKS = " \t"
 
@@ -110,7 +112,7 @@ def _ragged(path: Path | str, lineno: int, row: list[str], header: list[str]) ->
     return DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno, field=field)
 
 
-def _label(value: str, source: str, line: int, field: str, what: str = "label") -> str:
+def _label(value: str, source: str | None, line: int | None, field: str, what: str = "label") -> str:
     if not value:
         raise DataError(f"empty {what}", source=source, line=line, field=field)
     if _CONTROL.search(value):
@@ -118,7 +120,18 @@ def _label(value: str, source: str, line: int, field: str, what: str = "label") 
     if _SURROGATE.search(value):
         raise DataError(f"{what} {_short(value)} contains a lone surrogate (not valid Unicode text)", source=source,
                         line=line, field=field)
+    if _BIDI.search(value):
+        raise DataError(f"{what} {_short(value)} contains a bidirectional formatting character (it would display "
+                        "reordered)", source=source, line=line, field=field)
     return value
+
+
+def activity_label(raw: str, source: str | None = None, line: int | None = None, field: str = "activity") -> str:
+    """The one rule for activity labels, wherever they come from (day files, uploaded days, the
+    service's observations): spaces and tabs around it dropped; non-empty; no control,
+    bidirectional-formatting or lone-surrogate character; NFC-normalised, so that one word typed
+    two ways (``café`` composed or decomposed) is one activity."""
+    return unicodedata.normalize("NFC", _label(_clean(raw), source, line, field, "activity"))
 
 
 # -- nodes.csv ------------------------------------------------------------------------------------
@@ -265,7 +278,7 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
         minute = _parse_minute(_clean(row[i_min]), source, lineno)
         if minutes and minute <= minutes[-1]:
             raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source, line=lineno, field="minute")
-        activity = _label(_clean(row[i_act]), source, lineno, "activity", "activity")
+        activity = activity_label(row[i_act], source, lineno)
         cells = tuple(row[first: first + len(obj_idx)]) if contiguous else tuple(row[i] for i in obj_idx)
         state = known.get(cells)
         if state is None:
@@ -465,6 +478,6 @@ def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
 
 
 __all__: list[str] = [
-    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "check_map", "parse_nodes_text", "read_nodes", "parse_day_text", "read_day",
+    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "activity_label", "check_map", "parse_nodes_text", "read_nodes", "parse_day_text", "read_day",
     "household_step", "check_step", "day_files", "read_household_map", "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
 ]

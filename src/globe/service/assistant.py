@@ -96,6 +96,8 @@ class OnlineAssistant:
         self.feedback = {"accepted": 0, "refused": 0}
         self.fallbacks: Counter[str] = Counter()
         self.quarantined = 0
+        self.pending = 0  # observations stored but held until the clock reaches them (set by the registry)
+        self.training_days_set_aside = 0  # stored training days that could not be read back (set by the registry)
         self._target_counts: dict[tuple[str, str], Counter[str]] = defaultdict(Counter)
         # the training days are counted, then dropped: keep the map only (memory per household stays small)
         self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
@@ -108,6 +110,14 @@ class OnlineAssistant:
     # -- validation ------------------------------------------------------------------------
     def validate(self, obs: Observation) -> None:
         """Raise :class:`DataError` (naming the field) for an observation that must not be stored."""
+        self.validate_labels(obs)
+        instant = _instant(obs.time)
+        if self._last_instant is not None and instant <= self._last_instant:
+            raise DataError(f"time {obs.time.isoformat()} is not after the last observation {self._last_instant.isoformat()}",
+                            field="time")
+
+    def validate_labels(self, obs: Observation) -> None:
+        """The checks of :meth:`validate` that do not depend on the observations before it."""
         if obs.activity is not None and not obs.activity.strip():
             raise DataError("empty activity (send null when it is unknown)", field="activity")
         for obj, loc in obs.locations.items():
@@ -116,10 +126,11 @@ class OnlineAssistant:
                                         field=f"locations.{obj[:64]}")
             if loc not in self._locations:
                 raise UnknownLabelError(f"unknown location {loc[:64]!r} for {obj!r}", field=f"locations.{obj}")
-        instant = _instant(obs.time)
-        if self._last_instant is not None and instant <= self._last_instant:
-            raise DataError(f"time {obs.time.isoformat()} is not after the last observation {self._last_instant.isoformat()}",
-                            field="time")
+
+    @property
+    def last_instant(self) -> dt.datetime | None:
+        """The UTC instant of the last observation applied (None before any)."""
+        return self._last_instant
 
     # -- the loop ---------------------------------------------------------------------------
     def _wall(self, time: dt.datetime) -> tuple[str, int]:
@@ -317,6 +328,7 @@ class OnlineAssistant:
                 "observations": self.observations, "current_day": self._day_key, "steps_today": len(self._slots),
                 "feedback": dict(self.feedback), "activities_known": len(getattr(self.activity_model, "classes_", ())),
                 "training_days": len(self.activity_model.training_data_), "quarantined": self.quarantined,
+                "training_days_set_aside": self.training_days_set_aside, "pending": self.pending,
                 "llm_fallbacks": dict(self.fallbacks)}
 
 

@@ -9,6 +9,7 @@ stop the service.
 
 from __future__ import annotations
 
+import bisect
 import datetime as dt
 import gc
 import json
@@ -17,13 +18,24 @@ import threading
 from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass
-from typing import Any, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterator, Mapping, Sequence
+from zoneinfo import ZoneInfo
 
 from globe import assembly
 from globe.config import GlobeConfig
+from globe.data.csv_logs import activity_label
 from globe.data.records import Household
-from globe.errors import DataError, DuplicateHouseholdError, GlobeError, LimitError, StoreError, UnknownHouseholdError
+from globe.errors import (
+    DataError,
+    DuplicateHouseholdError,
+    DuplicateObservationError,
+    GlobeError,
+    HouseholdUnavailableError,
+    LimitError,
+    StoreError,
+    UnknownHouseholdError,
+)
 from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import timepolicy
@@ -36,8 +48,9 @@ from globe.service.schemas import (
     ObservationAck,
     Prediction,
     StatsOut,
+    check_household_name,
 )
-from globe.service.store import DayEncoding, HouseholdRow, Store, legacy_day
+from globe.service.store import DayEncoding, FoundObservation, HouseholdRow, Store, legacy_day
 from globe.service.upload import DayParser, household_from, parse_nodes
 
 log = logging.getLogger(__name__)
@@ -65,20 +78,35 @@ def no_gc() -> Iterator[None]:
                 gc.enable()
 
 
-@dataclass(slots=True)
+@dataclass(frozen=True, slots=True)
+class Pending:
+    """An observation stored and acknowledged, held until the server clock is within
+    ``service.max_ahead`` of it (see :meth:`Registry.observe`)."""
+
+    instant: dt.datetime  # UTC
+    observation: Observation
+
+
+@dataclass(slots=True, eq=False)
 class Served:
-    """A household's row and, once built, its assistant."""
+    """A household's row and, once built, its assistant. Its lock serialises everything done to the
+    household: building it, every request, its deletion, its eviction."""
 
     row: HouseholdRow
     assistant: OnlineAssistant | None = None
-    lock: threading.Lock = None  # type: ignore[assignment]
+    lock: threading.RLock = field(default_factory=threading.RLock)
     deleted: bool = False
-
-    def __post_init__(self) -> None:
-        self.lock = threading.Lock()
+    failure: str | None = None  # why it cannot be built (then it answers 503 until deleted or restarted)
+    pending: list[Pending] = field(default_factory=list)  # by time
 
 
 class Registry:
+    """The households one process serves, always those of the database.
+
+    Locks, always taken in this order: a household's lock (:class:`Served`), then the registry's
+    (which guards the map of households, the database rows of households, and eviction), then the
+    store's. Eviction only tries other households' locks without waiting."""
+
     def __init__(self, store: Store, config: GlobeConfig, backend: LLMBackend | None) -> None:
         self.store = store
         self.config = config
@@ -97,12 +125,15 @@ class Registry:
     # -- start-up ------------------------------------------------------------------------------
     def load_all(self) -> None:
         """Read the household list (assistants are built on first use or by :meth:`warm_up`)."""
-        for row in self.store.households():
-            self._served[row.name] = Served(row)
+        with self._lock:
+            for row in self.store.households():
+                self._served[row.name] = Served(row)
 
     def warm_up(self, stop: threading.Event | None = None) -> None:
         """Build every household now (run in a background thread after start-up)."""
-        for name in list(self._served)[: self.config.service.max_built_households]:
+        with self._lock:
+            names = list(self._served)[: self.config.service.max_built_households]
+        for name in names:
             if stop is not None and stop.is_set():
                 return
             try:
@@ -111,43 +142,68 @@ class Registry:
                 continue
 
     # -- building --------------------------------------------------------------------------------
-    def _build(self, row: HouseholdRow) -> OnlineAssistant:
+    def _build(self, row: HouseholdRow) -> tuple[OnlineAssistant, list[Pending]]:
+        """The household's assistant from its stored rows: training days counted, observations
+        replayed in time order (those still ahead of the clock are returned as pending)."""
+        if row.problem:
+            raise StoreError(row.problem)
+        tz = timepolicy.zone(row.timezone)
         nodes, objects = self.store.load_map(row.name)
         locations = frozenset(n.node for n in nodes)
         owners = {n.cls: n.node for n in nodes if n.movable}
         days = []
         parser = DayParser(objects, locations, owners)
+        set_aside = 0
         for i, text in enumerate(self.store.training_days(row.name)):
             try:
                 days.append(legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0])
-            except (GlobeError, ValueError, KeyError) as err:
+            except (GlobeError, ValueError, KeyError, TypeError) as err:
                 log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
+                set_aside += 1
         household = Household(row.name, nodes, objects, tuple(days), (), f"sqlite:{self.store.path}")
         assistant = assembly.assistant(household, self.config, self.backend)
-        tz = timepolicy.zone(row.timezone)
+        assistant.training_days_set_aside = set_aside
         bad: list[int] = []
+        replay: list[tuple[dt.datetime, int, Observation]] = []
         for stored in self.store.observations(row.name):
             try:
                 time = timepolicy.to_zone(dt.datetime.fromisoformat(stored.time), tz)
                 received = dt.datetime.fromisoformat(stored.received_at)
                 received = received if received.tzinfo else received.replace(tzinfo=dt.timezone.utc)
                 timepolicy.check_bounds(time, created=row.created_at, now=received, skew=self.config.service.max_clock_skew)
-                obs = Observation(time, stored.activity, json.loads(stored.locations))
+                activity = activity_label(stored.activity) if stored.activity is not None else None
+                obs = Observation(time, activity, _locations(json.loads(stored.locations)))
                 self.check_labels(obs)
-                assistant.validate(obs)
-                assistant.observe(obs)
+                assistant.validate_labels(obs)
+                replay.append((time.astimezone(dt.timezone.utc), stored.id, obs))
             except (GlobeError, ValueError, TypeError, KeyError, OverflowError) as err:
                 log.warning("household %s: stored observation %d quarantined: %s", row.name, stored.id, err)
                 bad.append(stored.id)
+        # Applied observations always increase in time (held ones come after every observation
+        # applied before them), so replaying in time order repeats what was applied live.
+        horizon = timepolicy.utcnow() + self.config.service.max_ahead
+        pending: list[Pending] = []
+        for instant, stored_id, obs in sorted(replay, key=lambda r: (r[0], r[1])):
+            if instant > horizon:
+                pending.append(Pending(instant, obs))
+                continue
+            try:
+                assistant.validate(obs)
+            except DataError as err:
+                log.warning("household %s: stored observation %d quarantined: %s", row.name, stored_id, err)
+                bad.append(stored_id)
+                continue
+            assistant.observe(obs)
         if bad:
             try:
                 self.store.quarantine(bad)
             except StoreError as err:
                 log.warning("household %s: could not mark quarantined rows: %s", row.name, err)
         assistant.quarantined = max(len(bad), self.store.quarantined(row.name))
+        assistant.pending = len(pending)
         for accepted in self.store.feedback(row.name):
             assistant.record_feedback(accepted)
-        return assistant
+        return assistant, pending
 
     def check_labels(self, obs: Observation) -> None:
         """The configured label limits (before anything is stored)."""
@@ -163,6 +219,7 @@ class Registry:
         """Validate a household sent over HTTP (its map's rows and its days' texts) against the
         configured limits and the rules of files on disk, then :meth:`create` it."""
         s = self.config.service
+        check_household_name(name)
         if len(node_rows) > s.max_nodes:
             raise LimitError(f"{len(node_rows)} nodes (at most {s.max_nodes})", field="nodes")
         if len(day_texts) > s.max_days:
@@ -217,105 +274,204 @@ class Registry:
         return assistant
 
     def served(self, name: str) -> Served:
-        s = self._served.get(name)
-        if s is None:
-            row = self.store.household(name)  # imported by the CLI while the service ran
-            if row is None:
-                raise UnknownHouseholdError(name)
-            with self._lock:
-                s = self._served.setdefault(name, Served(row))
-        return s
+        """The household's entry: the database's row, read under the registry's lock so that no
+        deletion can pass between reading it and holding it (404 if there is none)."""
+        with self._lock:
+            s = self._served.get(name)
+            if s is None:
+                row = self.store.household(name)  # e.g. imported by the CLI while the service ran
+                if row is None:
+                    raise UnknownHouseholdError(name)
+                s = self._served[name] = Served(row)
+            return s
 
-    def get(self, name: str) -> OnlineAssistant:
-        s = self.served(name)
-        if s.assistant is None:
+    @contextmanager
+    def _held(self, name: str) -> Iterator[Served]:
+        """The household built, holding its lock (so it is neither evicted nor deleted under the
+        request), its observations that came due applied."""
+        while True:
+            s = self.served(name)
             with s.lock:
-                if s.assistant is None and not s.deleted:
-                    try:
-                        with no_gc():
-                            s.assistant = self._build(s.row)
-                    except GlobeError as err:
-                        self.failed[name] = str(err)
-                        log.error("household %s cannot be built: %s", name, err)
-                        raise
-        assistant = s.assistant
-        if s.deleted or assistant is None:
-            raise UnknownHouseholdError(name)
-        self._touch(name)
-        return assistant
+                if s.deleted:  # deleted while this request waited: look again (it may exist anew)
+                    continue
+                if s.failure is not None:
+                    raise HouseholdUnavailableError(self._unavailable(name, s.failure))
+                if s.assistant is None:
+                    self._build_into(name, s)
+                assert s.assistant is not None
+                self._apply_due(s)
+                self._touch(name)
+                yield s
+                return
+
+    def _build_into(self, name: str, s: Served) -> None:
+        try:
+            with no_gc():
+                s.assistant, s.pending = self._build(s.row)
+        except Exception as err:  # noqa: BLE001 - whatever a stored row holds, the household is failed, not the service
+            if self.store.household(name) is None:  # deleted from the database behind the service's back
+                self._forget(name, s)
+                raise UnknownHouseholdError(name) from None
+            reason = f"{type(err).__name__}: {err}" if not isinstance(err, GlobeError) else str(err)
+            log.error("household %s cannot be built: %s", name, reason, exc_info=not isinstance(err, GlobeError))
+            s.failure = reason
+            with self._lock:
+                self.failed[name] = reason
+            raise HouseholdUnavailableError(self._unavailable(name, reason)) from None
+
+    @staticmethod
+    def _unavailable(name: str, reason: str) -> str:
+        return (f"household {name!r} cannot be built from its stored data ({reason}); it can still be exported "
+                f"(GET /households/{name}/export) or deleted")
+
+    def _forget(self, name: str, s: Served) -> None:
+        """Drop an entry whose household is no longer in the database."""
+        with self._lock:
+            s.deleted = True
+            if self._served.get(name) is s:
+                del self._served[name]
+            self._recent.pop(name, None)
+            self.failed.pop(name, None)
+
+    def _apply_due(self, s: Served) -> None:
+        """Apply the held observations the clock has come within ``service.max_ahead`` of."""
+        horizon = timepolicy.utcnow() + self.config.service.max_ahead
+        a = s.assistant
+        assert a is not None
+        while s.pending and s.pending[0].instant <= horizon:
+            a.observe(s.pending.pop(0).observation)
+        a.pending = len(s.pending)
 
     @contextmanager
     def locked(self, name: str) -> Iterator[OnlineAssistant]:
-        """The household's current assistant, holding its lock (so it is neither evicted nor
-        deleted under the request)."""
-        while True:
-            a = self.get(name)
-            with a.lock:
-                s = self._served.get(name)
-                if s is None or s.deleted:
-                    raise UnknownHouseholdError(name)
-                if s.assistant is a:
-                    yield a
-                    return
+        """The household's current assistant, holding its lock."""
+        with self._held(name) as s:
+            assert s.assistant is not None
+            yield s.assistant
+
+    def get(self, name: str) -> OnlineAssistant:
+        """The household's assistant, built if needed (the caller holds no lock: for start-up and tests)."""
+        with self.locked(name) as a:
+            return a
 
     def _touch(self, name: str) -> None:
         """Mark ``name`` recently used; evict the least recently used beyond the bound (only idle
-        ones: an assistant whose lock is held is skipped)."""
+        ones: a household whose lock is held is skipped)."""
         with self._lock:
             self._recent[name] = None
             self._recent.move_to_end(name)
             excess = len(self._recent) - self.config.service.max_built_households
             for old in list(self._recent)[:max(0, excess)]:
                 s = self._served.get(old)
-                a = s.assistant if s else None
-                if a is None:
+                if s is None or s.assistant is None:
                     del self._recent[old]
-                elif old != name and a.lock.acquire(blocking=False):
+                elif old != name and s.lock.acquire(blocking=False):
                     try:
-                        s.assistant = None  # type: ignore[union-attr]
+                        s.assistant = None
+                        s.pending = []
                         del self._recent[old]
                     finally:
-                        a.lock.release()
+                        s.lock.release()
 
     def row(self, name: str) -> HouseholdRow:
         return self.served(name).row
 
     def delete(self, name: str) -> None:
-        with self.locked(name):
-            with self._lock:
-                self.store.delete_household(name)
-                s = self._served.pop(name)
-                s.deleted = True
-                self._recent.pop(name, None)
-                self.failed.pop(name, None)
+        """Delete the household and everything stored about it (built or not, failed or not)."""
+        while True:
+            s = self.served(name)
+            with s.lock:
+                if s.deleted:
+                    continue
+                with self._lock:
+                    self.store.delete_household(name)
+                    s.deleted = True
+                    if self._served.get(name) is s:
+                        del self._served[name]
+                    self._recent.pop(name, None)
+                    self.failed.pop(name, None)
+                return
+
+    def export(self, name: str) -> dict:
+        """Everything stored about the household, as stored (also when it cannot be built)."""
+        s = self.served(name)
+        with s.lock:
+            found = self.store.export_household(name)
+        if found is None:
+            raise UnknownHouseholdError(name)
+        return found
 
     # -- a household's requests --------------------------------------------------------------------
     def observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
                 client_id: str | None) -> ObservationAck:
         """One observation: validated completely, committed to the store, then applied, all under
         the household's lock, and only then acknowledged. A retry with a known ``client_id``
-        returns the first acknowledgement."""
+        returns the first acknowledgement (a different observation under that id is a 409).
+
+        An observation further ahead of the server clock than ``service.max_ahead`` (but within
+        ``service.max_clock_skew``) is stored and acknowledged as ``pending``, and applied once the
+        clock is within ``max_ahead`` of it: one glitched clock cannot lock a household, and
+        nothing acknowledged is dropped."""
         s = self.config.service
         if client_id is not None and len(client_id) > s.max_label_length:
             raise LimitError(f"id longer than {s.max_label_length} characters", field="id")
-        row = self.row(name)
-        time = timepolicy.to_zone(time, timepolicy.zone(row.timezone))
-        activity = activity.strip() if activity is not None else None
-        obs = Observation(time, activity, locations)
-        self.check_labels(obs)
-        with self.locked(name) as a:
+        if activity is not None:
+            activity = activity_label(activity)
+        self.check_labels(Observation(time, activity, locations))
+        with self._held(name) as held:
+            a = held.assistant
+            assert a is not None
+            tz = timepolicy.zone(held.row.timezone)
             if client_id is not None:
                 found = self.store.find_observation(name, client_id)
                 if found is not None:
-                    return ObservationAck(id=client_id, day=found[1].get("day", ""), step=found[1].get("step", 0),
+                    if not _same_observation(found, time, activity, locations, tz):
+                        raise DuplicateObservationError(f"id {client_id[:64]!r} was acknowledged for another observation "
+                                                        f"(time {found.time}); use a new id for a new observation")
+                    return ObservationAck(id=client_id, day=found.ack.get("day", ""), step=found.ack.get("step", 0),
                                           duplicate=True)
-            timepolicy.check_bounds(time, created=row.created_at, now=timepolicy.utcnow(), skew=s.max_clock_skew)
-            a.validate(obs)
-            place = a.placement(time)
+            zoned = timepolicy.to_zone(time, tz, after=a.last_instant)
+            now = timepolicy.utcnow()
+            timepolicy.check_bounds(zoned, created=held.row.created_at, now=now, skew=s.max_clock_skew)
+            obs = Observation(zoned, activity, locations)
+            instant = zoned.astimezone(dt.timezone.utc)
+            held_back = instant > now + s.max_ahead
+            try:
+                a.validate_labels(obs) if held_back else a.validate(obs)
+            except DataError as err:
+                if err.field == "time" and timepolicy.is_ambiguous(time, tz):
+                    raise DataError(f"{err.message}; {time.isoformat()} occurs twice in {tz.key} (clocks went back): send "
+                                    "the time with its UTC offset", field="time") from None
+                raise
+            if held_back and any(p.instant == instant for p in held.pending):
+                raise DataError(f"another observation at {zoned.isoformat()} is already held (times must differ)",
+                                field="time")
+            place = a.placement(zoned)
             ack = {"day": place.day, "step": place.step}
-            stored = self.store.add_observation(name, time, activity, dict(locations), client_id, ack)
-            a.observe(obs)
-            return ObservationAck(id=client_id if client_id is not None else str(stored), duplicate=False, **ack)
+            stored = self._write(name, held, lambda: self.store.add_observation(name, zoned, activity, dict(locations),
+                                                                               client_id, ack))
+            if held_back:
+                bisect.insort(held.pending, Pending(instant, obs), key=lambda p: p.instant)
+                a.pending = len(held.pending)
+            else:
+                a.observe(obs)
+            return ObservationAck(id=client_id if client_id is not None else str(stored), duplicate=False,
+                                  pending=held_back, **ack)
+
+    def _write(self, name: str, held: Served, write: Callable[[], int]) -> int:
+        """A store write for a household; if the household vanished from the database behind the
+        service's back (``globe household delete`` on its file), a 404 and the entry dropped."""
+        try:
+            return write()
+        except StoreError:
+            try:
+                gone = self.store.problem() is None and self.store.household(name) is None
+            except StoreError:
+                gone = False
+            if gone:
+                self._forget(name, held)
+                raise UnknownHouseholdError(name) from None
+            raise
 
     def predict(self, name: str) -> Prediction:
         with self.locked(name) as a:
@@ -323,19 +479,22 @@ class Registry:
 
     def feedback(self, name: str, obj: str, accepted: bool) -> FeedbackCounts:
         """What the person said about a fetched object: stored, then counted."""
-        with self.locked(name) as a:
+        with self._held(name) as held:
+            a = held.assistant
+            assert a is not None
             if obj not in a.household.objects:
                 raise DataError(f"unknown object {obj[:64]!r}", field="object")
-            self.store.add_feedback(name, obj, accepted)
+            self._write(name, held, lambda: self.store.add_feedback(name, obj, accepted))
             a.record_feedback(accepted)
             return FeedbackCounts(**a.stats()["feedback"])
 
     def stats(self, name: str) -> StatsOut:
         """The household's counts, with the effective settings of its built models and chooser."""
-        row = self.row(name)
-        with self.locked(name) as a:
+        with self._held(name) as held:
+            a = held.assistant
+            assert a is not None
             built = assembly.describe(a.activity_model, a.chooser)
-            return StatsOut(**a.stats(), timezone=row.timezone, created_at=row.created_at.isoformat(),
+            return StatsOut(**a.stats(), timezone=held.row.timezone, created_at=held.row.created_at.isoformat(),
                             chooser=built["chooser"], models=ModelSettings(activity=built["activity"],
                                                                            objects=built["objects"]))
 
@@ -349,8 +508,37 @@ class Registry:
         """Every stored household (also those imported by the CLI while the service ran)."""
         return sorted(r.name for r in self.store.households())
 
+    def failures(self) -> list[str]:
+        """Households that could not be built (they answer 503 until deleted or the service restarts)."""
+        with self._lock:
+            return sorted(self.failed)
+
     def built(self) -> int:
-        return sum(s.assistant is not None for s in self._served.values())
+        with self._lock:
+            return sum(s.assistant is not None for s in self._served.values())
+
+
+def _locations(value: Any) -> dict[str, str]:
+    """Stored locations: a JSON object of strings (anything else is a damaged row)."""
+    if not isinstance(value, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in value.items()):
+        raise TypeError("stored locations are not an object of labels")
+    return value
+
+
+def _same_observation(found: FoundObservation, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
+                      tz: ZoneInfo) -> bool:
+    """Whether a retry carries the observation stored under its id: the same activity, the same
+    locations and the same time (the same wall time, for a naive one)."""
+    try:
+        stored_time = dt.datetime.fromisoformat(found.time)
+        stored_locations = json.loads(found.locations)
+    except ValueError:
+        return False
+    if time.tzinfo is None:
+        same_time = stored_time.astimezone(tz).replace(tzinfo=None) == time
+    else:
+        same_time = stored_time == time
+    return same_time and found.activity == activity and stored_locations == dict(locations)
 
 
 def check_timezone(name: str | None) -> str:

@@ -6,9 +6,24 @@ app (the limits are configurable, these bounds are the hard ceilings)."""
 from __future__ import annotations
 
 import datetime as dt
+import re
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
+
+from globe.errors import DataError
+
+HOUSEHOLD_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
+"""The one rule for household names (HTTP and the CLI): 1 to 64 ASCII letters, digits, '_', '.'
+and '-', starting with a letter or digit (so never '.', '..', or a name read as an option)."""
+
+
+def check_household_name(name: str, field: str = "name") -> str:
+    """``name`` if it follows :data:`HOUSEHOLD_NAME_PATTERN`, else a :class:`DataError`."""
+    if not re.fullmatch(HOUSEHOLD_NAME_PATTERN, name):
+        raise DataError(f"household name {name[:80]!r} is not 1-64 letters, digits, '_', '.' or '-' starting with a "
+                        "letter or digit", field=field)
+    return name
 
 
 class _Body(BaseModel):
@@ -26,7 +41,7 @@ class NodeIn(_Body):
 
 
 class HouseholdCreate(_Body):
-    name: str = Field(..., min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$", description="household id")
+    name: str = Field(..., min_length=1, max_length=64, pattern=HOUSEHOLD_NAME_PATTERN, description="household id")
     timezone: str | None = Field(None, max_length=64, description="IANA time zone, e.g. Europe/Paris (default: the server's)")
     nodes: list[NodeIn] = Field(..., min_length=1, description="the household's map: the rows of nodes.csv")
     days: list[str] = Field(default_factory=list, description="optional training logs: the text of day files (minute,activity,...)")
@@ -51,6 +66,7 @@ class ObservationAck(_Body):
     day: str
     step: int
     duplicate: bool = False
+    pending: bool = Field(False, description="stored, but held until the server clock is within service.max_ahead of it")
 
 
 class Prediction(BaseModel):
@@ -103,6 +119,8 @@ class StatsOut(_Body):
     activities_known: int
     training_days: int
     quarantined: int = Field(..., description="stored observations set aside because they could not be replayed")
+    training_days_set_aside: int = Field(..., description="stored training days set aside because they could not be read")
+    pending: int = Field(..., description="observations stored but held until the server clock reaches them")
     llm_fallbacks: dict[str, int] = Field(..., description="predictions that fell back to the n-gram choice, by reason")
     timezone: str
     created_at: str
@@ -123,6 +141,35 @@ class ModelFile(_Body):
 class ModelOut(_Body):
     activity: ModelFile
     objects: ModelFile
+
+
+class StoredObservation(_Body):
+    id: int
+    time: str
+    activity: str | None
+    locations: str = Field(..., description="JSON object: object class -> node label")
+    received_at: str
+    client_id: str | None
+    quarantined: bool
+
+
+class StoredFeedback(_Body):
+    object: str
+    accepted: bool
+    received_at: str
+
+
+class HouseholdExport(_Body):
+    """Everything stored about a household, as stored: also a household that cannot be built."""
+
+    name: str
+    timezone: str
+    created_at: str
+    nodes: str = Field(..., description="the map as stored (JSON text: a list of nodes)")
+    objects: str = Field(..., description="the object columns as stored (JSON text)")
+    days: list[str] = Field(..., description="the training days' texts (day-file CSV)")
+    observations: list[StoredObservation]
+    feedback: list[StoredFeedback]
 
 
 class HealthOut(_Body):

@@ -107,6 +107,18 @@ class HouseholdRow:
     name: str
     timezone: str
     created_at: dt.datetime  # aware (UTC)
+    problem: str | None = None  # why the stored row cannot be read (the household is then served as failed)
+
+
+@dataclass(frozen=True, slots=True)
+class FoundObservation:
+    """A stored observation found by its client id: its acknowledgement and what it said."""
+
+    id: int
+    ack: dict
+    time: str
+    activity: str | None
+    locations: str  # JSON, keys sorted
 
 
 @dataclass(frozen=True, slots=True)
@@ -251,11 +263,11 @@ class Store:
 
     def households(self) -> list[HouseholdRow]:
         rows = self._read("SELECT name, timezone, created_at FROM households ORDER BY created_at, name")
-        return [HouseholdRow(n, tz, _aware(c)) for n, tz, c in rows]
+        return [_household_row(*r) for r in rows]
 
     def household(self, name: str) -> HouseholdRow | None:
         rows = self._read("SELECT name, timezone, created_at FROM households WHERE name = ?", (name,))
-        return HouseholdRow(rows[0][0], rows[0][1], _aware(rows[0][2])) if rows else None
+        return _household_row(*rows[0]) if rows else None
 
     def count_households(self) -> int:
         return self._read("SELECT COUNT(*) FROM households")[0][0]
@@ -264,14 +276,40 @@ class Store:
         rows = self._read("SELECT nodes, objects FROM households WHERE name = ?", (name,))
         if not rows:
             raise StoreError(f"household {name!r} is not in the database")
-        nodes = tuple(Node(**n) for n in json.loads(rows[0][0]))
-        return nodes, tuple(json.loads(rows[0][1]))
+        try:
+            nodes = tuple(Node(**n) for n in json.loads(rows[0][0]))
+            objects = json.loads(rows[0][1])
+            if not all(isinstance(getattr(n, f), str) for n in nodes for f in ("node", "cls", "category", "start_location")) \
+                    or not isinstance(objects, list) or not all(isinstance(o, str) for o in objects):
+                raise TypeError("a node or object label is not text")
+        except (ValueError, TypeError, RecursionError) as err:
+            raise StoreError(f"the stored map of household {name!r} is damaged ({type(err).__name__}: {err})") from None
+        return nodes, tuple(objects)
 
     def training_days(self, name: str) -> list[str]:
         """Each stored day: CSV text (stored zlib-compressed: a tenth of the size; or, from schema
         1-2 files, a JSON-encoded :class:`Day`)."""
         rows = self._read("SELECT day FROM training_days WHERE household = ? ORDER BY position", (name,))
         return [_text(r[0]) for r in rows]
+
+    def export_household(self, name: str) -> dict | None:
+        """Everything stored about a household, as stored (nothing is parsed, so a damaged row is
+        exported too): its map's JSON text, its training days' texts, its observations and
+        feedback. None if there is no such household."""
+        rows = self._read("SELECT name, timezone, created_at, nodes, objects FROM households WHERE name = ?", (name,))
+        if not rows:
+            return None
+        name_, timezone, created_at, nodes, objects = rows[0]
+        observations = self._read("SELECT id, time, activity, locations, received_at, client_id, quarantined "
+                                  "FROM observations WHERE household = ? ORDER BY id", (name,))
+        feedback = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? ORDER BY id", (name,))
+        return {
+            "name": name_, "timezone": timezone, "created_at": created_at, "nodes": nodes, "objects": objects,
+            "days": self.training_days(name),
+            "observations": [{"id": i, "time": t, "activity": a, "locations": loc, "received_at": r, "client_id": c,
+                              "quarantined": bool(q)} for i, t, a, loc, r, c, q in observations],
+            "feedback": [{"object": o, "accepted": bool(a), "received_at": r} for o, a, r in feedback],
+        }
 
     def delete_household(self, name: str) -> None:
         """Everything about a household, in one transaction (the right to be forgotten)."""
@@ -287,11 +325,17 @@ class Store:
             "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) VALUES (?, ?, ?, ?, ?, ?, ?)",
             (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id, json.dumps(ack)))])
 
-    def find_observation(self, household: str, client_id: str) -> tuple[int, dict] | None:
-        rows = self._read("SELECT id, ack FROM observations WHERE household = ? AND client_id = ?", (household, client_id))
+    def find_observation(self, household: str, client_id: str) -> FoundObservation | None:
+        rows = self._read("SELECT id, ack, time, activity, locations FROM observations WHERE household = ? AND client_id = ?",
+                          (household, client_id))
         if not rows:
             return None
-        return rows[0][0], json.loads(rows[0][1] or "{}")
+        found_id, ack, time, activity, locations = rows[0]
+        try:
+            answer = json.loads(ack or "{}")
+        except ValueError:
+            answer = {}
+        return FoundObservation(found_id, answer if isinstance(answer, dict) else {}, time, activity, locations)
 
     def observations(self, household: str) -> Iterator[StoredObservation]:
         rows = self._read("SELECT id, time, activity, locations, received_at FROM observations "
@@ -345,6 +389,17 @@ class Store:
 def _aware(text: str) -> dt.datetime:
     t = dt.datetime.fromisoformat(text)
     return t if t.tzinfo else t.replace(tzinfo=dt.timezone.utc)
+
+
+def _household_row(name: str, timezone: object, created_at: object) -> HouseholdRow:
+    """A stored household's row; one whose creation time cannot be read says so in ``problem``
+    (it is then served as failed) instead of stopping whoever lists the households."""
+    try:
+        created = _aware(created_at)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as err:
+        return HouseholdRow(name, str(timezone), dt.datetime.fromtimestamp(0, dt.timezone.utc),
+                            f"its stored creation time {str(created_at)[:40]!r} cannot be read ({err})")
+    return HouseholdRow(name, str(timezone), created)
 
 
 def _encode_day(text: str) -> bytes:

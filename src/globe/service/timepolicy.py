@@ -49,14 +49,28 @@ def zone(name: str, field: str = "timezone") -> ZoneInfo:
     return ZoneInfo(name)
 
 
-def to_zone(time: dt.datetime, tz: ZoneInfo) -> dt.datetime:
-    """An aware time in ``tz``: naive = wall time there (the earlier one if ambiguous)."""
+def to_zone(time: dt.datetime, tz: ZoneInfo, after: dt.datetime | None = None) -> dt.datetime:
+    """An aware time in ``tz``: naive = wall time there. A naive time that occurs twice (the hour
+    repeated when clocks go back) is the first occurrence, unless that is not after ``after`` (the
+    household's last observation) and the second is: then the second, so a robot sending naive
+    wall times goes through the autumn change in order."""
     try:
-        local = time.replace(tzinfo=tz) if time.tzinfo is None else time.astimezone(tz)
+        if time.tzinfo is not None:
+            local = time.astimezone(tz)
+        else:
+            local = time.replace(tzinfo=tz, fold=0)
+            later = time.replace(tzinfo=tz, fold=1)
+            if after is not None and later.utcoffset() != local.utcoffset() and local <= after < later:
+                local = later
         local.astimezone(UTC)  # the instant must exist too (year 1 or 9999 near the edges may not)
     except (OverflowError, ValueError) as err:
         raise DataError(f"time {time.isoformat()} cannot be placed in {tz.key}: {err}", field="time") from None
     return local
+
+
+def is_ambiguous(time: dt.datetime, tz: ZoneInfo) -> bool:
+    """Whether naive ``time`` occurs twice in ``tz`` (the hour repeated when clocks go back)."""
+    return time.tzinfo is None and time.replace(tzinfo=tz, fold=0).utcoffset() != time.replace(tzinfo=tz, fold=1).utcoffset()
 
 
 def check_bounds(time: dt.datetime, *, created: dt.datetime, now: dt.datetime, skew: dt.timedelta) -> None:

@@ -18,8 +18,8 @@ from globe.data.csv_logs import (
     NODE_COLUMNS,
     _check_nesting,
     _clean,
-    _label,
     _parse_minute,
+    activity_label,
     check_map,
     check_step,
     household_step,
@@ -158,7 +158,7 @@ class DayParser:
             for raw in set(raw_minutes).difference(minute_of):
                 minute_of[raw] = _parse_minute(_clean(raw), name, 0)
             for raw in set(raw_activities).difference(activity_of):
-                activity_of[raw] = sys.intern(_label(_clean(raw), name, 0, "activity", "activity"))
+                activity_of[raw] = sys.intern(activity_label(raw, name, 0))
         except DataError:
             return None
         minutes = tuple(map(minute_of.__getitem__, raw_minutes))

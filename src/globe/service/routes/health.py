@@ -15,7 +15,7 @@ router = APIRouter(route_class=FastJSONRoute)
 @router.get("/health")
 def health(registry: RegistryDep) -> HealthOut:
     problem = registry.store.problem()
-    failed = sorted(registry.failed)
+    failed = registry.failures()
     degraded = problem is not None or bool(failed)
     return HealthOut(status="degraded" if degraded else "ok", version=__version__, database=problem or "ok",
                      households=len(registry.names()), built=registry.built(), failed=failed)

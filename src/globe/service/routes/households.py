@@ -1,4 +1,4 @@
-"""``/households`` (admin): list, create from a map and day logs, delete with all its data."""
+"""``/households`` (admin): list, create from a map and day logs, export or delete with all its data."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from fastapi import APIRouter, Response
 
 from globe.service.deps import AdminDep, RegistryDep
 from globe.service.fastjson import FastJSONRoute
-from globe.service.schemas import ERROR_RESPONSES, HouseholdCreate, HouseholdInfo
+from globe.service.schemas import ERROR_RESPONSES, HouseholdCreate, HouseholdExport, HouseholdInfo
 
 router = APIRouter(route_class=FastJSONRoute)
 
@@ -26,3 +26,9 @@ def create_household(body: HouseholdCreate, registry: RegistryDep, caller: Admin
 def delete_household(name: str, registry: RegistryDep, caller: AdminDep) -> Response:
     registry.delete(name)
     return Response(status_code=204)
+
+
+@router.get("/households/{name}/export", responses=ERROR_RESPONSES)
+def export_household(name: str, registry: RegistryDep, caller: AdminDep) -> HouseholdExport:
+    """Everything stored about the household, as stored (also when it cannot be built)."""
+    return HouseholdExport.model_validate(registry.export(name))
