@@ -18,8 +18,10 @@ from tests.helpers import free_port
 
 
 class Server:
-    def __init__(self, db, log, env=None):
+    def __init__(self, db, log, env=None, preexec_fn=None):
         self.db, self.log, self.port, self.proc = db, log, free_port(), None
+        self.preexec_fn = preexec_fn  # run in the server process before it starts (e.g. resource limits)
+        self.args: list[str] = []  # more options of globe serve
         self.env = {"GLOBE_LLM__BACKEND": "none", "GLOBE_SERVICE__PRELOAD": "false", **(env or {})}
         self.admin = create_token(db, admin=True)
 
@@ -36,8 +38,9 @@ class Server:
     def start(self, expect_failure: bool = False) -> "Server":
         env = dict(os.environ, **self.env)
         with open(self.log, "a") as fh:
-            self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port)],
-                                         stdout=fh, stderr=subprocess.STDOUT, env=env)
+            self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port),
+                                          *self.args],
+                                         stdout=fh, stderr=subprocess.STDOUT, env=env, preexec_fn=self.preexec_fn)
         deadline = time.time() + 60
         while time.time() < deadline:
             if self.proc.poll() is not None:

@@ -164,3 +164,8 @@ class DuplicateObservationError(GlobeError):
 
     http_status = 409
     field = "id"
+
+
+class DamagedDatabaseError(StoreError):
+    """The service's database file is empty or truncated: refused at start-up (``--new-db`` sets
+    it aside and starts a new one)."""

@@ -22,8 +22,8 @@ def at(day: int, minute: int) -> dt.datetime:
 def make_server(tmp_path):
     started = []
 
-    def make(env=None, db=None, start=True) -> Server:
-        srv = Server(db or tmp_path / "globe.sqlite3", tmp_path / "server.log", env)
+    def make(env=None, db=None, start=True, preexec_fn=None) -> Server:
+        srv = Server(db or tmp_path / "globe.sqlite3", tmp_path / "server.log", env, preexec_fn)
         started.append(srv)
         return srv.start() if start else srv
 

@@ -25,6 +25,8 @@ def serve(
     host: Annotated[str | None, typer.Option("--host", help="bind address (keep loopback; put a TLS reverse proxy in front)")] = None,
     port: Annotated[int | None, typer.Option("--port", help="TCP port")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
+    new_db: Annotated[bool, typer.Option("--new-db", help="if the --db file is empty or truncated, keep it as "
+                                                          "FILE.damaged-TIME and start a new, empty database")] = False,
     config: ConfigOption = None,
 ) -> None:
     """Start the GLOBE assistance service (OpenAPI at /docs). Requests need a token: globe token create."""
@@ -33,10 +35,18 @@ def serve(
         import uvicorn
     except ImportError as err:
         raise MissingExtraError("uvicorn", "service") from err
+    from globe.errors import DamagedDatabaseError
     from globe.service.app import create_app
-    from globe.service.store import Store
+    from globe.service.store import Store, set_aside_database
 
-    Store(cfg.service.database).close()  # refuse a foreign or newer database here, with a clear message
+    try:
+        Store(cfg.service.database).close()  # refuse a foreign, newer or damaged database here, with a clear message
+    except DamagedDatabaseError:
+        if not new_db:
+            raise
+        kept = set_aside_database(cfg.service.database)
+        console.print(f"the damaged database was kept as {kept}; starting a new one in {cfg.service.database}")
+        Store(cfg.service.database).close()
     if cfg.service.host not in ("127.0.0.1", "localhost", "::1"):
         console.print(f"[yellow]warning:[/yellow] listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; "
                       "keep the service on 127.0.0.1 behind a TLS reverse proxy (see the README)")

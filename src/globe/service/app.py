@@ -48,6 +48,7 @@ def create_app(config: GlobeConfig) -> FastAPI:
         registry.load_all()
         app.state.registry = registry
         stop = threading.Event()
+        threading.Thread(target=_watch, args=(store, stop), name="globe-watch", daemon=True).start()
         if service.preload:
             threading.Thread(target=registry.warm_up, args=(stop,), name="globe-warm-up", daemon=True).start()
         yield
@@ -69,6 +70,19 @@ def create_app(config: GlobeConfig) -> FastAPI:
     app.add_middleware(Guard, service=service)
     _add_error_handlers(app)
     return app
+
+
+WATCH_INTERVAL_S = 1.0  # how often the database's files are checked when no request comes
+
+
+def _watch(store: Store, stop: threading.Event) -> None:
+    """Check the database's files every second: a write-ahead log deleted under the service is
+    copied into the database file at once, not at the next write (which a crash may never see)."""
+    while not stop.wait(WATCH_INTERVAL_S):
+        try:
+            store.watch()
+        except Exception:  # noqa: BLE001 - the watch must outlive anything; each failure is logged
+            log.exception("checking the database files failed")
 
 
 def _add_error_handlers(app: FastAPI) -> None:

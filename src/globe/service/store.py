@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as dt
 import itertools
 import json
+import logging
 import os
 import sqlite3
 import threading
@@ -22,7 +23,9 @@ from pathlib import Path
 from typing import Iterator, Sequence
 
 from globe.data.records import Day, Household, Node
-from globe.errors import StoreError, StoreUnavailableError
+from globe.errors import DamagedDatabaseError, StoreError, StoreUnavailableError
+
+log = logging.getLogger(__name__)
 
 APPLICATION_ID = 0x474C4F42  # "GLOB"
 
@@ -139,15 +142,73 @@ class TokenRow:
     revoked_at: str | None
 
 
+SIDE_FILES = ("-wal", "-shm")  # SQLite's write-ahead log and its index, beside the database file
+
+
+def check_database_file(path: Path) -> None:
+    """Refuse, before SQLite opens it, a database file that cannot hold what was stored: a
+    folder, an empty file (SQLite would start an empty database in it, and every robot's token
+    would be unknown), or a file shorter than its own header says (truncated)."""
+    path = Path(path)
+    if path.is_dir():
+        raise StoreError(f"{path}: is a folder; --db names the database file (e.g. {path / 'globe.sqlite3'})")
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            header = fh.read(100)
+    except FileNotFoundError:
+        return  # a new database
+    except OSError as err:
+        raise StoreError(f"{path}: cannot read the database file: {err.strerror or err}") from err
+    fix = "restore it from a backup, or start a new database with --new-db (the file is kept beside it)"
+    if size == 0:
+        raise DamagedDatabaseError(f"{path}: the database file is empty (0 bytes): a database that was truncated, or a "
+                                   f"file another program created; {fix}")
+    if not header.startswith(b"SQLite format 3\x00"):
+        return  # not SQLite at all: the identity check says so
+    if size < 100:
+        raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes, shorter than its header); {fix}")
+    page_size = int.from_bytes(header[16:18], "big")
+    page_size = 65536 if page_size == 1 else page_size
+    pages, changes, valid_for = (int.from_bytes(header[i:i + 4], "big") for i in (28, 24, 92))
+    if pages and changes == valid_for and size < page_size * pages:
+        raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes; its header says "
+                                   f"{page_size * pages}); {fix}")
+
+
+def set_aside_database(path: Path) -> Path:
+    """Rename a damaged database file (and its side files) to ``<name>.damaged-<time>``, so that a
+    new one can start in its place; returns the new name."""
+    path = Path(path)
+    target = path.with_name(f"{path.name}.damaged-{dt.datetime.now().strftime('%Y%m%dT%H%M%S')}")
+    for suffix in ("", *SIDE_FILES):
+        source = Path(str(path) + suffix)
+        if source.exists():
+            source.replace(Path(str(target) + suffix))
+    return target
+
+
 class Store:
-    """One SQLite file (WAL mode); a lock serialises access across request threads."""
+    """One SQLite file (WAL mode); a lock serialises access across request threads.
+
+    The files are watched: if the database file, its write-ahead log or the log's index
+    disappears or is replaced while the service runs, what the log holds is copied into the
+    database file at once (so every write acknowledged before is durable) and every later write
+    fails with :class:`StoreUnavailableError` (503) until a restart. A failed write (a full disk)
+    is reported by :meth:`problem` until a write succeeds."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
+        check_database_file(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
+        self._lost: str | None = None  # why writes stopped for good (a file went away), once seen
+        self._failed_write: str | None = None  # the last write's error, until a write succeeds
         try:
             self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
+        except sqlite3.Error as err:
+            raise StoreError(f"{self.path}: cannot open the database file (SQLite says: {err})") from err
+        try:
             self._check_identity()
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
@@ -160,7 +221,8 @@ class Store:
         except StoreError:
             self._db.close()
             raise
-        self._stat = self._file_id()
+        self._files: dict[str, tuple[int, int] | None] = {"": self._file_id(self.path)}
+        self._files.update({suffix: self._file_id(Path(str(self.path) + suffix)) for suffix in SIDE_FILES})
 
     # -- identity and schema -------------------------------------------------------------------
     def _check_identity(self) -> None:
@@ -196,41 +258,95 @@ class Store:
                     self._db.execute("ROLLBACK")
                     raise
 
-    def _file_id(self) -> tuple[int, int] | None:
+    @staticmethod
+    def _file_id(path: Path) -> tuple[int, int] | None:
         try:
-            st = os.stat(self.path)
+            st = os.stat(path)
         except OSError:
             return None
         return st.st_dev, st.st_ino
 
-    def problem(self) -> str | None:
-        """Why writes must stop (the file is gone or was replaced), or None."""
-        now = self._file_id()
-        if now is None:
-            return f"database file {self.path} has disappeared"
-        if now != self._stat:
-            return f"database file {self.path} was replaced while the service ran"
+    def _files_problem(self) -> str | None:
+        """Which of the database's files went away or was replaced (a side file SQLite has not
+        created yet is noted when it appears)."""
+        for suffix, known in self._files.items():
+            name = Path(str(self.path) + suffix)
+            now = self._file_id(name)
+            if known is None and suffix:
+                self._files[suffix] = now
+            elif now is None:
+                return f"database file {name} has disappeared"
+            elif now != known:
+                return f"database file {name} was replaced while the service ran"
         return None
 
+    def _check_files(self) -> str | None:
+        """(Under the lock.) Once a file is gone, what the write-ahead log holds is copied into
+        the database file (the acknowledged writes stay durable) and writes stop for good."""
+        if self._lost is None:
+            reason = self._files_problem()
+            if reason is not None:
+                saved = ""
+                if self._file_id(self.path) == self._files[""]:  # the database file itself is still there
+                    try:
+                        busy, _, copied = self._db.execute("PRAGMA wal_checkpoint(FULL)").fetchone()
+                        saved = f"; the {copied} pages its log held were copied into {self.path.name}" if not busy else ""
+                    except sqlite3.Error as err:
+                        saved = f"; copying its log into {self.path.name} failed ({err})"
+                self._lost = reason + saved
+                log.error("%s: writes are refused until the service restarts", self._lost)
+        return self._lost
+
+    def watch(self) -> None:
+        """Check the files now (the service calls this every second, so that a deleted log is
+        copied into the database file even when no write comes)."""
+        with self._lock:
+            self._check_files()
+
+    def problem(self) -> str | None:
+        """Why writes are refused (a file is gone or was replaced) or failing (the last write's
+        error), or None."""
+        with self._lock:
+            lost = self._check_files()
+        if lost:
+            return lost
+        return self._failed_write
+
     def _writable(self) -> None:
-        reason = self.problem()
+        reason = self._check_files()
         if reason:
             raise StoreUnavailableError(f"{reason}; restart the service (writes are refused so nothing is lost silently)")
 
     def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]]) -> int:
         with self._lock:
             self._writable()
+            db = self._db
             try:
-                self._db.execute("BEGIN IMMEDIATE")
+                db.execute("BEGIN IMMEDIATE")
                 last = 0
                 for sql, params in statements:
-                    last = self._db.execute(sql, params).lastrowid or last
-                self._db.execute("COMMIT")
-                return last
+                    last = db.execute(sql, params).lastrowid or last
+                db.execute("COMMIT")
             except sqlite3.Error as err:
-                if self._db.in_transaction:
-                    self._db.execute("ROLLBACK")
+                if db.in_transaction:
+                    db.execute("ROLLBACK")
+                self._note_failure(what, err)
                 raise StoreError(f"cannot {what}: {err}") from err
+            self._failed_write = None
+            self._written(what)
+            return last
+
+    def _note_failure(self, what: str, err: sqlite3.Error) -> None:
+        """A write that failed for the database's sake (not a constraint): reported by /health."""
+        if not isinstance(err, sqlite3.IntegrityError):
+            self._failed_write = f"the last write failed ({what}: {err}) at {_now()}"
+            log.error("%s", self._failed_write)
+
+    def _written(self, what: str) -> None:
+        """After a commit: if a file went away meanwhile, the log was just copied into the
+        database file (this write too), unless the database file itself is gone."""
+        if self._check_files() and self._file_id(self.path) != self._files[""]:
+            raise StoreUnavailableError(f"{self._lost}; cannot {what} durably (restart the service)")
 
     def _read(self, sql: str, params: tuple = ()) -> list[tuple]:
         with self._lock:
@@ -373,8 +489,14 @@ class Store:
         """Revoke by id or hash; returns how many tokens were revoked (0 if none matched)."""
         with self._lock:
             self._writable()
-            cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) AND revoked_at IS NULL",
-                                   (_now(), token_id, digest))
+            try:
+                cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) AND revoked_at IS NULL",
+                                           (_now(), token_id, digest))
+            except sqlite3.Error as err:
+                self._note_failure("revoke the token", err)
+                raise StoreError(f"cannot revoke the token: {err}") from err
+            self._failed_write = None
+            self._written("revoke the token")
             return cur.rowcount
 
     def tokens(self) -> list[TokenRow]:
