@@ -128,3 +128,52 @@ def test_predict_checks_the_household_and_the_objects(tmp_path):
     unknown = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up", "--objects", "bowl,unicorn")
     assert unknown.returncode == 1 and unknown.stderr.startswith("error: --objects: unknown object 'unicorn'; known: book, bowl")
     assert len(unknown.stderr.splitlines()) == 1
+
+
+@pytest.mark.parametrize("args, exit_code, message", [
+    (["train", "--household", "", "--model-dir", "m"], 2, "usage error: Invalid value for '--household': names no household"),
+    (["train", "--household", "A", "--model-dir", "m", "--config", "BINARY"], 1, "not a TOML text file (not UTF-8 at byte"),
+    (["robot", "--url", "127.0.0.1:1", "--token", "t"], 1, "must start with http:// or https://"),
+    (["robot", "--url", "http://127.0.0.1:1", "--token", "t", "--days", "1"], 1, "no answer from the service at "
+                                                                              "http://127.0.0.1:1"),
+    (["serve", "--db", "DB", "--host", "no-such-host.invalid", "--backend", "none"], 1, "--host 'no-such-host.invalid': "
+                                                                                       "cannot resolve it"),
+])
+def test_usage_mistakes_are_one_line_with_exit_1_or_2(args, exit_code, message, tmp_path):
+    """Each ended as 'internal error' (exit 70) or a traceback."""
+    (tmp_path / "BINARY").write_bytes(bytes(range(256)) * 4)
+    args = [str(tmp_path / a) if a in ("BINARY", "DB") else a for a in args]
+    res = globe(*args)
+    assert res.returncode == exit_code and "Traceback" not in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1 and message in res.stderr, res.stderr
+    assert "GLOBE service on" not in res.stdout + res.stderr
+
+
+def test_serve_on_a_port_in_use_and_on_every_interface(tmp_path):
+    """A busy port is one line before anything is printed; listening beyond loopback warns in
+    plain words (the markup was printed literally)."""
+    import os
+    import socket
+    import time
+
+    env = {**os.environ, "GLOBE_LLM__BACKEND": "none"}
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        res = globe("serve", "--db", str(tmp_path / "a.sqlite3"), "--port", str(busy.getsockname()[1]), env=env)
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
+    assert res.stderr.strip().splitlines() == [res.stderr.strip()] and "cannot listen on 127.0.0.1:" in res.stderr
+    assert "GLOBE service on" not in res.stderr
+    from tests.helpers import free_port
+
+    proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(tmp_path / "b.sqlite3"), "--host",
+                             "0.0.0.0", "--port", str(free_port())], stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        first = proc.stderr.readline()
+        deadline = time.time() + 60
+        while "warning" not in first and time.time() < deadline and proc.poll() is None:
+            first = proc.stderr.readline()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    assert first.startswith("warning: listening on 0.0.0.0") and "[yellow]" not in first, first

@@ -145,6 +145,16 @@ class ServiceConfig(_Section):
     max_household_bytes: int = Field(
         32 << 20, ge=1024, le=1 << 31, description="body limit of POST /households (a map plus its training logs)"
     )
+    max_header_bytes: int = Field(
+        64 << 10, ge=1024, le=16 << 20, description="request line and headers limit (431 above it, before anything is parsed)"
+    )
+    header_timeout_s: float = Field(
+        10.0, gt=0, le=3600, description="a connection's request line and headers must arrive within this (else closed)"
+    )
+    body_timeout_s: float = Field(60.0, gt=0, le=3600, description="a request body must arrive within this (else 408)")
+    max_concurrent_creations: int = Field(
+        2, ge=1, le=1000, description="POST /households read and built at once; more wait their turn (memory stays bounded)"
+    )
     max_label_length: int = Field(128, ge=8, le=4096, description="longest activity, object, location or id label")
     max_locations: int = Field(512, ge=1, le=100_000, description="most object locations in one observation")
     max_nodes: int = Field(5000, ge=1, le=1_000_000, description="most nodes in a household's map")
@@ -347,6 +357,10 @@ def load_config(
             raise ConfigError(f"{path}: configuration file not found") from err
         except tomllib.TOMLDecodeError as err:
             raise ConfigError(f"{path}: not valid TOML: {err}") from err
+        except UnicodeDecodeError as err:
+            raise ConfigError(f"{path}: not a TOML text file (not UTF-8 at byte {err.start})") from None
+        except IsADirectoryError:
+            raise ConfigError(f"{path}: is a folder, not a TOML file") from None
         source = str(path)
     values = _merge(values, _env_overrides(os.environ if environ is None else environ))
     values = _merge(values, _nest(overrides or {}))

@@ -45,3 +45,50 @@ def test_tokens_and_import_from_the_command_line(tmp_path, homer_root):
             assert err.value.status == 401
     finally:
         srv.stop()
+
+
+@pytest.mark.parametrize("name", ["", "a/b", "../x", ".", "..", "-x", "x" * 300])
+def test_the_cli_imports_only_names_clients_can_address(tmp_path, homer_root, name):
+    db = tmp_path / "globe.sqlite3"
+    with pytest.raises(DataError) as err:
+        cli("household", "import", "--db", str(db), "--name", name, str(homer_root / "HouseholdB"))
+    assert err.value.field == "name" and "household name" in str(err.value)
+    with pytest.raises(DataError):
+        cli("token", "create", "--db", str(db), "--household", name)
+    from globe.service.store import Store
+
+    store = Store(db)
+    assert store.households() == [] and store.tokens() == []
+    store.close()
+
+
+def test_household_delete_and_export_from_the_command_line(tmp_path, homer_root):
+    import json
+
+    db = tmp_path / "globe.sqlite3"
+    admin = cli("token", "create", "--db", str(db), "--admin").stdout.strip().splitlines()[-1]
+    cli("household", "import", "--db", str(db), "--name", "home-c", "--timezone", "UTC", str(homer_root / "HouseholdC"))
+    robot = cli("token", "create", "--db", str(db), "--household", "home-c").stdout.strip().splitlines()[-1]
+    out = tmp_path / "home-c.json"
+    cli("household", "export", "--db", str(db), "--name", "home-c", "--out", str(out))
+    exported = json.loads(out.read_text())
+    assert exported["name"] == "home-c" and len(exported["days"]) == 65 and exported["observations"] == []
+    srv = Server(db, tmp_path / "server.log")
+    srv.start()
+    try:
+        with GlobeClient(srv.url, token=admin) as c:
+            assert c._call("GET", "/households/home-c/export") == exported  # the same, over HTTP
+        assert cli("household", "delete", "--db", str(db), "--name", "home-c").exit_code == 0
+        with GlobeClient(srv.url, token=robot) as c:
+            with pytest.raises(ServiceError) as err:
+                c.stats("home-c")
+            assert err.value.status == 401  # its tokens went with it
+        with GlobeClient(srv.url, token=admin) as c:
+            assert c.households() == []
+            with pytest.raises(ServiceError) as err:
+                c.observe("home-c", __import__("datetime").datetime.now(), "idle", {})
+            assert err.value.status == 404
+    finally:
+        srv.stop()
+    with pytest.raises(DataError, match="no household 'home-c'"):
+        cli("household", "delete", "--db", str(db), "--name", "home-c")

@@ -1,5 +1,5 @@
 """Administration of a service database on the server's own machine: ``globe token create|revoke|list``
-and ``globe household import`` (a folder on this disk; never offered over HTTP)."""
+and ``globe household import|delete|export`` (import reads a folder on this disk: never offered over HTTP)."""
 
 from __future__ import annotations
 
@@ -31,10 +31,13 @@ def token_create(
 ) -> None:
     """Print a new token once (the database keeps only its hash)."""
     from globe.service.auth import issue
+    from globe.service.schemas import check_household_name
     from globe.service.store import Store
 
     if admin == (household is not None):
         raise DataError("give exactly one of --admin and --household NAME", field="household")
+    if household is not None:
+        check_household_name(household, field="household")
     store = Store(db)
     try:
         token, token_id = issue(store, household=household, admin=admin)
@@ -85,9 +88,11 @@ def household_import(
     """Import a household folder from this machine's disk into the database."""
     from globe.data.csv_logs import day_files, read_nodes
     from globe.service.registry import check_timezone
+    from globe.service.schemas import check_household_name
     from globe.service.store import Store
     from globe.service.upload import household_from
 
+    check_household_name(name)
     nodes = read_nodes(folder / "nodes.csv")
     texts = [f.read_text(encoding="utf-8-sig") for f in day_files(folder / "train")] if (folder / "train").is_dir() else []
     household = household_from(name, nodes, texts)
@@ -101,3 +106,47 @@ def household_import(
     finally:
         store.close()
     console.print(f"imported household {name!r}: {len(objects)} objects, {len(days)} training days, time zone {tz}")
+
+
+@household_app.command("delete")
+def household_delete(
+    db: DbOption,
+    name: Annotated[str, typer.Option("--name", help="household id in the service")],
+) -> None:
+    """Delete a household and everything stored about it (its observations, feedback and tokens).
+
+    Prefer DELETE /households/NAME on a running service; done here, a running service forgets the
+    household at its next write or rebuild (its tokens stop working at once)."""
+    from globe.service.store import Store
+
+    store = Store(db)
+    try:
+        if store.household(name) is None:
+            raise DataError(f"no household {name!r} in {db}", field="name")
+        store.delete_household(name)
+    finally:
+        store.close()
+    console.print(f"deleted household {name!r} and everything stored about it")
+
+
+@household_app.command("export")
+def household_export(
+    db: DbOption,
+    name: Annotated[str, typer.Option("--name", help="household id in the service")],
+    out_file: Annotated[Path, typer.Option("--out", help="JSON file to write (what GET /households/NAME/export answers)")],
+) -> None:
+    """Write everything stored about a household, as stored (also one the service cannot build)."""
+    import json
+
+    from globe.service.store import Store
+
+    store = Store(db)
+    try:
+        found = store.export_household(name)
+    finally:
+        store.close()
+    if found is None:
+        raise DataError(f"no household {name!r} in {db}", field="name")
+    out_file.write_text(json.dumps(found, indent=1) + "\n", encoding="utf-8")
+    console.print(f"exported household {name!r} ({len(found['days'])} training days, {len(found['observations'])} "
+                  f"observations) to {out_file}")

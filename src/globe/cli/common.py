@@ -39,7 +39,7 @@ def resolve(config: Path | None, **overrides: Any) -> GlobeConfig:
 def households_from(cfg: GlobeConfig, data: Path | None, households: str | None) -> list[Household]:
     """Load the named households (else ``data.households``) by the ``data`` section's rules."""
     root = resolve_data_root(data if data is not None else cfg.data.root)
-    names = [h.strip() for h in households.split(",")] if households else list(cfg.data.households)
+    names = [h.strip() for h in households.split(",")] if households is not None else list(cfg.data.households)
     if not names or any(not n for n in names):
         raise typer.BadParameter(f"{households!r} names no household", param_hint="'--households'")
     return [load_household(root, n, step_minutes=cfg.data.step_minutes, resample=cfg.data.resample) for n in names]

@@ -26,6 +26,8 @@ def train(
     cfg = resolve(config)
     if "," in household:
         raise typer.BadParameter("one household at a time", param_hint="'--household'")
+    if not household.strip():
+        raise typer.BadParameter("names no household", param_hint="'--household'")
     (h,) = households_from(cfg, data, household)
     fitted = fit_household(h, cfg)
     path = save_household_model(model_dir, fitted.activity, fitted.objects, household=Path(h.source).name or h.name,

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.text import Text
 
 from globe.cli.common import (
     ConfigOption,
@@ -32,10 +33,11 @@ def serve(
     """Start the GLOBE assistance service (OpenAPI at /docs). Requests need a token: globe token create."""
     cfg = resolve(config, service__database=database, service__host=host, service__port=port, llm__backend=backend)
     try:
-        import uvicorn
+        import uvicorn  # noqa: F401 - checked here: the service extra
     except ImportError as err:
         raise MissingExtraError("uvicorn", "service") from err
     from globe.errors import DamagedDatabaseError
+    from globe.service import server
     from globe.service.app import create_app
     from globe.service.store import Store, set_aside_database
 
@@ -47,11 +49,14 @@ def serve(
         kept = set_aside_database(cfg.service.database)
         console.print(f"the damaged database was kept as {kept}; starting a new one in {cfg.service.database}")
         Store(cfg.service.database).close()
+    sock = server.bind(cfg.service.host, cfg.service.port)  # a busy port or an unknown host: one line, before anything
     if cfg.service.host not in ("127.0.0.1", "localhost", "::1"):
-        console.print(f"[yellow]warning:[/yellow] listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; "
-                      "keep the service on 127.0.0.1 behind a TLS reverse proxy (see the README)")
+        warning = Text("warning:", style="yellow")
+        warning.append(f" listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; keep the service "
+                       "on 127.0.0.1 behind a TLS reverse proxy (see the README)")
+        console.print(warning, soft_wrap=True)
     console.print(f"GLOBE service on http://{cfg.service.host}:{cfg.service.port} (database {cfg.service.database})")
-    uvicorn.run(create_app(cfg), host=cfg.service.host, port=cfg.service.port, log_level="warning")
+    server.run(create_app(cfg), cfg.service, sock)
 
 
 def robot(

@@ -12,7 +12,7 @@ from typing import Any, Mapping, Sequence
 
 from globe.data.csv_logs import format_day
 from globe.data.records import Household
-from globe.errors import GlobeError, MissingExtraError
+from globe.errors import DataError, GlobeError, MissingExtraError
 from globe.service.schemas import Prediction
 
 
@@ -22,6 +22,10 @@ class ServiceError(GlobeError):
     def __init__(self, status: int, detail: str, field: str | None = None) -> None:
         super().__init__(f"HTTP {status}: {detail}" + (f" (field {field})" if field else ""))
         self.status, self.detail, self.field = status, detail, field
+
+
+class ServiceUnreachableError(GlobeError):
+    """No answer at all: the service is not running there, or the network is down."""
 
 
 ServicePrediction = Prediction  # the service's own schema (kept as a name for robot code written against it)
@@ -40,11 +44,21 @@ class GlobeClient:
             import httpx
         except ImportError as err:
             raise MissingExtraError("httpx", "service") from err
+        if not base_url.startswith(("http://", "https://")):
+            raise DataError(f"service URL {base_url!r} must start with http:// or https:// (e.g. http://127.0.0.1:8765)",
+                            field="url")
         headers = {"Authorization": f"Bearer {token}"} if token else {}
-        self._http = httpx.Client(base_url=base_url.rstrip("/"), timeout=timeout_s, headers=headers)
+        self.base_url = base_url.rstrip("/")
+        self._http = httpx.Client(base_url=self.base_url, timeout=timeout_s, headers=headers)
 
     def _request(self, method: str, path: str, **kw: Any):
-        response = self._http.request(method, path, **kw)
+        import httpx
+
+        try:
+            response = self._http.request(method, path, **kw)
+        except httpx.TransportError as err:
+            raise ServiceUnreachableError(f"no answer from the service at {self.base_url} ({type(err).__name__}: "
+                                          f"{err or 'no detail'}); is globe serve running there?") from err
         if not 200 <= response.status_code < 300:
             try:
                 body = response.json()

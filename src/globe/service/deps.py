@@ -18,7 +18,11 @@ def get_registry(request: Request) -> Registry:
 
 
 def get_caller(request: Request, registry: Annotated[Registry, Depends(get_registry)]) -> auth.Caller:
-    """Who sends the request (401 without a known, unrevoked token)."""
+    """Who sends the request (401 without a known, unrevoked token): authenticated by the
+    :class:`~globe.service.guard.Guard` from the headers before the body was read."""
+    caller = getattr(request.state, "caller", None)
+    if isinstance(caller, auth.Caller):
+        return caller
     return auth.authenticate(registry.store, request.headers.get("authorization"))
 
 
