@@ -109,6 +109,21 @@ def embedded_backend(llm: LLMConfig) -> "EmbeddedBackend":
     return EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx, cache=_answer_cache(llm))
 
 
+def service_llm_backend(config: GlobeConfig) -> LLMBackend | None:
+    """The service's LLM backend: the embedded one with ``service.llm_timeout_s`` as the time limit
+    of an answer, and loading (and probing) the model in the background from now on, so that no
+    request waits for it."""
+    if config.llm.backend != "embedded":
+        return llm_backend(config.llm)
+    from globe.reasoning.backends.embedded import EmbeddedBackend
+
+    llm = config.llm
+    backend = EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx,
+                              cache=_answer_cache(llm), timeout_s=config.service.llm_timeout_s)
+    backend.start_loading()
+    return backend
+
+
 def llm_backend(llm: LLMConfig) -> LLMBackend | None:
     """The configured LLM backend (``none`` -> None); heavy imports happen only here."""
     if llm.backend == "none":

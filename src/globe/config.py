@@ -161,6 +161,10 @@ class ServiceConfig(_Section):
     max_days: int = Field(1000, ge=0, le=100_000, description="most training days uploaded with a household")
     max_households: int = Field(1000, ge=1, le=1_000_000, description="most households one service holds")
     preload: bool = Field(True, description="build stored households in the background after start-up (else on first use)")
+    llm_timeout_s: float = Field(
+        5.0, gt=0, le=600, description="time limit of the embedded LLM's answer to one prediction (past it, and while the "
+                                       "model loads in the background after start-up, the n-gram choice is used)",
+    )
     max_built_households: int = Field(
         64, ge=1, le=1_000_000, description="households kept built in memory; the least recently used are rebuilt from the database on demand"
     )

@@ -110,6 +110,8 @@ class StoreError(GlobeError):
 class LLMCacheError(LLMError):
     """The on-disk answer cache failed (locked, missing, corrupt): the gate falls back to the n-gram."""
 
+    reason: str | None = None  # 'locked', 'missing', 'corrupt', ... where the cache knows it
+
 
 class AuthenticationError(GlobeError):
     """No credentials, or credentials the service does not know (HTTP 401)."""

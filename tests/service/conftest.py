@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import datetime as dt
+import time
 
+import httpx
 import pytest
 
 from globe.service.client import GlobeClient, household_payload
@@ -41,3 +43,11 @@ def server(make_server):
 def upload(client: GlobeClient, name: str, household, timezone: str | None = "UTC", days: bool = True) -> dict:
     payload = household_payload(household)
     return client.create_household(name, payload["nodes"], payload["days"] if days else [], timezone=timezone)
+
+
+def wait_for_llm(url: str, state: str = "ready", timeout: float = 180) -> None:
+    """Until the service's /health says its LLM is in ``state`` (it loads in the background)."""
+    deadline = time.time() + timeout
+    while (now := httpx.get(url + "/health").json()["llm"]) != state:
+        assert time.time() < deadline and not now.startswith("failed"), now
+        time.sleep(0.2)

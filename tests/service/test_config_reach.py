@@ -5,7 +5,7 @@ back from the built objects (``/stats``), not from the configuration."""
 import pytest
 
 from globe.config import GateConfig, ModelConfig
-from tests.service.conftest import REPLAY_ENV, at, upload
+from tests.service.conftest import REPLAY_ENV, at, upload, wait_for_llm
 
 pytestmark = pytest.mark.service
 
@@ -58,6 +58,7 @@ def test_environment_reaches_the_served_objects(make_server, households, tmp_pat
     h = households["A"]
     with srv.client() as c:
         upload(c, "A", h)
+        wait_for_llm(srv.url)  # the model loads in the background; meanwhile predictions fall back
         day = h.test[0]
         consulted = 0
         for t in range(40):

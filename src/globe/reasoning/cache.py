@@ -4,11 +4,13 @@ Keyed by backend, model, prompt/context, candidates and parameters, so re-runnin
 experiment is reproducible and free, and an interrupted run keeps every answer it got.
 
 The cache must never turn a prediction into an error. A failed lookup (the file is locked by
-another process, was deleted, or is damaged) raises :class:`LLMCacheError`, an ``LLMError`` the
-uncertainty gate already catches: that prediction falls back to the n-gram choice, counted with
-its reason. A failed store is counted and logged (the answer is still used). A file that is
-not a readable SQLite database is set aside (renamed ``*.corrupt-<time>``) and rebuilt empty,
-with a logged warning.
+another process, was deleted, or is damaged; its folder cannot be made; a stored answer is not
+of the shape its reader expects, e.g. ``"abc"``, ``[]`` or ``NaN`` where scores belong) raises
+:class:`LLMCacheError`, an ``LLMError`` the uncertainty gate already catches: that prediction
+falls back to the n-gram choice, counted with its reason. A misshapen answer is deleted, so the
+question is asked afresh next time. A failed store is counted and logged (the answer is still
+used). A file that is not a readable SQLite database is set aside (renamed ``*.corrupt-<time>``)
+and rebuilt empty, with a logged warning. Nothing about the cache stops a program from starting.
 """
 
 from __future__ import annotations
@@ -16,12 +18,13 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import sqlite3
 import threading
 import time
 from collections import Counter
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from globe.errors import LLMCacheError
 
@@ -45,7 +48,6 @@ class AnswerCache:
 
     def __init__(self, path: Path, *, timeout_s: float = 0.25) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self.timeout_s = timeout_s
         self._lock = threading.Lock()
         self.hits = 0
@@ -59,6 +61,7 @@ class AnswerCache:
             log.warning("%s", err)
 
     def _connect(self) -> sqlite3.Connection:
+        self.path.parent.mkdir(parents=True, exist_ok=True)  # OSError if a file stands in its way
         db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=self.timeout_s)
         try:
             db.execute("PRAGMA journal_mode=WAL")
@@ -80,7 +83,9 @@ class AnswerCache:
                 self._set_aside(err)
                 return self._connect()
         except (sqlite3.Error, OSError) as err:
-            raise LLMCacheError(f"{self.path}: cannot open the answer cache ({_reason(err)}): {err}") from err
+            failure = LLMCacheError(f"{self.path}: cannot open the answer cache ({_reason(err)}): {err}")
+            failure.reason = _reason(err)
+            raise failure from err
 
     def _set_aside(self, err: sqlite3.Error) -> None:
         target = self.path.with_name(f"{self.path.name}.corrupt-{time.strftime('%Y%m%dT%H%M%S')}")
@@ -112,20 +117,35 @@ class AnswerCache:
         except (OSError, sqlite3.Error) as again:  # pragma: no cover - the next lookup reports it
             log.warning("LLM answer cache %s could not be rebuilt: %s", self.path, again)
 
-    def get(self, key: str) -> Any | None:
+    def get(self, key: str, valid: Callable[[Any], bool] | None = None) -> Any | None:
+        """The stored answer, or None; :class:`LLMCacheError` if it cannot be read, or if
+        ``valid`` says it is not of the expected shape (it is then deleted)."""
         with self._lock:
             try:
                 row = self._connection().execute("SELECT value FROM answers WHERE key = ?", (key,)).fetchone()
-                value = None if row is None else json.loads(row[0])
             except LLMCacheError as err:
                 self.errors[_reason(err)] += 1
                 raise
-            except (sqlite3.Error, ValueError) as err:
+            except sqlite3.Error as err:
                 reason = _reason(err)
                 self.errors[reason] += 1
-                if isinstance(err, sqlite3.Error):
-                    self._recover(err)
+                self._recover(err)
                 raise LLMCacheError(f"answer cache lookup failed ({reason}): {err}") from err
+            value, readable = None, True
+            if row is not None:
+                try:
+                    value = json.loads(row[0])
+                except (TypeError, ValueError, RecursionError):
+                    readable = False
+            if row is not None and (not readable or (valid is not None and not valid(value))):
+                self.errors["corrupt"] += 1
+                shown = str(row[0]) if len(str(row[0])) <= 60 else str(row[0])[:60] + "..."
+                log.warning("LLM answer cache %s: a stored answer is not of the expected shape (%s): deleted", self.path, shown)
+                try:
+                    self._connection().execute("DELETE FROM answers WHERE key = ?", (key,))
+                except (sqlite3.Error, LLMCacheError) as err:
+                    log.warning("LLM answer cache %s: could not delete it: %s", self.path, err)
+                raise LLMCacheError(f"answer cache entry is not of the expected shape ({shown!r}); asked afresh next time")
         if row is None:
             self.misses += 1
             return None
@@ -155,12 +175,20 @@ class AnswerCache:
                 self._db = None
 
 
+def finite_number(value: Any) -> bool:
+    """A JSON number that is a real score: not a bool, not NaN or infinite."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
 def _reason(err: Exception) -> str:
+    if isinstance(err, LLMCacheError) and err.reason:
+        return err.reason
     text = str(err).lower()
     if "locked" in text or "busy" in text:
         return "locked"
-    if "not a database" in text or "malformed" in text or isinstance(err, ValueError):
+    if "not a database" in text or "malformed" in text or isinstance(err, (ValueError, RecursionError)):
         return "corrupt"
-    if "no such table" in text or "readonly" in text or "unable to open" in text or "disk i/o" in text:
+    if "no such table" in text or "readonly" in text or "unable to open" in text or "disk i/o" in text \
+            or isinstance(err, OSError):
         return "missing"
     return type(err).__name__

@@ -44,7 +44,7 @@ def create_app(config: GlobeConfig) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         store = Store(service.database)
-        registry = Registry(store, config, assembly.llm_backend(config.llm))
+        registry = Registry(store, config, assembly.service_llm_backend(config))
         registry.load_all()
         app.state.registry = registry
         stop = threading.Event()

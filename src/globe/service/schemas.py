@@ -179,6 +179,8 @@ class HealthOut(_Body):
     households: int
     built: int = Field(..., description="households whose models are in memory")
     failed: list[str] = Field(..., description="households that could not be built")
+    llm: str = Field(..., description="'none', 'ready', 'loading' (predictions use the n-gram choice meanwhile) or "
+                                      "'failed: <why>'")
 
 
 class ErrorOut(_Body):

@@ -35,6 +35,14 @@ class LLMBackend(ABC):
     def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice: ...
 
     @property
+    def status(self) -> str:
+        """'ready', or why questions get no answer now ('loading', 'failed: ...')."""
+        return "ready"
+
+    def start_loading(self) -> None:  # noqa: B027 - a hook: most backends have nothing to load
+        """Get ready to answer in the background (a backend with nothing to load does nothing)."""
+
+    @property
     def prefetches(self) -> bool:
         """Whether answering questions ahead (:meth:`prefetch`) saves work: only with a cache."""
         return self.cache is not None

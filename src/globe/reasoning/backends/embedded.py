@@ -21,13 +21,16 @@ a whole evaluation's questions in a few hundred batches.
 from __future__ import annotations
 
 import logging
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
 from typing import Sequence
 
-from globe.errors import LLMError, LLMUnavailableError, MissingExtraError
+from globe.errors import LLMError, LLMTimeoutError, LLMUnavailableError, MissingExtraError
 from globe.reasoning.backends.base import Choice, LLMBackend
 from globe.reasoning.backends.token_forest import Request, Runtime, runtime
-from globe.reasoning.cache import AnswerCache, cache_key
+from globe.reasoning.cache import AnswerCache, cache_key, finite_number
 from globe.reasoning.context import ChoiceContext
 from globe.reasoning.prompts import NULL_PREFIX, cloze_continuation, cloze_prefix, diary_prefix
 
@@ -35,6 +38,16 @@ log = logging.getLogger(__name__)
 
 MEMO_SIZE = 200_000  # scores kept in memory per backend (about 40 MB at most)
 PREFETCH_CHUNK = 256  # questions scored together (their answers are stored before the next ones)
+
+
+def _valid_answer(value: object, candidates: Sequence[str]) -> bool:
+    """A cached answer as :meth:`EmbeddedBackend.choose` stores it: one of the candidates, and a
+    finite score for each of them."""
+    if not isinstance(value, dict) or value.get("answer") not in candidates:
+        return False
+    scores = value.get("scores")
+    return (isinstance(scores, dict) and set(scores) == set(candidates)
+            and all(finite_number(x) for x in scores.values()))
 
 
 def packaged_model_path() -> Path:
@@ -64,13 +77,17 @@ class EmbeddedBackend(LLMBackend):
     name = "embedded"
 
     def __init__(self, *, model_path: Path | None = None, n_threads: int = 2, n_ctx: int = 512,
-                 cache: AnswerCache | None = None) -> None:
+                 cache: AnswerCache | None = None, timeout_s: float | None = None) -> None:
         self.model_path = model_path
         self.n_threads = n_threads
         self.n_ctx = n_ctx
         self.cache = cache
+        self.timeout_s = timeout_s  # time limit of one answer's scoring (None: none)
         self._runtime: Runtime | None = None
         self._memo: dict[tuple[str, str], float] = {}  # (prompt, continuation) -> score, reused across calls
+        self._loader: threading.Thread | None = None
+        self._load_error: str | None = None
+        self._scorer: ThreadPoolExecutor | None = None  # runs the scoring when there is a time limit
 
     @property
     def model_name(self) -> str:  # type: ignore[override]
@@ -85,6 +102,50 @@ class EmbeddedBackend(LLMBackend):
     def load(self) -> None:
         """Load the model now (it is otherwise loaded by the first question)."""
         self._shared()
+
+    def start_loading(self) -> None:
+        """Load and probe the model in a background thread. Until it is ready, :meth:`choose`
+        raises :class:`LLMUnavailableError` at once (the gate answers with the n-gram choice)
+        instead of holding its caller for the seconds a load takes."""
+        if self._runtime is None and self._loader is None:
+            self._loader = threading.Thread(target=self._load_in_background, name="globe-llm-load", daemon=True)
+            self._loader.start()
+
+    def _load_in_background(self) -> None:
+        try:
+            self._shared()
+        except Exception as err:  # noqa: BLE001 - reported by status and by every question, never lost
+            self._load_error = f"{type(err).__name__}: {err}"
+            log.error("the embedded LLM could not be loaded: %s", self._load_error)
+
+    @property
+    def status(self) -> str:
+        """'ready', 'loading', 'not loaded' (loads with the first question) or 'failed: <why>'."""
+        if self._runtime is not None:
+            return "ready"
+        if self._load_error is not None:
+            return f"failed: {self._load_error}"
+        return "loading" if self._loader is not None else "not loaded"
+
+    def _ready(self) -> None:
+        """With a background load under way or failed: an error now rather than a wait."""
+        if self._loader is not None and self._runtime is None:
+            if self._load_error is not None:
+                raise LLMUnavailableError(f"the embedded model could not be loaded: {self._load_error}")
+            raise LLMUnavailableError("the embedded model is still loading")
+
+    def _within_limit(self, context: ChoiceContext, candidates: tuple[str, ...]) -> dict[str, float]:
+        """:meth:`score`, in a scoring thread when there is a time limit: past it the caller gets
+        :class:`LLMTimeoutError` (the scores still computed are memoised for the next asking)."""
+        if self.timeout_s is None:
+            return self.score(context, candidates)
+        if self._scorer is None:
+            self._scorer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="globe-llm-score")
+        future = self._scorer.submit(self.score, context, candidates)
+        try:
+            return future.result(timeout=self.timeout_s)
+        except FutureTimeout:
+            raise LLMTimeoutError(f"the embedded model gave no answer within {self.timeout_s:g} s") from None
 
     @staticmethod
     def _prompt_tokens(rt: Runtime, prompt: str) -> tuple[int, ...]:
@@ -159,11 +220,12 @@ class EmbeddedBackend(LLMBackend):
         key = None
         if self.cache is not None:
             key = self._key(context, candidates)
-            hit = self.cache.get(key)
+            hit = self.cache.get(key, valid=lambda v: _valid_answer(v, candidates))
             if hit is not None:
                 return Choice(hit["answer"], hit["scores"], cached=True)
+        self._ready()
         try:
-            scores = self.score(context, tuple(sorted(candidates)))
+            scores = self._within_limit(context, tuple(sorted(candidates)))
         except (RuntimeError, ValueError, OSError) as err:
             raise LLMUnavailableError(f"llama.cpp failed: {err}") from err
         answer = max(sorted(scores), key=lambda c: scores[c])
@@ -206,7 +268,8 @@ class EmbeddedBackend(LLMBackend):
         key = None
         if self.cache is not None:
             key = cache_key(backend=self.name, model=self.model_name, scoring=SCORING, prefix=prefix, continuations=continuations)
-            hit = self.cache.get(key)
+            hit = self.cache.get(key, valid=lambda v: isinstance(v, list) and len(v) == len(continuations)
+                                 and all(map(finite_number, v)))
             if hit is not None:
                 return hit
         scores = self.continuation_logprobs(prefix, continuations)

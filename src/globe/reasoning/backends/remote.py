@@ -69,7 +69,7 @@ class RemoteBackend(LLMBackend):
         if self.cache is not None:
             key = cache_key(backend=self.name, model=self.model_name, base_url=self.base_url, prompt=prompt,
                             temperature=self.temperature, max_tokens=self.max_tokens)
-            hit = self.cache.get(key)
+            hit = self.cache.get(key, valid=lambda v: isinstance(v, str))
             if hit is not None:
                 return self._validated(hit, candidates, cached=True)
         import openai

@@ -17,5 +17,6 @@ def health(registry: RegistryDep) -> HealthOut:
     problem = registry.store.problem()
     failed = registry.failures()
     degraded = problem is not None or bool(failed)
+    llm = "none" if registry.backend is None else registry.backend.status
     return HealthOut(status="degraded" if degraded else "ok", version=__version__, database=problem or "ok",
-                     households=len(registry.names()), built=registry.built(), failed=failed)
+                     households=len(registry.names()), built=registry.built(), failed=failed, llm=llm)
