@@ -72,3 +72,56 @@ def test_each_error_class_answers_with_its_own_status(error, status, token_store
 def test_an_unexpected_globe_error_is_a_500(token_store):
     assert GlobeError.http_status == 500
     assert client_of(GlobeError("a bug"), *token_store).get("/households/A/stats").status_code == 500
+
+
+def test_the_openapi_schema_says_what_the_server_enforces():
+    """Configured limits (not the models' hard ceilings), the label and class#id rules, and the
+    400/408/431 answers the guard sends."""
+    schema = create_app(GlobeConfig().with_overrides({"service.max_label_length": 40, "service.max_locations": 3})).openapi()
+    parts = schema["components"]["schemas"]
+    observation = parts["ObservationIn"]["properties"]
+    assert [b for b in observation["id"]["anyOf"] if b["type"] == "string"][0]["maxLength"] == 40
+    assert [b for b in observation["activity"]["anyOf"] if b["type"] == "string"][0] == {"type": "string", "maxLength": 40,
+                                                                                          "minLength": 1}
+    assert observation["locations"]["maxProperties"] == 3
+    assert parts["NodeIn"]["properties"]["node"]["maxLength"] == 40
+    for path, operations in schema["paths"].items():
+        for method, operation in operations.items():
+            assert {"400", "408", "431"} <= set(operation["responses"]), (method, path)
+
+
+@pytest.mark.parametrize(("label", "ok"), [
+    ("cooking", True), (" cooking\t", True), ("café", True), ("", False), (" \t", False), ("idle\x07", False),
+    ("a\x85b", False), ("evil\u202etxt", False), ("x\u2066", False), ("in\tside", False),
+])
+def test_the_documented_label_pattern_is_the_servers_rule(label, ok):
+    import re
+
+    from globe.data.csv_logs import activity_label
+    from globe.service.schemas import LABEL_PATTERN
+
+    try:
+        activity_label(label)
+        accepted = True
+    except DataError:
+        accepted = False
+    assert accepted == ok and bool(re.match(LABEL_PATTERN[:-1] + r"\Z", label)) == ok
+
+
+@pytest.mark.parametrize(("label", "ok"), [
+    ("kitchen#1", True), ("a#b#c", True), ("##1", True), (" a#1 ", True), ("a #1", True), ("#1", False), ("a#", False),
+    ("a# ", False), (" #1", False), ("a1", False), ("a#1\x00", False), ("a#1#", False),
+])
+def test_the_documented_node_pattern_is_the_servers_class_id_rule(label, ok):
+    import re
+
+    from globe.data.csv_logs import parse_nodes_text
+    from globe.service.schemas import NODE_PATTERN
+
+    cls = label.strip(" \t").rpartition("#")[0].strip(" \t") or "x"
+    try:
+        parse_nodes_text(f'node,class,category,movable,start_location\n"{label}","{cls}",Rooms,0,"{label}"\n', "nodes")
+        accepted = True
+    except DataError as err:
+        accepted = "does not start with its class" in str(err)
+    assert accepted == ok and bool(re.match(NODE_PATTERN[:-1] + r"\Z", label)) == ok

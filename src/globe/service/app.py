@@ -33,6 +33,7 @@ from globe.service.fastjson import FastJSONRoute
 from globe.service.guard import Guard, error_response
 from globe.service.registry import Registry
 from globe.service.routes import ROUTERS
+from globe.service.schemas import document_limits
 from globe.service.store import Store
 
 log = logging.getLogger(__name__)
@@ -69,6 +70,14 @@ def create_app(config: GlobeConfig) -> FastAPI:
                            allow_headers=["Authorization", "Content-Type"])
     app.add_middleware(Guard, service=service)
     _add_error_handlers(app)
+    default_openapi = app.openapi
+
+    def openapi() -> dict:
+        if app.openapi_schema is None:
+            app.openapi_schema = document_limits(default_openapi(), service)
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
     return app
 
 

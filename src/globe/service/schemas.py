@@ -11,6 +11,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
+from globe.config import ServiceConfig
 from globe.errors import DataError
 
 HOUSEHOLD_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
@@ -26,6 +27,23 @@ def check_household_name(name: str, field: str = "name") -> str:
     return name
 
 
+_CONTROL = r"\x00-\x1f\x7f-\x9f"
+_REFUSED = _CONTROL + r"\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069"  # control and bidi-formatting characters
+LABEL_PATTERN = rf"^[ \t]*[^{_REFUSED}]*[^ \t{_REFUSED}][^{_REFUSED}]*[ \t]*$"
+"""What the label rule (:func:`globe.data.csv_logs.activity_label`) accepts, as the OpenAPI
+schema says it: spaces and tabs around it, something else inside, no control or
+bidirectional-formatting character (lone surrogates are refused by JSON decoding already)."""
+NODE_PATTERN = (rf"^[ \t]*[^{_REFUSED}]*[^ \t{_REFUSED}][^{_REFUSED}]*#[^#{_REFUSED}]*[^# \t{_REFUSED}][^#{_REFUSED}]*"
+                r"[ \t]*$")
+"""A node label: a label of the form ``class#id`` (the class before the last '#', the id after it)."""
+
+
+def _documented(pattern: str) -> dict[str, Any]:
+    """A pattern for the OpenAPI schema only: the server applies the rule itself, with messages
+    that name what is wrong."""
+    return {"pattern": pattern}
+
+
 class _Body(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -33,11 +51,15 @@ class _Body(BaseModel):
 class NodeIn(_Body):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
-    node: str = Field(..., min_length=1, max_length=4096, description="class#id, the node's unique label")
-    cls: str = Field(..., alias="class", min_length=1, max_length=4096, description="the node's class")
-    category: str = Field(..., min_length=1, max_length=4096, description="Rooms, Furniture, ...")
+    node: str = Field(..., min_length=1, max_length=4096, description="class#id, the node's unique label",
+                      json_schema_extra=_documented(NODE_PATTERN))
+    cls: str = Field(..., alias="class", min_length=1, max_length=4096, description="the node's class",
+                     json_schema_extra=_documented(LABEL_PATTERN))
+    category: str = Field(..., min_length=1, max_length=4096, description="Rooms, Furniture, ...",
+                          json_schema_extra=_documented(rf"^[ \t]*[^{_CONTROL}]*[ \t]*$"))
     movable: StrictBool | int = Field(..., description="true for objects the person moves")
-    start_location: str = Field(..., min_length=1, max_length=4096, description="node it is on or in at the start of a day")
+    start_location: str = Field(..., min_length=1, max_length=4096, description="node it is on or in at the start of a day",
+                                json_schema_extra=_documented(LABEL_PATTERN))
 
 
 class HouseholdCreate(_Body):
@@ -56,7 +78,8 @@ class HouseholdInfo(_Body):
 
 class ObservationIn(_Body):
     time: dt.datetime = Field(..., description="ISO 8601; naive = wall time in the household's zone, aware = converted")
-    activity: str | None = Field(None, max_length=4096, description="what the person is doing (null: unknown)")
+    activity: str | None = Field(None, min_length=1, max_length=4096, json_schema_extra=_documented(LABEL_PATTERN),
+                                 description="what the person is doing (null: unknown); NFC-normalised")
     locations: dict[str, str] = Field(default_factory=dict, description="object class -> node label where it is (partial allowed)")
     id: str | None = Field(None, min_length=1, max_length=4096, description="client-chosen id: a retry with it returns the first answer")
 
@@ -189,6 +212,33 @@ class ErrorOut(_Body):
 
 
 ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
-    code: {"model": ErrorOut} for code in (401, 403, 404, 409, 413, 422, 503)
+    code: {"model": ErrorOut} for code in (400, 401, 403, 404, 408, 409, 413, 422, 431, 503)
 }
-"""The error answers every endpoint but ``/health`` documents."""
+"""The error answers every endpoint but ``/health`` documents (400: a Host not allowed or a
+malformed Content-Length; 408 and 431: a request too slow or its headers too large)."""
+
+HEALTH_RESPONSES: dict[int | str, dict[str, Any]] = {code: {"model": ErrorOut} for code in (400, 408, 431)}
+
+
+def document_limits(openapi: dict[str, Any], service: ServiceConfig) -> dict[str, Any]:
+    """The OpenAPI schema with this service's configured limits where the models carry only hard
+    ceilings (the server checks the configured ones), so that it says what the server enforces."""
+    schemas = openapi.get("components", {}).get("schemas", {})
+    label = service.max_label_length
+
+    def limit(model: str, field: str, key: str, value: int) -> None:
+        prop = schemas.get(model, {}).get("properties", {}).get(field)
+        if prop is None:
+            return
+        for target in prop.get("anyOf", [prop]):  # an optional field: the non-null branch
+            if target.get("type") in ("string", "array", "object"):
+                target[key] = value
+
+    for field in ("activity", "id"):
+        limit("ObservationIn", field, "maxLength", label)
+    limit("ObservationIn", "locations", "maxProperties", service.max_locations)
+    for field in ("node", "class", "category", "start_location"):
+        limit("NodeIn", field, "maxLength", label)
+    limit("HouseholdCreate", "nodes", "maxItems", service.max_nodes)
+    limit("HouseholdCreate", "days", "maxItems", service.max_days)
+    return openapi

@@ -7,12 +7,12 @@ from fastapi import APIRouter
 from globe import __version__
 from globe.service.deps import RegistryDep
 from globe.service.fastjson import FastJSONRoute
-from globe.service.schemas import HealthOut
+from globe.service.schemas import HEALTH_RESPONSES, HealthOut
 
 router = APIRouter(route_class=FastJSONRoute)
 
 
-@router.get("/health")
+@router.get("/health", responses=HEALTH_RESPONSES)
 def health(registry: RegistryDep) -> HealthOut:
     problem = registry.store.problem()
     failed = registry.failures()
