@@ -7,13 +7,15 @@ A household's model (activity and object model together) is ONE file, ``model.js
 beside and renamed into place: a killed save leaves the previous model or none, never a mixed
 pair. It records the household, a fingerprint of the map it was trained on and a checksum of its
 content, so a model for another map, an edited or truncated file, or anything malformed is a
-one-line :class:`ModelFileError`.
+one-line :class:`ModelFileError`. The checksum only catches accidents (anyone can recompute it):
+every field is checked by type and range whatever it says.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,13 +64,42 @@ def _check_data(kind: str, data: Any, source: str) -> None:
             raise ModelFileError(f"{source}: malformed model file: data[{i}] is not {expected}")
 
 
+MAX_INT_PARAM = 1_000_000  # no order, window or cap of a sane model comes near it
+MAX_FLOAT_PARAM = 1e6
+
+
+def _is_version(value: Any, expected: int) -> bool:
+    """``value`` is the integer ``expected`` (JSON ``true`` equals 1 in Python: not a version)."""
+    return type(value) is int and value == expected
+
+
+def _check_params(cls: Any, params: dict[str, Any], source: str) -> None:
+    """Every parameter by type and range, whatever the checksum says (anyone can recompute it):
+    an allowed value of the allowed type, a whole number in 1..MAX_INT_PARAM (not a bool), a
+    finite number in 0..MAX_FLOAT_PARAM."""
+    for name, value in params.items():
+        allowed = cls._parameter_constraints.get(name)
+        where = f"{source}: malformed model file: params.{name}={value!r}"
+        if allowed is None:
+            raise ModelFileError(f"{where} is not a parameter of {cls.__name__}")
+        if isinstance(allowed, tuple):
+            if not any(type(value) is type(a) and value == a for a in allowed):
+                raise ModelFileError(f"{where}; expected one of {', '.join(map(repr, allowed))}")
+        elif allowed is int:
+            if type(value) is not int or not 1 <= value <= MAX_INT_PARAM:
+                raise ModelFileError(f"{where}; expected a whole number in 1..{MAX_INT_PARAM}")
+        elif allowed is float:
+            if type(value) not in (int, float) or not math.isfinite(value) or not 0 <= value <= MAX_FLOAT_PARAM:
+                raise ModelFileError(f"{where}; expected a finite number in 0..{MAX_FLOAT_PARAM:g}")
+
+
 def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
     """A fitted model from :func:`model_to_dict`'s output; anything else is a ModelFileError."""
     if not isinstance(payload, dict):
         raise ModelFileError(f"{source}: not a GLOBE model file (a JSON {type(payload).__name__}, expected an object)")
     if payload.get("format") != FORMAT:
         raise ModelFileError(f"{source}: not a GLOBE model file (format {payload.get('format')!r})")
-    if payload.get("version") != FORMAT_VERSION:
+    if not _is_version(payload.get("version"), FORMAT_VERSION):
         raise ModelFileError(f"{source}: format version {payload.get('version')!r}, this GLOBE reads {FORMAT_VERSION}")
     kind = payload.get("kind")
     cls = _KINDS.get(kind) if isinstance(kind, str) else None
@@ -77,6 +108,7 @@ def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
     params = payload.get("params", {})
     if not isinstance(params, dict) or not all(isinstance(k, str) for k in params):
         raise ModelFileError(f"{source}: malformed model file: 'params' is not an object")
+    _check_params(cls, params, source)
     if "data" not in payload:
         raise ModelFileError(f"{source}: malformed model file: no 'data'")
     _check_data(cls.kind, payload["data"], source)
@@ -206,7 +238,7 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None, hou
     if not isinstance(payload, dict) or payload.get("format") != BUNDLE_FORMAT:
         got = payload.get("format") if isinstance(payload, dict) else type(payload).__name__
         raise ModelFileError(f"{src}: not a GLOBE household model (format {got!r})")
-    if payload.get("version") != BUNDLE_VERSION:
+    if not _is_version(payload.get("version"), BUNDLE_VERSION):
         raise ModelFileError(f"{src}: format version {payload.get('version')!r}, this GLOBE reads {BUNDLE_VERSION}")
     body = {k: v for k, v in payload.items() if k != "checksum"}
     if payload.get("checksum") != _checksum(body):
