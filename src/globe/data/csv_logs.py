@@ -31,7 +31,7 @@ ROOM_CATEGORIES = frozenset({"rooms", "room"})
 HOME_CATEGORIES = frozenset({"home"})
 Resample = Literal["none", "locf"]
 
-_MINUTE = re.compile(r"[0-9]{1,5}")
+_MINUTE = re.compile(r"[0-9]+")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 _BIDI = re.compile("[\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069]")  # text-direction marks, embeddings, isolates
 _SURROGATE = re.compile("[\ud800-\udfff]")  # only in text that did not come from valid UTF-8 (e.g. JSON's "\\ud800")
@@ -81,7 +81,7 @@ def _csv_rows(text: str, source: str) -> list[tuple[int, list[str]]]:
             break
         except csv.Error as err:
             raise DataError(f"not valid CSV: {err}", source=source, line=reader.line_num or 1) from None
-        if row:
+        if row and not (len(row) == 1 and not _clean(row[0])):  # a blank line, spaces and tabs only included
             rows.append((start, row))
         start = reader.line_num + 1
     if not rows or not any(_clean(c) for c in rows[0][1]):
@@ -95,15 +95,22 @@ def _read_rows(path: Path) -> list[list[str]]:
 
 
 def _check_header(path: Path | str, header: list[str], required: Iterable[str]) -> None:
+    for i, name in enumerate(header):
+        if "\x00" in name:
+            raise DataError(f"header cell {i + 1} ({_short(name, 24)}) contains a NUL byte: a binary file, or text saved "
+                            "as UTF-16? (save it as UTF-8)", source=str(path), line=1)
+        if _CONTROL.search(name):
+            raise DataError(f"header cell {i + 1} ({_short(name, 24)}) contains a control character", source=str(path),
+                            line=1)
+    seen: set[str] = set()
+    for name in header:  # a duplicate first: it is often the column that seems to be missing, misnamed
+        if name in seen:
+            raise DataError("duplicate column", source=str(path), line=1, field=name)
+        seen.add(name)
     for name in required:
         if name not in header:
             shown = ", ".join(_short(h, 24) for h in header[:6]) + (", ..." if len(header) > 6 else "")
             raise DataError(f"missing column (header has {shown})", source=str(path), line=1, field=name)
-    seen: set[str] = set()
-    for name in header:
-        if name in seen:
-            raise DataError("duplicate column", source=str(path), line=1, field=name)
-        seen.add(name)
 
 
 def _ragged(path: Path | str, lineno: int, row: list[str], header: list[str]) -> DataError:
@@ -242,10 +249,14 @@ def read_nodes(path: Path) -> tuple[Node, ...]:
 
 
 def _parse_minute(raw: str, source: str, line: int) -> int:
-    if not _MINUTE.fullmatch(raw) or int(raw) > DAY_MINUTES:
+    if not _MINUTE.fullmatch(raw):
         raise DataError(f"{_short(raw, 32)} is not a whole number of minutes in 0..{DAY_MINUTES} (ASCII digits only)",
                         source=source, line=line, field="minute")
-    return int(raw)
+    digits = raw.lstrip("0") or "0"  # leading zeros are fine, however many
+    if len(digits) > len(str(DAY_MINUTES)) or int(digits) > DAY_MINUTES:
+        raise DataError(f"{_short(raw, 32)} is not a whole number of minutes in 0..{DAY_MINUTES} (ASCII digits only)",
+                        source=source, line=line, field="minute")
+    return int(digits)
 
 
 def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str], name: str, source: str,
@@ -301,14 +312,18 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
 
 def _check_nesting(state: Sequence[str], objects: tuple[str, ...], owners: dict[str, str], column_of: dict[str, int],
                    source: str, line: int) -> None:
-    """No object inside itself, directly or through other objects, at any step."""
+    """No object inside itself, directly or through other objects, at any step; a cycle is named
+    whole (``containment cycle: 'a#1' is in 'b#2' is in 'a#1'``), in the column of its first node."""
     for k in compress(range(len(state)), map(column_of.__contains__, state)):  # objects inside objects
-        seen = {owners.get(objects[k])}
+        path = [owners[objects[k]]]
         cur = state[k]
         while cur in column_of:
-            if cur in seen:
-                raise DataError(f"{owners[objects[k]]!r} is inside itself (via {cur!r})", source=source, line=line, field=objects[k])
-            seen.add(cur)
+            if cur in path:
+                cycle = path[path.index(cur):] + [cur]
+                message = (f"{cur!r} is inside itself" if len(cycle) == 2
+                           else "containment cycle: " + " is in ".join(map(repr, cycle)))
+                raise DataError(message, source=source, line=line, field=objects[column_of[cycle[0]]])
+            path.append(cur)
             cur = state[column_of[cur]]
 
 
