@@ -111,6 +111,10 @@ class OnlineAssistant:
     def validate(self, obs: Observation) -> None:
         """Raise :class:`DataError` (naming the field) for an observation that must not be stored."""
         self.validate_labels(obs)
+        self.validate_time(obs)
+
+    def validate_time(self, obs: Observation) -> None:
+        """The check of :meth:`validate` that depends on the observations before: times increase."""
         instant = _instant(obs.time)
         if self._last_instant is not None and instant <= self._last_instant:
             raise DataError(f"time {obs.time.isoformat()} is not after the last observation {self._last_instant.isoformat()}",
