@@ -1,7 +1,6 @@
 """Only the optional C part of the build; everything else is in pyproject.toml.
 
 ``globe.models._suffix_automaton`` builds the suffix automata of the n-gram models,
-``globe.service._day_fields`` splits uploaded day texts into their cells,
 ``globe.models._filter_core`` runs the activity filter's steps and ``globe.models._forecast_core``
 the forecaster's hazards and forward pass: all in C, with the same results as the Python code,
 several times faster. All are optional: without a C compiler the install goes on and GLOBE uses
@@ -19,7 +18,6 @@ COMMON = "src/globe/models/_c_common.h"  # helpers both include (shipped in the 
 
 setup(ext_modules=[
     Extension("globe.models._suffix_automaton", ["src/globe/models/_suffix_automaton.c"], optional=True),
-    Extension("globe.service._day_fields", ["src/globe/service/_day_fields.c"], optional=True),
     Extension("globe.models._filter_core", ["src/globe/models/_filter_core.c"], depends=[COMMON], optional=True,
               extra_compile_args=EXACT_FLOATS),
     Extension("globe.models._forecast_core", ["src/globe/models/_forecast_core.c"], depends=[COMMON], optional=True,

@@ -121,11 +121,9 @@ def test_the_compiled_parts_are_built_where_ci_runs():
     import os
 
     from globe.models import activity_filter, forecast, suffix_index
-    from globe.service import upload
 
     if os.environ.get("CI") == "true":
         assert suffix_index._native is not None, "globe.models._suffix_automaton was not compiled"
-        assert upload.day_fields is not upload._day_fields_python, "globe.service._day_fields was not compiled"
         assert activity_filter._native is not None, "globe.models._filter_core was not compiled (or refused to load)"
         assert forecast._native is not None, "globe.models._forecast_core was not compiled (or refused to load)"
     assert suffix_index._native is None or callable(suffix_index._native.extend)

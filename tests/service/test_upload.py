@@ -100,30 +100,6 @@ def test_blank_lines_get_the_data_layers_answer(households, where):
         outcome(parse_day_text, text, objects, locations, "d", "d", owners)
 
 
-def test_day_fields_compiled_equals_python(households, seed):
-    """The compiled splitter (where the install built it) returns exactly what the Python one
-    does: on every HOMER+ day and on texts with blank lines, missing cells, final newlines,
-    commas among the locations and characters beyond Latin-1."""
-    import random
-
-    import pytest
-
-    from globe.data.csv_logs import format_day
-    from globe.service import upload
-
-    if upload.day_fields is upload._day_fields_python:
-        pytest.skip("globe.service._day_fields was not compiled in this install")
-    texts = [format_day(d, h.objects) for h in households.values() for d in (*h.train[:10], *h.test)]
-    rng = random.Random(seed)
-    pieces = ["\n", "\n\n", ",", "a", "b,c", "0", "10", "x,y,z", "é", "猫", " ", ""]
-    for _ in range(2000):
-        texts.append("".join(rng.choice(pieces) for _ in range(rng.randint(0, 30))))
-    texts += ["", "\n", "h", "h\n", "h\n\n", "h\n1,a,b", "h\n1,a,b\n", "h\n1,a,b\n\n", "h\n1,a\n", "h\n\n1,a,b",
-              "h\n1,a,b,c\n2,a,b,c\n3,a,b,d", "h\n1,é,b\n2,a,猫"]
-    for text in texts:
-        assert upload.day_fields(text) == upload._day_fields_python(text), repr(text[:80])
-
-
 def test_an_activity_that_is_not_valid_unicode_is_refused_by_name(households):
     """JSON can carry a lone surrogate ("\\ud800") that no UTF-8 file can: such an activity is
     refused like a control character, naming the day, the line and the field, instead of failing

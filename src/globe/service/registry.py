@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import bisect
 import datetime as dt
-import gc
 import json
 import logging
 import threading
@@ -54,28 +53,6 @@ from globe.service.store import DayEncoding, FoundObservation, HouseholdRow, Sto
 from globe.service.upload import DayParser, household_from, parse_nodes
 
 log = logging.getLogger(__name__)
-
-
-_gc_lock = threading.Lock()
-_gc_pauses = 0
-
-
-@contextmanager
-def no_gc() -> Iterator[None]:
-    """Pause the cyclic garbage collector while a household is parsed and counted: the work
-    allocates hundreds of thousands of long-lived objects and no cycles, and full collections
-    that scan every household already built cost about a quarter of the time."""
-    global _gc_pauses
-    with _gc_lock:
-        _gc_pauses += 1
-        gc.disable()
-    try:
-        yield
-    finally:
-        with _gc_lock:
-            _gc_pauses -= 1
-            if _gc_pauses == 0:
-                gc.enable()
 
 
 @dataclass(frozen=True, slots=True)
@@ -230,8 +207,7 @@ class Registry:
         zone = check_timezone(timezone or s.timezone)
         nodes = parse_nodes(node_rows, max_label=s.max_label_length)
         try:
-            with no_gc():
-                household = household_from(name, nodes, day_texts, max_label=s.max_label_length)
+            household = household_from(name, nodes, day_texts, max_label=s.max_label_length)
         except DataError as err:
             where = err.source or "days"
             detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
@@ -256,8 +232,7 @@ class Registry:
             encoding = DayEncoding(day_texts)
             helper = self._encoder.submit(encoding.run)
             try:
-                with no_gc():
-                    assistant = assembly.assistant(household, self.config, self.backend)
+                assistant = assembly.assistant(household, self.config, self.backend)
             except BaseException:
                 encoding.stop()
                 raise
@@ -309,8 +284,7 @@ class Registry:
 
     def _build_into(self, name: str, s: Served) -> None:
         try:
-            with no_gc():
-                s.assistant, s.pending = self._build(s.row)
+            s.assistant, s.pending = self._build(s.row)
         except Exception as err:  # noqa: BLE001 - whatever a stored row holds, the household is failed, not the service
             if self.store.household(name) is None:  # deleted from the database behind the service's back
                 self._forget(name, s)

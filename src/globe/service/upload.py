@@ -83,7 +83,7 @@ def parse_day(text: str, objects: tuple[str, ...], locations: frozenset[str], na
     return DayParser(objects, locations, owners).parse(text, name)
 
 
-def _day_fields_python(text: str) -> tuple[tuple[str, ...], tuple[str, ...], list[int], list[str]] | None:
+def day_fields(text: str) -> tuple[tuple[str, ...], tuple[str, ...], list[int], list[str]] | None:
     """The cells the fast path reads from a day text: each line's minute and activity (lines
     after the header), and the lines where the rest (its locations) differs from the line
     before's, with that rest; None for a blank line (a final newline aside) or a line after the
@@ -101,11 +101,6 @@ def _day_fields_python(text: str) -> tuple[tuple[str, ...], tuple[str, ...], lis
     starts = [0, *compress(range(1, len(tails)), map(str.__ne__, tails[1:], tails[:-1]))]
     return raw_minutes, raw_activities, starts, [tails[i] for i in starts]
 
-
-try:  # the same in C where the install compiled it (optional): no string made per line
-    from globe.service._day_fields import day_fields
-except ImportError:  # pragma: no cover - depends on the install
-    day_fields = _day_fields_python
 
 
 class DayParser:
