@@ -78,7 +78,9 @@ def replay_days(client: GlobeClient, household_name: str, household: Household, 
     index, step, prediction)`` sees every prediction (made after observing that step).
     """
     report = AssistanceReport()
-    base_date = base_date or dt.date.today()  # days run forward from today: the service needs a clock skew that covers them
+    # The days run in the past, the last one ending yesterday: the service needs a clock skew that
+    # covers them (observations ahead of its clock would be held, not learned, until the clock came).
+    base_date = base_date or dt.date.today() - dt.timedelta(days=len(days) + 1)
     for d_index, day in enumerate(days):
         report.days += 1
         moves: dict[int, set[str]] = {}

@@ -2,10 +2,12 @@
 observation, feedback, and the hashes of access tokens.
 
 The schema is created and migrated here (``PRAGMA user_version``; ``application_id`` marks the
-file as GLOBE's). A file that is not a GLOBE database, or one written by a newer GLOBE, is
-refused with a clear message instead of being altered. Every accepted observation is committed
-before the service replies. The file is watched: if it disappears or is replaced while the
-service runs, writes fail with :class:`StoreUnavailableError` (503) rather than vanishing.
+file as GLOBE's). A file that is not a GLOBE database, one written by a newer GLOBE, or one that
+is empty or truncated is refused with a clear message instead of being altered or started anew.
+Every accepted observation is committed before the service replies. The database file, its
+write-ahead log and the log's index are watched (see :class:`Store`): if one disappears or is
+replaced while the service runs, what was acknowledged stays durable and later writes fail with
+:class:`StoreUnavailableError` (503) rather than vanishing.
 """
 
 from __future__ import annotations
@@ -221,6 +223,10 @@ class Store:
         except StoreError:
             self._db.close()
             raise
+        # Token lookups have their own connection: every request makes one (in the event loop,
+        # before its body is read), and a reader in WAL mode never waits for a write under way.
+        self._token_db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
+        self._token_lock = threading.Lock()
         self._files: dict[str, tuple[int, int] | None] = {"": self._file_id(self.path)}
         self._files.update({suffix: self._file_id(Path(str(self.path) + suffix)) for suffix in SIDE_FILES})
 
@@ -482,7 +488,13 @@ class Store:
             (token_id, digest, household, int(admin), _now()))])
 
     def token(self, digest: str) -> TokenRow | None:
-        rows = self._read("SELECT id, household, admin, created_at, revoked_at FROM tokens WHERE hash = ?", (digest,))
+        """The token with this hash (on the token connection: never waits for a write)."""
+        with self._token_lock:
+            try:
+                rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens WHERE hash = ?",
+                                              (digest,)).fetchall()
+            except sqlite3.Error as err:
+                raise StoreError(f"database read failed: {err}") from err
         return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
 
     def revoke_token(self, token_id: str | None = None, digest: str | None = None) -> int:
@@ -491,7 +503,7 @@ class Store:
             self._writable()
             try:
                 cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) AND revoked_at IS NULL",
-                                           (_now(), token_id, digest))
+                                       (_now(), token_id, digest))
             except sqlite3.Error as err:
                 self._note_failure("revoke the token", err)
                 raise StoreError(f"cannot revoke the token: {err}") from err
@@ -504,6 +516,8 @@ class Store:
         return [TokenRow(r[0], r[1], bool(r[2]), r[3], r[4]) for r in rows]
 
     def close(self) -> None:
+        with self._token_lock:
+            self._token_db.close()
         with self._lock:
             self._db.close()
 
