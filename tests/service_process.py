@@ -38,8 +38,8 @@ class Server:
     def start(self, expect_failure: bool = False) -> "Server":
         env = dict(os.environ, **self.env)
         with open(self.log, "a") as fh:
-            self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port),
-                                          *self.args],
+            self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db),
+                                          "--port", str(self.port), *self.args],
                                          stdout=fh, stderr=subprocess.STDOUT, env=env, preexec_fn=self.preexec_fn)
         deadline = time.time() + 60
         while time.time() < deadline:

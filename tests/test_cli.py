@@ -131,13 +131,15 @@ def test_predict_checks_the_household_and_the_objects(tmp_path):
 
 
 @pytest.mark.parametrize("args, exit_code, message", [
-    (["train", "--household", "", "--model-dir", "m"], 2, "usage error: Invalid value for '--household': names no household"),
-    (["train", "--household", "A", "--model-dir", "m", "--config", "BINARY"], 1, "not a TOML text file (not UTF-8 at byte"),
+    (["train", "--household", "", "--model-dir", "m"], 2,
+     "usage error: Invalid value for '--household': names no household"),
+    (["train", "--household", "A", "--model-dir", "m", "--config", "BINARY"], 1,
+     "not a TOML text file (not UTF-8 at byte"),
     (["robot", "--url", "127.0.0.1:1", "--token", "t"], 1, "must start with http:// or https://"),
     (["robot", "--url", "http://127.0.0.1:1", "--token", "t", "--days", "1"], 1, "no answer from the service at "
                                                                               "http://127.0.0.1:1"),
-    (["serve", "--db", "DB", "--host", "no-such-host.invalid", "--backend", "none"], 1, "--host 'no-such-host.invalid': "
-                                                                                       "cannot resolve it"),
+    (["serve", "--db", "DB", "--host", "no-such-host.invalid", "--backend", "none"], 1,
+     "--host 'no-such-host.invalid': cannot resolve it"),
 ])
 def test_usage_mistakes_are_one_line_with_exit_1_or_2(args, exit_code, message, tmp_path):
     """Each ended as 'internal error' (exit 70) or a traceback."""

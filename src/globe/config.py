@@ -146,14 +146,16 @@ class ServiceConfig(_Section):
         32 << 20, ge=1024, le=1 << 31, description="body limit of POST /households (a map plus its training logs)"
     )
     max_header_bytes: int = Field(
-        64 << 10, ge=1024, le=16 << 20, description="request line and headers limit (431 above it, before anything is parsed)"
+        64 << 10, ge=1024, le=16 << 20,
+        description="request line and headers limit (431 above it, before anything is parsed)",
     )
     header_timeout_s: float = Field(
         10.0, gt=0, le=3600, description="a connection's request line and headers must arrive within this (else closed)"
     )
     body_timeout_s: float = Field(60.0, gt=0, le=3600, description="a request body must arrive within this (else 408)")
     max_concurrent_creations: int = Field(
-        2, ge=1, le=1000, description="POST /households read and built at once; more wait their turn (memory stays bounded)"
+        2, ge=1, le=1000,
+        description="POST /households read and built at once; more wait their turn (memory stays bounded)",
     )
     max_label_length: int = Field(128, ge=8, le=4096, description="longest activity, object, location or id label")
     max_locations: int = Field(512, ge=1, le=100_000, description="most object locations in one observation")
@@ -162,8 +164,8 @@ class ServiceConfig(_Section):
     max_households: int = Field(1000, ge=1, le=1_000_000, description="most households one service holds")
     preload: bool = Field(True, description="build stored households in the background after start-up (else on first use)")
     llm_timeout_s: float = Field(
-        5.0, gt=0, le=600, description="time limit of the embedded LLM's answer to one prediction (past it, and while the "
-                                       "model loads in the background after start-up, the n-gram choice is used)",
+        5.0, gt=0, le=600, description="time limit of the embedded LLM's answer to one prediction (past it, and while "
+                                       "the model loads in the background after start-up, the n-gram choice is used)",
     )
     max_built_households: int = Field(
         64, ge=1, le=1_000_000, description="households kept built in memory; the least recently used are rebuilt from the database on demand"

@@ -330,17 +330,18 @@ CASES: list[Case] = [
                                                                                    "--model-dir", str(r / "m"), "--data", str(r)])[1], 0, None,
          lambda r, h, out: None if (r / "m" / "model.json").is_file() else (_ for _ in ()).throw(AssertionError("no model"))),
     Case("activity-only home trains and predicts", _activity_only, 0, None, _check_activity_only),
-    Case("a line of spaces and tabs is a blank line", _write("train/000.csv", day_text().replace("\n", "\n \t \n", 3)), 0,
-         None, _valid_home_check(3, 1)),
+    Case("a line of spaces and tabs is a blank line",
+         _write("train/000.csv", day_text().replace("\n", "\n \t \n", 3)), 0, None, _valid_home_check(3, 1)),
     Case("minutes with many leading zeros", _edit_day("train/000.csv", _set(0, 0, "000000000360")), 0, None,
          _valid_home_check(3, 1)),
     # -- messages that name the right thing -----------------------------------------------------------------
-    Case("a duplicated object column, not the column it pushed out", _edit_day("train/000.csv", lambda rows: rows,
-                                                                                ("minute", "activity", "cup", "cup")), 1,
+    Case("a duplicated object column, not the column it pushed out",
+         _edit_day("train/000.csv", lambda rows: rows, ("minute", "activity", "cup", "cup")), 1,
          "error: {home}/train/000.csv:1: column 'cup': duplicate column"),
-    Case("NUL byte in the header", _edit_day("train/000.csv", lambda rows: rows, ("min\x00ute", "activity", "cup", "plate")),
-         1, "error: {home}/train/000.csv:1: header cell 1 ('min\\x00ute') contains a NUL byte: a binary file, or text saved "
-            "as UTF-16? (save it as UTF-8)"),
+    Case("NUL byte in the header",
+         _edit_day("train/000.csv", lambda rows: rows, ("min\x00ute", "activity", "cup", "plate")), 1,
+         "error: {home}/train/000.csv:1: header cell 1 ('min\\x00ute') contains a NUL byte: a binary file, or text "
+         "saved as UTF-16? (save it as UTF-8)"),
     # -- model files ------------------------------------------------------------------------------------
     Case("predict without a model", lambda r, h: ["predict", "--model-dir", str(r / "none")], 1,
          "error: {root}/none: no such model folder (create one with: globe train --household NAME --model-dir DIR)"),

@@ -2,6 +2,7 @@
 the wrong type or out of range are a ModelFileError naming the field, never a loaded model."""
 
 import json
+import math
 
 import pytest
 
@@ -21,8 +22,9 @@ def tamper(path, edit) -> None:
 EDITS = {
     "bundle version true": (lambda p: p.__setitem__("version", True), "format version True"),
     "activity version true": (lambda p: p["activity"].__setitem__("version", True), "format version True"),
-    "time_weight NaN": (lambda p: p["activity"]["params"].__setitem__("time_weight", float("nan")), "params.time_weight"),
-    "time_weight infinite": (lambda p: p["activity"]["params"].__setitem__("time_weight", float("inf")), "params.time_weight"),
+    "time_weight NaN": (lambda p: p["activity"]["params"].__setitem__("time_weight", math.nan), "params.time_weight"),
+    "time_weight infinite": (lambda p: p["activity"]["params"].__setitem__("time_weight", math.inf),
+                             "params.time_weight"),
     "time_weight negative": (lambda p: p["activity"]["params"].__setitem__("time_weight", -1.0), "params.time_weight"),
     "max_order true": (lambda p: p["activity"]["params"].__setitem__("max_order", True), "params.max_order"),
     "max_order 2.5": (lambda p: p["objects"]["params"].__setitem__("max_order", 2.5), "params.max_order"),

@@ -18,7 +18,7 @@ from globe.reasoning.context import ChoiceContext
 from globe.reasoning.prompts import remote_prompt
 
 POISON = ['"abc"', "[]", "{}", "NaN", "null", "1e999", '{"answer": "nope", "scores": {}}',
-          '{"answer": 3, "scores": []}', "[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]"]
+          '{"answer": 3, "scores": []}', "[" * 78 + "]" * 77]  # the last: not JSON at all
 
 
 def an_uncertain_activity(model) -> str:
@@ -56,7 +56,8 @@ def test_a_poisoned_remote_answer_is_an_llm_error(tmp_path, value):
     from globe.reasoning.cache import cache_key
 
     key = cache_key(backend=backend.name, model=backend.model_name, base_url=backend.base_url,
-                    prompt=remote_prompt(context, candidates), temperature=backend.temperature, max_tokens=backend.max_tokens)
+                    prompt=remote_prompt(context, candidates), temperature=backend.temperature,
+                    max_tokens=backend.max_tokens)
     poison(path, key, value)
     with pytest.raises(LLMError):  # the gate's fallback: off the list ("abc"), or a damaged cache entry
         backend.choose(context, candidates)

@@ -84,7 +84,8 @@ def test_unauthenticated_bodies_are_refused_before_they_are_read(server, househo
     print(f"peak RSS growth under 8 concurrent unauthenticated 31 MiB bodies: {grew:.1f} MB")
     assert grew < 30, grew
     assert all(s in (b"HTTP/1.1 401 Unauthorized", b"") for s in statuses) and b"HTTP/1.1 401 Unauthorized" in statuses
-    r = httpx.post(server.url + "/households", content=b'{"name": "A", "nodes": [', headers={"Content-Type": "application/json"})
+    r = httpx.post(server.url + "/households", content=b'{"name": "A", "nodes": [',
+                   headers={"Content-Type": "application/json"})
     assert r.status_code == 401 and r.json()["field"] == "authorization"  # not a 422 about the JSON
     assert httpx.get(server.url + "/health").json()["status"] == "ok"
 
@@ -143,7 +144,8 @@ def test_concurrent_household_creations_are_throttled(server, households):
     auth = f"Authorization: Bearer {server.admin}\r\n"
     statuses: list = []
     grew = peak_growth_mb(server.proc.pid, lambda: statuses.extend(run_all(
-        [lambda b=b: raw_request(server.port, post_head("/households", len(b), auth), b, timeout=300) for b in bodies])))
+        [lambda b=b: raw_request(server.port, post_head("/households", len(b), auth), b, timeout=300)
+         for b in bodies])))
     print(f"peak RSS growth under 12 concurrent HOMER+ household creations: {grew:.1f} MB")
     assert statuses == [b"HTTP/1.1 201 Created"] * 12
     assert grew < 110, grew
@@ -167,4 +169,5 @@ def test_every_error_body_is_encodable(server, households, body):
                    headers={"Authorization": f"Bearer {server.admin}", "Content-Type": "application/json"})
     assert r.status_code == 422, r.text
     answer = r.json()
-    assert set(answer) == {"detail", "field"} and answer["field"].split(".")[0] in ("locations", "activity", "id"), answer
+    assert set(answer) == {"detail", "field"}, answer
+    assert answer["field"].split(".")[0] in ("locations", "activity", "id"), answer

@@ -11,7 +11,8 @@ import pytest
 from tests.service.conftest import REPLAY_ENV, at, upload, wait_for_llm
 
 pytestmark = [pytest.mark.service, pytest.mark.llm]
-ASK_ALWAYS = {**REPLAY_ENV, "GLOBE_LLM__BACKEND": "embedded", "GLOBE_LLM__N_THREADS": "1", "GLOBE_GATE__THRESHOLD": "1.0"}
+ASK_ALWAYS = {**REPLAY_ENV, "GLOBE_LLM__BACKEND": "embedded", "GLOBE_LLM__N_THREADS": "1",
+              "GLOBE_GATE__THRESHOLD": "1.0"}
 
 
 def observe_until_consulted(c, h, limit: int = 60):

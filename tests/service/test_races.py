@@ -32,7 +32,8 @@ def test_create_delete_observe_and_eviction_leave_the_registry_equal_to_the_data
     def admin() -> None:
         with srv.client() as c:
             while not stop.is_set():
-                for call in (lambda: c.create_household("X", nodes, days, timezone="UTC"), lambda: c.delete_household("X")):
+                for call in (lambda: c.create_household("X", nodes, days, timezone="UTC"),
+                             lambda: c.delete_household("X")):
                     try:
                         call()
                     except ServiceError as err:

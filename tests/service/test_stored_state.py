@@ -127,8 +127,9 @@ def test_naive_times_through_the_repeated_hour_are_accepted_in_order(server, hou
     that hour twice: the second pass is taken as the later occurrence, not refused."""
     paris = ZoneInfo("Europe/Paris")
     day = last_autumn_change(paris)
-    wall = [dt.datetime.combine(day, dt.time(1, 40)) + dt.timedelta(minutes=10 * k) for k in range(8)]  # 01:40 ... 02:50
-    wall += [dt.datetime.combine(day, dt.time(2, 0)) + dt.timedelta(minutes=10 * k) for k in range(7)]  # 02:00 ... 03:00
+    first, second = dt.datetime.combine(day, dt.time(1, 40)), dt.datetime.combine(day, dt.time(2, 0))
+    wall = [first + dt.timedelta(minutes=10 * k) for k in range(8)]  # 01:40 ... 02:50
+    wall += [second + dt.timedelta(minutes=10 * k) for k in range(7)]  # 02:00 ... 03:00
     with server.client() as c:
         upload(c, "A", households["A"], timezone="Europe/Paris")
         for t in wall:

@@ -133,7 +133,8 @@ def household_delete(
 def household_export(
     db: DbOption,
     name: Annotated[str, typer.Option("--name", help="household id in the service")],
-    out_file: Annotated[Path, typer.Option("--out", help="JSON file to write (what GET /households/NAME/export answers)")],
+    out_file: Annotated[Path, typer.Option("--out", help="JSON file to write (what GET /households/NAME/export "
+                                                         "answers)")],
 ) -> None:
     """Write everything stored about a household, as stored (also one the service cannot build)."""
     import json

@@ -52,8 +52,8 @@ def serve(
     sock = server.bind(cfg.service.host, cfg.service.port)  # a busy port or an unknown host: one line, before anything
     if cfg.service.host not in ("127.0.0.1", "localhost", "::1"):
         warning = Text("warning:", style="yellow")
-        warning.append(f" listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; keep the service "
-                       "on 127.0.0.1 behind a TLS reverse proxy (see the README)")
+        warning.append(f" listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; keep the "
+                       "service on 127.0.0.1 behind a TLS reverse proxy (see the README)")
         console.print(warning, soft_wrap=True)
     console.print(f"GLOBE service on http://{cfg.service.host}:{cfg.service.port} (database {cfg.service.database})")
     server.run(create_app(cfg), cfg.service, sock)

@@ -97,8 +97,8 @@ def _read_rows(path: Path) -> list[list[str]]:
 def _check_header(path: Path | str, header: list[str], required: Iterable[str]) -> None:
     for i, name in enumerate(header):
         if "\x00" in name:
-            raise DataError(f"header cell {i + 1} ({_short(name, 24)}) contains a NUL byte: a binary file, or text saved "
-                            "as UTF-16? (save it as UTF-8)", source=str(path), line=1)
+            raise DataError(f"header cell {i + 1} ({_short(name, 24)}) contains a NUL byte: a binary file, or text "
+                            "saved as UTF-16? (save it as UTF-8)", source=str(path), line=1)
         if _CONTROL.search(name):
             raise DataError(f"header cell {i + 1} ({_short(name, 24)}) contains a control character", source=str(path),
                             line=1)
@@ -493,6 +493,7 @@ def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
 
 
 __all__: list[str] = [
-    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "activity_label", "check_map", "parse_nodes_text", "read_nodes", "parse_day_text", "read_day",
+    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "activity_label", "check_map", "parse_nodes_text", "read_nodes",
+    "parse_day_text", "read_day",
     "household_step", "check_step", "day_files", "read_household_map", "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
 ]

@@ -140,12 +140,14 @@ class AnswerCache:
             if row is not None and (not readable or (valid is not None and not valid(value))):
                 self.errors["corrupt"] += 1
                 shown = str(row[0]) if len(str(row[0])) <= 60 else str(row[0])[:60] + "..."
-                log.warning("LLM answer cache %s: a stored answer is not of the expected shape (%s): deleted", self.path, shown)
+                log.warning("LLM answer cache %s: a stored answer is not of the expected shape (%s): deleted",
+                            self.path, shown)
                 try:
                     self._connection().execute("DELETE FROM answers WHERE key = ?", (key,))
                 except (sqlite3.Error, LLMCacheError) as err:
                     log.warning("LLM answer cache %s: could not delete it: %s", self.path, err)
-                raise LLMCacheError(f"answer cache entry is not of the expected shape ({shown!r}); asked afresh next time")
+                raise LLMCacheError(f"answer cache entry is not of the expected shape ({shown!r}); asked afresh next "
+                                    "time")
         if row is None:
             self.misses += 1
             return None

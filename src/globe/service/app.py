@@ -115,8 +115,8 @@ def _add_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def internal_error(request: Request, err: Exception) -> JSONResponse:
         log.exception("unexpected error", exc_info=err)
-        return error_response(500, f"internal error ({type(err).__name__}); the request changed nothing it could not finish",
-                              None)
+        return error_response(500, f"internal error ({type(err).__name__}); the request changed nothing it could not "
+                                   "finish", None)
 
 
 __all__ = ["create_app", "Guard"]

@@ -117,8 +117,8 @@ class OnlineAssistant:
         """The check of :meth:`validate` that depends on the observations before: times increase."""
         instant = _instant(obs.time)
         if self._last_instant is not None and instant <= self._last_instant:
-            raise DataError(f"time {obs.time.isoformat()} is not after the last observation {self._last_instant.isoformat()}",
-                            field="time")
+            raise DataError(f"time {obs.time.isoformat()} is not after the last observation "
+                            f"{self._last_instant.isoformat()}", field="time")
 
     def validate_labels(self, obs: Observation) -> None:
         """The checks of :meth:`validate` that do not depend on the observations before it."""

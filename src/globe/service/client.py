@@ -45,8 +45,8 @@ class GlobeClient:
         except ImportError as err:
             raise MissingExtraError("httpx", "service") from err
         if not base_url.startswith(("http://", "https://")):
-            raise DataError(f"service URL {base_url!r} must start with http:// or https:// (e.g. http://127.0.0.1:8765)",
-                            field="url")
+            raise DataError(f"service URL {base_url!r} must start with http:// or https:// "
+                            "(e.g. http://127.0.0.1:8765)", field="url")
         headers = {"Authorization": f"Bearer {token}"} if token else {}
         self.base_url = base_url.rstrip("/")
         self._http = httpx.Client(base_url=self.base_url, timeout=timeout_s, headers=headers)

@@ -213,7 +213,8 @@ class Registry:
             detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
             raise type(err)(detail, field=f"{where}.{err.field}" if err.field else where) from None
         assistant = self.create(household, zone, day_texts)
-        return HouseholdInfo(name=name, timezone=zone, objects=list(household.objects), days_learned=assistant.days_learned)
+        return HouseholdInfo(name=name, timezone=zone, objects=list(household.objects),
+                             days_learned=assistant.days_learned)
 
     def create(self, household: Household, timezone: str, day_texts: list[str]) -> OnlineAssistant:
         """Build, then store, a validated household (the build fails before anything is stored).
@@ -403,8 +404,8 @@ class Registry:
                 found = self.store.find_observation(name, client_id)
                 if found is not None:
                     if not _same_observation(found, time, activity, locations, tz):
-                        raise DuplicateObservationError(f"id {client_id[:64]!r} was acknowledged for another observation "
-                                                        f"(time {found.time}); use a new id for a new observation")
+                        raise DuplicateObservationError(f"id {client_id[:64]!r} was acknowledged for another "
+                                                        f"observation (time {found.time}); use a new id for a new one")
                     return ObservationAck(id=client_id, day=found.ack.get("day", ""), step=found.ack.get("step", 0),
                                           duplicate=True)
             zoned = timepolicy.to_zone(time, tz, after=a.last_instant)
@@ -417,8 +418,8 @@ class Registry:
                 a.validate_labels(obs) if held_back else a.validate(obs)
             except DataError as err:
                 if err.field == "time" and timepolicy.is_ambiguous(time, tz):
-                    raise DataError(f"{err.message}; {time.isoformat()} occurs twice in {tz.key} (clocks went back): send "
-                                    "the time with its UTC offset", field="time") from None
+                    raise DataError(f"{err.message}; {time.isoformat()} occurs twice in {tz.key} (clocks went back): "
+                                    "send the time with its UTC offset", field="time") from None
                 raise
             if held_back and any(p.instant == instant for p in held.pending):
                 raise DataError(f"another observation at {zoned.isoformat()} is already held (times must differ)",

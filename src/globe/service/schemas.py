@@ -58,8 +58,8 @@ class NodeIn(_Body):
     category: str = Field(..., min_length=1, max_length=4096, description="Rooms, Furniture, ...",
                           json_schema_extra=_documented(rf"^[ \t]*[^{_CONTROL}]*[ \t]*$"))
     movable: StrictBool | int = Field(..., description="true for objects the person moves")
-    start_location: str = Field(..., min_length=1, max_length=4096, description="node it is on or in at the start of a day",
-                                json_schema_extra=_documented(LABEL_PATTERN))
+    start_location: str = Field(..., min_length=1, max_length=4096, json_schema_extra=_documented(LABEL_PATTERN),
+                                description="node it is on or in at the start of a day")
 
 
 class HouseholdCreate(_Body):
@@ -89,7 +89,8 @@ class ObservationAck(_Body):
     day: str
     step: int
     duplicate: bool = False
-    pending: bool = Field(False, description="stored, but held until the server clock is within service.max_ahead of it")
+    pending: bool = Field(False, description="stored, but held until the server clock is within service.max_ahead "
+                                             "of it")
 
 
 class Prediction(BaseModel):
@@ -127,8 +128,8 @@ class FeedbackCounts(_Body):
 
 
 class ModelSettings(_Body):
-    activity: dict[str, Any] = Field(..., description="the activity model's kind and parameters, read from the built model")
-    objects: dict[str, Any] = Field(..., description="the object model's kind and parameters, read from the built model")
+    activity: dict[str, Any] = Field(..., description="the activity model's kind and parameters, as built")
+    objects: dict[str, Any] = Field(..., description="the object model's kind and parameters, as built")
 
 
 class StatsOut(_Body):
@@ -142,12 +143,12 @@ class StatsOut(_Body):
     activities_known: int
     training_days: int
     quarantined: int = Field(..., description="stored observations set aside because they could not be replayed")
-    training_days_set_aside: int = Field(..., description="stored training days set aside because they could not be read")
+    training_days_set_aside: int = Field(..., description="stored training days set aside: they could not be read")
     pending: int = Field(..., description="observations stored but held until the server clock reaches them")
     llm_fallbacks: dict[str, int] = Field(..., description="predictions that fell back to the n-gram choice, by reason")
     timezone: str
     created_at: str
-    chooser: dict[str, Any] = Field(..., description="the object chooser's kind and settings, read from the built object")
+    chooser: dict[str, Any] = Field(..., description="the object chooser's kind and settings, as built")
     models: ModelSettings
 
 

@@ -169,7 +169,8 @@ def check_database_file(path: Path) -> None:
     if not header.startswith(b"SQLite format 3\x00"):
         return  # not SQLite at all: the identity check says so
     if size < 100:
-        raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes, shorter than its header); {fix}")
+        raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes, shorter than its header); "
+                                   f"{fix}")
     page_size = int.from_bytes(header[16:18], "big")
     page_size = 65536 if page_size == 1 else page_size
     pages, changes, valid_for = (int.from_bytes(header[i:i + 4], "big") for i in (28, 24, 92))
@@ -296,7 +297,7 @@ class Store:
                 if self._file_id(self.path) == self._files[""]:  # the database file itself is still there
                     try:
                         busy, _, copied = self._db.execute("PRAGMA wal_checkpoint(FULL)").fetchone()
-                        saved = f"; the {copied} pages its log held were copied into {self.path.name}" if not busy else ""
+                        saved = "" if busy else f"; the {copied} pages its log held were copied into {self.path.name}"
                     except sqlite3.Error as err:
                         saved = f"; copying its log into {self.path.name} failed ({err})"
                 self._lost = reason + saved
@@ -401,7 +402,8 @@ class Store:
         try:
             nodes = tuple(Node(**n) for n in json.loads(rows[0][0]))
             objects = json.loads(rows[0][1])
-            if not all(isinstance(getattr(n, f), str) for n in nodes for f in ("node", "cls", "category", "start_location")) \
+            texts = ("node", "cls", "category", "start_location")
+            if not all(isinstance(getattr(n, f), str) for n in nodes for f in texts) \
                     or not isinstance(objects, list) or not all(isinstance(o, str) for o in objects):
                 raise TypeError("a node or object label is not text")
         except (ValueError, TypeError, RecursionError) as err:
@@ -424,7 +426,8 @@ class Store:
         name_, timezone, created_at, nodes, objects = rows[0]
         observations = self._read("SELECT id, time, activity, locations, received_at, client_id, quarantined "
                                   "FROM observations WHERE household = ? ORDER BY id", (name,))
-        feedback = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? ORDER BY id", (name,))
+        feedback = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? ORDER BY id",
+                              (name,))
         return {
             "name": name_, "timezone": timezone, "created_at": created_at, "nodes": nodes, "objects": objects,
             "days": self.training_days(name),
@@ -448,8 +451,8 @@ class Store:
             (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id, json.dumps(ack)))])
 
     def find_observation(self, household: str, client_id: str) -> FoundObservation | None:
-        rows = self._read("SELECT id, ack, time, activity, locations FROM observations WHERE household = ? AND client_id = ?",
-                          (household, client_id))
+        rows = self._read("SELECT id, ack, time, activity, locations FROM observations "
+                          "WHERE household = ? AND client_id = ?", (household, client_id))
         if not rows:
             return None
         found_id, ack, time, activity, locations = rows[0]
@@ -491,8 +494,8 @@ class Store:
         """The token with this hash (on the token connection: never waits for a write)."""
         with self._token_lock:
             try:
-                rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens WHERE hash = ?",
-                                              (digest,)).fetchall()
+                rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens "
+                                              "WHERE hash = ?", (digest,)).fetchall()
             except sqlite3.Error as err:
                 raise StoreError(f"database read failed: {err}") from err
         return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
@@ -502,8 +505,8 @@ class Store:
         with self._lock:
             self._writable()
             try:
-                cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) AND revoked_at IS NULL",
-                                       (_now(), token_id, digest))
+                cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) "
+                                       "AND revoked_at IS NULL", (_now(), token_id, digest))
             except sqlite3.Error as err:
                 self._note_failure("revoke the token", err)
                 raise StoreError(f"cannot revoke the token: {err}") from err

@@ -70,7 +70,9 @@ def to_zone(time: dt.datetime, tz: ZoneInfo, after: dt.datetime | None = None) -
 
 def is_ambiguous(time: dt.datetime, tz: ZoneInfo) -> bool:
     """Whether naive ``time`` occurs twice in ``tz`` (the hour repeated when clocks go back)."""
-    return time.tzinfo is None and time.replace(tzinfo=tz, fold=0).utcoffset() != time.replace(tzinfo=tz, fold=1).utcoffset()
+    if time.tzinfo is not None:
+        return False
+    return time.replace(tzinfo=tz, fold=0).utcoffset() != time.replace(tzinfo=tz, fold=1).utcoffset()
 
 
 def check_bounds(time: dt.datetime, *, created: dt.datetime, now: dt.datetime, skew: dt.timedelta) -> None:

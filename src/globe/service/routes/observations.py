@@ -11,6 +11,7 @@ from globe.service.schemas import ERROR_RESPONSES, ObservationAck, ObservationIn
 router = APIRouter(route_class=FastJSONRoute)
 
 
-@router.post("/households/{name}/observations", status_code=201, response_model=ObservationAck, responses=ERROR_RESPONSES)
+@router.post("/households/{name}/observations", status_code=201, response_model=ObservationAck,
+             responses=ERROR_RESPONSES)
 def observe(name: str, body: ObservationIn, registry: RegistryDep, caller: MemberDep) -> ObservationAck:
     return registry.observe(name, time=body.time, activity=body.activity, locations=body.locations, client_id=body.id)
