@@ -13,11 +13,13 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 from globe.config import FilterConfig, GateConfig, GlobeConfig, LLMConfig, LookaheadConfig, ModelConfig, PolicyConfig
 from globe.data.records import Day, Household
+from globe.inference.activity_filter import ActivityFilter
+from globe.inference.emission import MovementEmission
+from globe.inference.forecast import Forecaster
+from globe.inference.movements import MovementModel
 from globe.models.activity import ActivityModel
-from globe.models.activity_filter import ActivityFilter, MovementEmission, NextActivityModel
 from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
-from globe.models.forecast import Forecaster, MovementModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
@@ -26,10 +28,10 @@ from globe.reasoning.gate import UncertaintyGate
 from globe.sequences.runs import TrainingSequences, training_sequences
 
 if TYPE_CHECKING:
+    from globe.inference.fetch_policy import FetchPolicy
     from globe.noise.proposals import Scorer
     from globe.reasoning.backends.embedded import EmbeddedBackend
     from globe.reasoning.cache import AnswerCache
-    from globe.reasoning.fetch_policy import FetchPolicy
     from globe.service.assistant import OnlineAssistant
 
 
@@ -79,12 +81,12 @@ def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight
                             boundary=boundary, switch=switch)
 
 
-def activity_filter(activity: NextActivityModel, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
+def activity_filter(activity: ActivityModelBase, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
     """The forward filter over the current activity, for days whose labels are partly missing."""
     return ActivityFilter(activity, emission, max_hypotheses=filter_cfg.max_hypotheses, min_weight=filter_cfg.min_weight)
 
 
-def household_filter(household: Household, config: GlobeConfig, activity: NextActivityModel,
+def household_filter(household: Household, config: GlobeConfig, activity: ActivityModelBase,
                      days: Sequence[Day] | None = None) -> ActivityFilter:
     """An activity filter over a fitted ``activity`` model for online use (the service), its
     movement evidence counted on ``household``'s training days (or ``days``) with the fixed
@@ -159,9 +161,7 @@ def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | N
     policy = None
     if s.fetch_decision == "policy":
         movements = movement_model(config.lookahead, run_end=True).fit(household.train, household.objects)
-        forecaster_ = Forecaster(activity, movements, min_path_probability=config.lookahead.min_path_probability,
-                                 max_paths=config.lookahead.max_paths)
-        policy = fetch_policy(forecaster_, config.policy, s.step_minutes)
+        policy = fetch_policy(forecaster_over(activity, movements, config.lookahead), config.policy, s.step_minutes)
     return OnlineAssistant(household, activity, chooser, alignment=config.sequences.alignment,
                            action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
                            step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps, fetch_policy=policy,
@@ -210,13 +210,18 @@ def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | 
     activity = activity_model(models or config.models).fit([d.activities for d in days])
     movements = movement_model(la, run_end, run_memory, run_next).fit(days, household.objects)
     train_s = time.perf_counter() - t0
-    return FittedForecaster(Forecaster(activity, movements, min_path_probability=la.min_path_probability,
-                                       max_paths=la.max_paths), train_s)
+    return FittedForecaster(forecaster_over(activity, movements, la), train_s)
+
+
+def forecaster_over(activity: ActivityModelBase, movements: MovementModel, lookahead: LookaheadConfig) -> Forecaster:
+    """A forecaster over fitted ``activity`` and ``movements`` models, pruned as ``lookahead`` says."""
+    return Forecaster(activity, movements, min_path_probability=lookahead.min_path_probability,
+                      max_paths=lookahead.max_paths)
 
 
 def fetch_policy(forecaster: Forecaster, policy: PolicyConfig, step_minutes: int) -> "FetchPolicy":
     """The robot's fetch decision over ``forecaster`` with the ``policy`` costs and lead times."""
-    from globe.reasoning.fetch_policy import FetchPolicy
+    from globe.inference.fetch_policy import FetchPolicy
 
     return FetchPolicy(forecaster, cost_useless=policy.cost_useless, cost_missed=policy.cost_missed,
                        min_lead_steps=-(-policy.min_lead_minutes // step_minutes),

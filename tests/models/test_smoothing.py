@@ -16,7 +16,7 @@ def test_witten_bell_by_hand():
     # training "a b a b a c": after "a": b twice, c once (c=3, N1+=2);
     # unigram level (empty context): a 3, b 2, c 1 (c=6, N1+=3); floor: uniform 1/3
     index = SuffixIndex()
-    index.add("ababac")
+    index.add_all(["ababac"])
     vocab = ("a", "b", "c")
     state, matched = index.match("a")
     p = witten_bell_distribution(index, state, matched, max_context=1, vocabulary=vocab)
@@ -31,7 +31,7 @@ def test_witten_bell_applies_each_context_length_of_a_state():
     # "x y" is followed by z once; contexts "y" and "x y" share one automaton state (both seen
     # once, followed by z), so that state contributes two interpolation levels
     index = SuffixIndex()
-    index.add("xyz")
+    index.add_all(["xyz"])
     vocab = ("x", "y", "z")
     state, matched = index.match("xy")
     got = witten_bell_distribution(index, state, matched, max_context=2, vocabulary=vocab)
@@ -45,7 +45,7 @@ def test_witten_bell_applies_each_context_length_of_a_state():
 def test_routine_stay_probability_by_hand():
     # "eat" runs last 2, 2 and 3 steps; days are long enough that every run end is observed
     days = [("x", "eat", "eat", "y"), ("x", "eat", "eat", "y"), ("x", "eat", "eat", "eat", "y")]
-    m = RoutineModel(shrinkage=1.0, hour_steps=100).fit(days)
+    m = RoutineModel(shrinkage=1.0, step_minutes=1).fit(days)
     # level (eat,): 7 eat steps with a next step, 4 stayed -> (4 + 2 * 0.5) / (7 + 2) = 5/9
     # level (eat, d=1): seen 3, stayed 3 -> (3 + 1 * 5/9) / 4 = 8/9
     # level (eat, 1, hour 0): the same 3 -> (3 + 8/9) / 4 = 35/36

@@ -26,8 +26,9 @@ from globe import assembly
 from globe.config import GlobeConfig, LookaheadConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.evaluation.tuning import Selection, folds
+from globe.inference.forecast import Forecaster, Forecasts
+from globe.inference.movements import MovementModel
 from globe.models.base import ActivityModelBase
-from globe.models.forecast import Forecaster, Forecasts, MovementModel
 
 
 @dataclass(frozen=True, slots=True)
@@ -269,9 +270,9 @@ def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, set
         trees = None
         for setting, _ in todo:
             movements = _movements(household, la, train, setting, cache, (data, tuple(train_idx)))
-            fc = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
+            fc = assembly.forecaster_over(activity, movements, la)
             if trees is None:
-                trees = fc.trees([tuple(a) for a, _ in queries], [r for _, r in refs], la.horizons - 1)
+                trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs]), la.horizons - 1)
             run = LookaheadRun(la.horizons, [HorizonPairs() for _ in range(la.horizons)], np.zeros(la.horizons, int),
                                np.zeros(la.horizons, int))
             score_forecasts(run, fc.forecast_many(queries, la.horizons - 1, trees=trees), refs, activity, {})

@@ -3,7 +3,7 @@
 A robot rarely gets a clean activity label for every step. Per test day, a fixed share of the
 steps (``filter.fractions``; which ones is drawn with a seed from ``filter.seed``, the household
 and the day, nested across shares) shows its label; the others must be inferred by the activity
-filter (:mod:`globe.models.activity_filter`) from the time of day, the routine and the object
+filter (:mod:`globe.inference.activity_filter`) from the time of day, the routine and the object
 movements it sees. Everything else is the protocol of :func:`globe.evaluation.protocol.evaluate_days`:
 
 - **Activity:** at every step t = 1..T-1, predict a_t from the visible labels among a_0..a_{t-1}
@@ -28,7 +28,6 @@ activity a movement tells about, and how much to trust it) is chosen by cross-va
 
 from __future__ import annotations
 
-import copy
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -46,9 +45,12 @@ from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
 from globe.evaluation.tuning import Selection, folds, grid, select, tuned_models
-from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
+from globe.inference.activity_filter import as_dicts, filtered_beliefs, label_mask
+from globe.inference.beam import tie_key
+from globe.inference.emission import MovementEmission, moved_objects
+from globe.inference.forecast import Forecaster, first_locations
+from globe.inference.paths import Roots
 from globe.models.base import ActivityModelBase
-from globe.models.forecast import Forecaster, first_locations
 from globe.reasoning.choice import NextObjectModel
 
 Progress = Callable[[str], None]
@@ -69,37 +71,26 @@ def check_fractions(fractions: Sequence[float]) -> tuple[float, ...]:
     return tuple(fractions)
 
 
-def _filter_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
-                    visible: Sequence[bool], objects: Sequence[str], activity_question: bool
-                    ) -> tuple[list[dict[str, float]] | None, list[dict[str, float]]]:
-    """:func:`beliefs`; without ``activity_question`` the first part is None when a nowcast
-    answers the object questions (its mixture is not computed)."""
+def day_beliefs(activity: ActivityModelBase, emission: MovementEmission | None, config: GlobeConfig,
+                days: Sequence[Day], masks: Sequence[Sequence[bool]], objects: Sequence[str],
+                activity_question: bool = True) -> list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]]:
+    """Per day and step t: the filter's P(a_t) for the activity question (labels and movements of
+    steps < t; None without ``activity_question`` when a nowcast answers the object questions) and
+    for the object questions whose activity step is t. A movement seen at step t+1 is credited to
+    a_t (``sequences.alignment = "previous"``), so its object question may also use the places seen
+    at t; under another alignment the object would be seen at t itself, so both questions get the
+    predictive distribution. Every day is filtered at once."""
     flt = assembly.activity_filter(activity, emission, config.filter)
     nowcast = config.sequences.alignment == "previous"
-    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast,
-                                       predictive=activity_question or not nowcast)
-    for_objects = now if now is not None else predictive
-    assert for_objects is not None
-    return predictive, for_objects
-
-
-def beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
-            visible: Sequence[bool], objects: Sequence[str]) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
-    """Per step t of ``day``: the filter's P(a_t) for the activity question (labels and movements
-    of steps < t) and for the object questions whose activity step is t. A movement seen at step
-    t+1 is credited to a_t (``sequences.alignment = "previous"``), so its object question may also
-    use the places seen at t; under another alignment the object would be seen at t itself, so
-    both questions get the predictive distribution."""
-    predictive, for_objects = _filter_beliefs(activity, emission, config, day, visible, objects, True)
-    assert predictive is not None
-    return predictive, for_objects
-
-
-def object_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
-                   visible: Sequence[bool], objects: Sequence[str]) -> list[dict[str, float]]:
-    """The second half of :func:`beliefs` only (the same numbers; the activity question's
-    distributions are not mixed when a nowcast answers the object questions)."""
-    return _filter_beliefs(activity, emission, config, day, visible, objects, False)[1]
+    ahead, now = filtered_beliefs(flt, days, masks, objects, nowcast=nowcast,
+                                  predictive=activity_question or not nowcast)
+    out: list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]] = []
+    for q in range(len(days)):
+        predictive = as_dicts(ahead[q], flt.labels) if ahead is not None else None
+        for_objects = as_dicts(now[q], flt.labels) if now is not None else predictive
+        assert for_objects is not None
+        out.append((predictive, for_objects))
+    return out
 
 
 # -- choosing the movement evidence on training days --------------------------------------------
@@ -157,8 +148,9 @@ def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], li
     """Object predictions under the protocol on held-out days with every activity label hidden."""
     true: list[str] = []
     pred: list[str] = []
-    for day in days:
-        objects = object_beliefs(model.activity, model.emission, model.config, day, [False] * len(day), model.household.objects)
+    masks = [[False] * len(day) for day in days]
+    found = day_beliefs(model.activity, model.emission, model.config, days, masks, model.household.objects, False)
+    for day, (_, objects) in zip(days, found):
         ev = evaluate_days(model.household, [day], _FixedScan(model.activity, objects), model.chooser,
                            alignment=model.config.sequences.alignment)
         true.extend(r.true for r in ev.objects)
@@ -271,9 +263,10 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
     started = time.perf_counter()
     res = FractionResult(h.name, fraction)
     masks = {day.name: day_mask(config.filter, h.name, day, fraction) for day in days}
-    for day in days:
+    found = day_beliefs(setup.activity, setup.emission, config, days, [masks[d.name] for d in days], h.objects)
+    for day, (predictive, for_objects) in zip(days, found):
         mask = masks[day.name]
-        predictive, for_objects = beliefs(setup.activity, setup.emission, config, day, mask, h.objects)
+        assert predictive is not None
         ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=config.sequences.alignment)
         res.activity.extend(ev.activity)
         if for_objects is not predictive:
@@ -291,30 +284,52 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
 
 # -- lookahead through the filter -------------------------------------------------------------
 
-def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: Sequence[bool], horizons: int,
-                        first: int, last: int, stride: int = 1) -> list[tuple[int, list[tuple[tuple[str, ...], float]]]]:
-    """Per reference step r of ``day``: the filter's most probable histories a_0..a_{r-1} (at most
-    ``forecast_hypotheses``, given the visible labels and every movement up to r) and their
-    posterior weights, renormalised over those kept. With every label visible there is one, the
-    true history."""
+@dataclass(frozen=True, slots=True)
+class Reference:
+    """A reference step r of a day through the filter: the most probable histories a_0..a_{r-1}
+    (at most ``forecast_hypotheses``, given the visible labels and every movement up to r) as
+    states of the filter's model (``roots``), and their posterior weights, renormalised over those
+    kept. With every label visible there is one, the true history."""
+
+    day: Day
+    step: int
+    roots: Roots
+    weights: np.ndarray
+
+
+def filtered_references(setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day], masks: dict[str, list[bool]],
+                        horizons: int, first: int, last: int, stride: int = 1) -> list[Reference]:
+    """:class:`Reference` of every reference step of ``days`` (filtered all at once), in order."""
     from globe.evaluation.lookahead import reference_steps
 
-    moved = moved_objects(day, setup.household.objects)
     flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
-    out = []
-    for r in reference_steps(day, horizons, first, last, stride):
-        while flt.step < r - 1:  # labels and movements of steps 0..r-1
-            t = flt.step + 1
-            flt.update(t, day.activities[t] if mask[t] else None, moved[t])
-        peek = copy.copy(flt)
-        peek.update(r, None, moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
-        prefixes: dict[tuple[str, ...], float] = {}
-        for hyp in peek.hypotheses():
-            prefixes[hyp.history[:r]] = prefixes.get(hyp.history[:r], 0.0) + hyp.weight
-        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: fcfg.forecast_hypotheses]
-        total = sum(w for _, w in top)
-        out.append((r, [(prefix, w / total) for prefix, w in top]))
-    return out
+    moved = [moved_objects(day, setup.household.objects) for day in days]
+    steps = [set(reference_steps(day, horizons, first, last, stride)) for day in days]
+    found: list[list[Reference]] = [[] for _ in days]
+    belief = flt.start(len(days))
+    for t in range(max((len(d) for d in days), default=0)):
+        seen = [m[t] if t < len(m) else None for m in moved]
+        asked = [q for q, refs in enumerate(steps) if t in refs]
+        if asked:  # the movements seen at t tell about a_{t-1} (and a_t)
+            peek = flt.update(belief, t, None, seen)
+            for q in asked:
+                found[q].append(_reference(days[q], t, peek, belief, q, fcfg.forecast_hypotheses, flt))
+        labels = [d.activities[t] if t < len(d) and masks[d.name][t] else None for d in days]
+        belief = flt.update(belief, t, labels, seen)
+    return [ref for refs in found for ref in refs]
+
+
+def _reference(day: Day, r: int, peek: Any, before: Any, q: int, most: int, flt: Any) -> Reference:
+    """The prefixes a_0..a_{r-1} of day ``q``'s histories after ``peek`` (the update at r): each is
+    a history of ``before`` (its entry there), weighted by the posterior of its extensions."""
+    beam, prev = peek.beam, before.beam
+    mine = np.flatnonzero(beam.query == q)
+    parents, inverse = np.unique(beam.parent[mine], return_inverse=True)
+    weight = np.bincount(inverse.reshape(-1), weights=beam.weight[mine])
+    order = np.lexsort((prev.lex[parents], -tie_key(weight)))[:most]  # most probable first, then by history
+    parents, weight = parents[order], weight[order]
+    roots = Roots(flt.space, prev.state[parents], prev.act[parents], before.duration[parents])
+    return Reference(day, r, roots, weight / weight.sum())
 
 
 def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
@@ -323,45 +338,38 @@ def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterC
     """The lookahead's pairs (:class:`globe.evaluation.lookahead.LookaheadRun`) when labels are
     partly hidden: the forecast at reference r mixes ``forecaster``'s forecasts from the filter's
     most probable histories (:func:`filtered_references`), weighted by their posterior. With
-    every label visible it is the plain forecast."""
+    every label visible it is the plain forecast. ``forecaster`` must forecast with the filter's
+    activity model (its paths start from the filter's states)."""
     from globe.evaluation import lookahead as lk
 
     run = lk.LookaheadRun(horizons, [lk.HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int),
                           np.zeros(horizons, int))
-    refs: list[tuple[Day, int]] = []
-    parts: list[list[tuple[tuple[str, ...], float]]] = []
-    for day in days:
-        for r, mix in filtered_references(setup, fcfg, day, masks[day.name], horizons, first, last, stride):
-            refs.append((day, r))
-            parts.append(mix)
+    refs = filtered_references(setup, fcfg, days, masks, horizons, first, last, stride)
     rows: dict = {}
     lo = 0
     while lo < len(refs):
         hi, size = lo, 0
-        while hi < len(refs) and (size + len(parts[hi]) <= chunk or hi == lo):
-            size += len(parts[hi])
+        while hi < len(refs) and (size + len(refs[hi].weights) <= chunk or hi == lo):
+            size += len(refs[hi].weights)
             hi += 1
-        queries, owner, weight, rank = [], [], [], []
-        for i in range(lo, hi):
-            day, r = refs[i]
-            for k, (prefix, w) in enumerate(parts[i]):
-                queries.append((prefix, day.locations[: r + 1]))
-                owner.append(i - lo)
-                weight.append(w)
-                rank.append(k)
-        fcs = forecaster.forecast_many(queries, horizons - 1)
-        n = hi - lo
-        owners, weights, ranks = np.array(owner), np.array(weight), np.array(rank)
+        part = refs[lo:hi]
+        roots = Roots(part[0].roots.space, *(np.concatenate([getattr(ref.roots, name) for ref in part])
+                                             for name in ("state", "prev", "duration")))
+        locations = [ref.day.locations[: ref.step + 1] for ref in part for _ in ref.weights]
+        owners = np.repeat(np.arange(len(part)), [len(ref.weights) for ref in part])
+        ranks = np.concatenate([np.arange(len(ref.weights)) for ref in part])
+        weights = np.concatenate([ref.weights for ref in part])
+        fcs = forecaster.forecast_roots(roots, locations, horizons - 1)
         acts = fcs.trees.activity_matrix()
-        destination = np.zeros((n,) + fcs.destination.shape[1:])
-        activity = np.zeros((n,) + acts.shape[1:])
+        destination = np.zeros((len(part),) + fcs.destination.shape[1:])
+        activity = np.zeros((len(part),) + acts.shape[1:])
         for k in range(int(ranks.max(initial=-1)) + 1):  # mixed in order, as a running sum would
             mine = ranks == k
             destination[owners[mine]] += weights[mine][:, None, None, None] * fcs.destination[mine]
             activity[owners[mine]] += weights[mine][:, None, None] * acts[mine]
         best, prob = first_locations(destination, fcs.targets, horizons)
         top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
-        lk.score_arrays(run, refs[lo:hi], best, prob, top, fcs.trees.names, fcs.locations, rows)
+        lk.score_arrays(run, [(ref.day, ref.step) for ref in part], best, prob, top, fcs.trees.names, fcs.locations, rows)
         lo = hi
     return run
 
@@ -406,8 +414,7 @@ def _forecaster(setup: FilterSetup, config: GlobeConfig, cache: dict) -> Forecas
     forecaster = cache.get(key)
     if forecaster is None:
         movements = assembly.movement_model(la, *setting).fit(h.train, h.objects)
-        forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
-                                             max_paths=la.max_paths)
+        forecaster = cache[key] = assembly.forecaster_over(setup.activity, movements, la)
     return forecaster
 
 
@@ -454,7 +461,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cach
                 cache[key] = activity, emission
         movements = lk._movements(h, la, train, setting, cache, (data, tuple(train_idx)))
         fold = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
-        forecaster = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
+        forecaster = assembly.forecaster_over(activity, movements, la)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in val}
         runs.append(filtered_lookahead(forecaster, fold, config.filter, val, masks, la.horizons, la.first_reference,
                                        la.last_reference, stride=la.cv_stride))

@@ -27,9 +27,10 @@ from typing import Callable, Mapping, Sequence
 
 from globe.data.records import Day, Household
 from globe.errors import DataError, UnknownLabelError
-from globe.models.activity_filter import ActivityFilter, MovementEmission
+from globe.inference.activity_filter import ActivityFilter, as_dicts
+from globe.inference.emission import MovementEmission
+from globe.inference.fetch_policy import FetchPolicy
 from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
-from globe.reasoning.fetch_policy import FetchPolicy
 from globe.sequences.runs import ActivityRun, activity_runs
 from globe.service.schemas import Prediction
 
@@ -196,12 +197,13 @@ class OnlineAssistant:
         if self._new_filter is None or all(a is not None for a in self._activities):
             return self.activity_model.predict_proba(tuple(self.activity_history()))
         flt = self._new_filter()
+        belief = flt.start()
         previous: tuple[str, ...] | None = None
         for step, (label, state) in enumerate(zip(self._activities, self._states)):
             moved = None if previous is None else frozenset(o for o, x, y in zip(self.household.objects, previous, state) if x != y)
-            flt.update(step, label, moved)
+            belief = flt.update(belief, step, [label], [moved])
             previous = state
-        return flt.predictive()
+        return as_dicts(flt.predictive(belief), flt.labels)[0]
 
     def fetch_decision(self, choice: ObjectChoice, activity: str) -> tuple[str | None, str | None, float | None]:
         """What to fetch now: (object, where to, P(used within the lead window)), or Nones.

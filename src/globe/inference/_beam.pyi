@@ -1,0 +1,6 @@
+from typing import Any
+
+def select(merge: bool, keep: int, floor: float, queries: int, query: Any, entry: Any, act: Any, weight: Any,
+           child: Any, lex: Any, names: Any) -> tuple[bytes, bytes, bytes]: ...
+def extend(floor: float, queries: int, rows: Any, weight: Any, query: Any, pinned: Any, tables: Any, table_of: Any,
+           previous: Any) -> tuple[bytes, bytes, bytes]: ...
