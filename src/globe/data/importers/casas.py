@@ -66,7 +66,7 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
 def read_casas(path: Path, selection: ObjectSelection) -> SensorLog:
     """Every event and annotation of a CASAS log, checked line by line."""
     source = str(path)
-    sensor_log = SensorLog("casas", (source,))
+    sensor_log = SensorLog("casas", (source,), annotation_field="activity")
     open_since: dict[str, datetime] = {}  # object sensor -> when it went on
     begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
     previous: tuple[datetime, int] | None = None

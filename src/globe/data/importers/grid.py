@@ -114,6 +114,7 @@ class SensorLog:
     first: datetime | None = None  # the log's span: its earliest and latest timestamps
     last: datetime | None = None
     notes: list[str] = field(default_factory=list)  # what else the report must say
+    annotation_field: str = "start"  # the field an overlap error names (CASAS: 'activity')
 
     def saw(self, moment: datetime) -> None:
         if self.first is None or moment < self.first:
@@ -144,7 +145,7 @@ def _ceil_steps(delta: timedelta, step: timedelta) -> int:
     return -(-delta // step)
 
 
-def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps) -> list[Annotation]:
+def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *, error_field: str = "start") -> list[Annotation]:
     """The annotations by start (ties: file order). Overlapping ones are an error unless
     ``overlaps="latest"``; an interval ending before it begins is always one."""
     for ann in annotations:
@@ -159,7 +160,7 @@ def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps) -> lis
                 raise DataError(f"{ann.activity!r} begins at {ann.start} while {longest.activity!r} (line "
                                 f"{longest.line}) lasts until {longest.end}: annotations may not overlap (one person, one "
                                 "activity; --overlaps latest lets the later one win while it lasts)",
-                                source=ann.source, line=ann.line, field="start")
+                                source=ann.source, line=ann.line, field=error_field)
             if longest is None or ann.end > longest.end:
                 longest = ann
     return ordered
@@ -285,7 +286,8 @@ def _test_count(kept: int, options: GridOptions) -> int:
         if kept and options.test_days >= kept:
             raise ConfigError(f"{options.test_days} test days would leave no training day ({kept} days kept)")
         return options.test_days
-    return 0 if kept < 2 else max(1, int(kept * options.test_fraction))
+    share = int(kept * options.test_fraction)
+    return share if kept < 2 or options.test_fraction == 0 else max(1, share)
 
 
 def _prepare_dest(dest: Path) -> Path:
@@ -311,7 +313,7 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
         raise DataError("no records", source=sensor_log.sources[0])
     objects = selection.objects()
     home = build_map(objects)
-    ordered = check_overlaps(sensor_log.annotations, options.overlaps)
+    ordered = check_overlaps(sensor_log.annotations, options.overlaps, error_field=sensor_log.annotation_field)
     kept, dropped = _choose_days(sensor_log, ordered, options)
     log.info("%s: %d days with annotations kept, %d dropped", sensor_log.format, len(kept), len(dropped))
     if not kept:
