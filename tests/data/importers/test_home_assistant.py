@@ -64,7 +64,7 @@ def test_round_trip_on_the_homes_clock_computed_by_hand(tmp_path):
             for k, obj in enumerate(home.objects)}
     # fridge on 06:40:03-06:40:30.5 -> 06:40; kettle on 22:55 - 00:05 next day -> 22:50 .. 24:00
     assert used == {"fridge": [400], "kettle": list(range(1370, 1441, 10))}
-    assert "binary_sensor.fridge_door was unavailable or unknown in 1 rows (counted as not in use)" in result.notes
+    assert "binary_sensor.fridge_door was unavailable or unknown 1 time (counted as not in use)" in result.notes
     report = json.loads((tmp_path / "home" / "import.json").read_text(encoding="utf-8"))
     relax = next(a for a in report["activities"] if a["activity"] == "relax")
     assert relax["from"] == ["input_select.activity: relax"] and relax["annotations"] == 1

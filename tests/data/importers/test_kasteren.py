@@ -93,7 +93,8 @@ def test_ordonez_round_trip_computed_by_hand(tmp_path):
     assert toileting["annotations_on_no_row"] == 1 and toileting["rows"] == 0
     assert report["dropped_days"] == [{"date": "2011-11-30", "why": "partial: the log ends at 2011-11-30 00:30:00, "
                                                                      "before this day's last row (24:00)"}]
-    assert result.notes == (f"{f['sensors']}: the first 2 lines are a header", f"{f['adls']}: the first 2 lines are a header")
+    assert result.notes == (f"{f['sensors']}: skipped 2 header lines before the first record",
+                            f"{f['adls']}: skipped 2 header lines before the first record")
 
 
 def test_van_kasteren_round_trip_with_sensor_and_activity_lists(tmp_path):

@@ -152,7 +152,8 @@ def _finish(sensor_log: SensorLog, states: list[tuple[datetime, str, int]], on_s
         sensor_log.notes.append(f"{entity} is still on at the end of the export (since {start}): counted as on until "
                                 "the export ends")
     for entity, count in no_data.items():
-        sensor_log.notes.append(f"{entity} was unavailable or unknown in {count} rows (counted as not in use)")
+        times = "time" if count == 1 else "times"
+        sensor_log.notes.append(f"{entity} was unavailable or unknown {count} {times} (counted as not in use)")
 
 
 def import_home_assistant(*, history: Path, dest: Path, activity_entity: str, options: GridOptions | None = None,

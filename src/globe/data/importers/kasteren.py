@@ -164,6 +164,10 @@ def _sensor_of(record: Interval, named: dict[str, Sensor] | None, source: str) -
     return sensor
 
 
+def _header_note(source: str, lines: int) -> str:
+    return f"{source}: skipped {lines} header line{'s' if lines > 1 else ''} before the first record"
+
+
 def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSelection, *,
                   sensor_list: Path | None = None, activity_list: Path | None = None) -> SensorLog:
     """Both files of an interval log, checked line by line, as one :class:`SensorLog`."""
@@ -173,7 +177,7 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
     sensor_log = SensorLog("kasteren", sources)
     records, header = read_intervals(sensors_file)
     if header:
-        sensor_log.notes.append(f"{sources[0]}: the first {header} lines are a header")
+        sensor_log.notes.append(_header_note(sources[0], header))
     shape = len(records[0].rest) == 3
     for record in records:
         if (len(record.rest) == 3) != shape:
@@ -188,7 +192,7 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
     log.info("%s: %d sensor intervals", sources[0], len(records))
     records, header = read_intervals(activities_file)
     if header:
-        sensor_log.notes.append(f"{sources[1]}: the first {header} lines are a header")
+        sensor_log.notes.append(_header_note(sources[1], header))
     for record in records:
         text = " ".join(record.rest)
         if labels is not None:
