@@ -154,3 +154,27 @@ def test_mapping_errors_name_the_mapping_line(tmp_path):
         err, _, map_path = _error(tmp_path, HISTORY, mapping)
         assert (err.source, err.line, err.field) == (str(map_path), line, field), mapping
         assert message in err.message
+
+
+def test_the_hour_a_clock_change_repeats_never_runs_the_clock_backwards(tmp_path):
+    # Europe/Amsterdam goes back from 03:00 CEST to 02:00 CET on 27 October 2024 (01:00 UTC). A
+    # toilet visit 02:30 CEST - 02:10 CET (00:30Z - 01:10Z) would end before it began on the wall
+    # clock; its end is held at 02:30, and the night goes on as sleeping.
+    history = ("entity_id,state,last_changed\n"
+               "input_select.activity,sleeping,2024-10-25T20:00:00Z\n"
+               "input_select.activity,toilet,2024-10-27T00:30:00Z\n"
+               "input_select.activity,sleeping,2024-10-27T01:10:00Z\n"
+               "input_select.activity,breakfast,2024-10-27T06:05:00Z\n"
+               "input_select.activity,relax,2024-10-27T06:30:00Z\n"
+               "input_select.activity,sleeping,2024-10-27T22:00:00Z\n"
+               "input_select.activity,sleeping,2024-10-28T06:00:00Z\n")
+    path, mapping = _files(tmp_path, history, "sensor,object\n")
+    result = import_home_assistant(history=path, dest=tmp_path / "home", activity_entity="input_select.activity",
+                                   timezone="Europe/Amsterdam")
+    assert any(note.startswith("rows in an hour that a clock change repeats: 1;") for note in result.notes)
+    home = load_household(tmp_path, "home")
+    day = next(d for d in home.train + home.test if d.name.endswith("2024-10-27"))
+    # CET (UTC+1) after the change: breakfast 07:05-07:30, relax from 07:30, sleeping from 23:00
+    acts = dict(zip(day.minutes, day.activities))
+    assert [acts[m] for m in (360, 420, 430, 440, 450, 1370, 1380)] == [
+        "sleeping", "sleeping", "breakfast", "breakfast", "relax", "relax", "sleeping"]

@@ -20,7 +20,9 @@ are counted in the report; any other state is an error. Other entities are left 
 
 Timestamps with a UTC offset (HA writes UTC) are put on the home's clock with ``timezone`` (an
 IANA name such as ``Europe/Amsterdam``), which is then required: the day starts at 06:00 where
-the person lives. Timestamps without an offset are taken as the home's clock already.
+the person lives. When the clocks go back, an hour happens twice on the home's clock; a row in
+its second pass is held at its entity's previous local time (and counted in the report), so that
+intervals never end before they begin. Timestamps without an offset are the home's clock already.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import re
 from datetime import datetime, tzinfo
 from pathlib import Path
 from typing import Callable
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from globe.data.csv_logs import _check_header, _clean, _csv_rows, _label, _ragged
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
@@ -52,8 +55,6 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
 
 
 def _zone(timezone: str) -> tzinfo:
-    from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
-
     try:
         return ZoneInfo(timezone)
     except (ZoneInfoNotFoundError, ValueError) as err:
@@ -81,6 +82,8 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
     states: list[tuple[datetime, str, int]] = []  # the activity entity's rows
     on_since: dict[str, datetime] = {}
     no_data: dict[str, int] = {}
+    last_local: dict[str, datetime] = {}
+    repeated = 0  # rows in the hour a clock change repeats, held at the entity's previous local time
     for line, row in rows[1:]:
         if len(row) != len(header):
             raise _ragged(source, line, row, header)
@@ -105,6 +108,10 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
                             "entity's rows must be in time order", source=source, line=line, field="last_changed")
         last_row[entity] = (moment, line)
         moment = local(moment)
+        if entity in last_local and moment < last_local[entity]:
+            moment = last_local[entity]
+            repeated += 1
+        last_local[entity] = moment
         sensor_log.saw(moment)
         sensor_log.events[entity] += 1
         if entity == activity_entity:
@@ -128,6 +135,9 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
         raise DataError(f"the activity entity {activity_entity!r} is not in the export"
                         + (f" (entities such as {shown})" if shown else ""), source=source)
     _finish(sensor_log, states, on_since, no_data, activity_entity, source)
+    if repeated:
+        sensor_log.notes.append(f"rows in an hour that a clock change repeats: {repeated}; each is held at its entity's "
+                                "previous local time, so that the home's clock never runs backwards")
     return sensor_log
 
 
