@@ -24,9 +24,9 @@ from globe.data.importers.text import parse_clock
 from globe.sequences.runs import activity_runs
 
 app = typer.Typer(help="Validate and import household observation logs.", no_args_is_help=True)
-import_app = typer.Typer(help="Import a real home's log (CASAS, van Kasteren / Ordóñez, Home Assistant) into a household "
-                              "folder on GLOBE's step grid; the folder's import.json says what became of each sensor, "
-                              "annotation and day.", no_args_is_help=True)
+import_app = typer.Typer(help="Import a real home's log (CASAS, van Kasteren / Ordóñez, Home Assistant) into a "
+                              "household folder on GLOBE's step grid; the folder's import.json says what became of "
+                              "each sensor, annotation and day.", no_args_is_help=True)
 app.add_typer(import_app, name="import")
 
 
@@ -60,19 +60,20 @@ def import_pt(
     out.print(f"wrote {len(written)} day files and nodes.csv to {dest}", markup=False, highlight=False)
 
 
-DestArgument = Annotated[Path, typer.Argument(help="household folder to write (new or empty): nodes.csv, train/, test/, "
-                                                   "import.json")]
-ObjectsOption = Annotated[Path | None, typer.Option("--objects", help="CSV sensor,object[,room][,furniture]: the sensors "
-                                                                      "that are objects (default: by sensor type, see the docs)")]
+DestArgument = Annotated[Path, typer.Argument(
+    help="household folder to write (new or empty): nodes.csv, train/, test/, import.json")]
+ObjectsOption = Annotated[Path | None, typer.Option(
+    "--objects", help="CSV sensor,object[,room][,furniture]: the sensors that are objects (default: by sensor type, "
+                      "see docs/your-home.md)")]
 StepOption = Annotated[int, typer.Option("--step", help="minutes between rows (1, 2, 5, 10, ...; must divide the day)")]
 DayStartOption = Annotated[str, typer.Option("--day-start", help="first row of a day, HH:MM")]
 DayEndOption = Annotated[str, typer.Option("--day-end", help="last row of a day, HH:MM (24:00 = midnight)")]
 TestDaysOption = Annotated[int | None, typer.Option("--test-days", help="the last N kept days are test days")]
 TestFractionOption = Annotated[float | None, typer.Option(
-    "--test-fraction", help=f"the last share of kept days that are test days (default {DEFAULT_TEST_FRACTION}, at least "
-                            "one when two or more days are kept)")]
-OverlapsOption = Annotated[str, typer.Option("--overlaps", help="overlapping annotations: 'error', or 'latest' (the one "
-                                                                "that began last wins while it lasts)")]
+    "--test-fraction", help=f"the last share of kept days that are test days (default {DEFAULT_TEST_FRACTION}, "
+                            "at least one when two or more days are kept)")]
+OverlapsOption = Annotated[str, typer.Option(
+    "--overlaps", help="overlapping annotations: 'error', or 'latest' (the one that began last wins while it lasts)")]
 
 
 def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_fraction: float | None,
@@ -88,8 +89,9 @@ def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_f
         raise typer.BadParameter("give --test-days or --test-fraction, not both", param_hint="'--test-days'")
     if overlaps not in ("error", "latest"):
         raise typer.BadParameter(f"{overlaps!r} is not 'error' or 'latest'", param_hint="'--overlaps'")
+    fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
     return GridOptions(step_minutes=step, day_start_minute=minutes["--day-start"], day_end_minute=minutes["--day-end"],
-                       test_days=test_days, test_fraction=DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction,
+                       test_days=test_days, test_fraction=fraction,
                        overlaps="latest" if overlaps == "latest" else "error")
 
 
@@ -126,7 +128,8 @@ def import_casas_cmd(
 
 @import_app.command("kasteren")
 def import_kasteren_cmd(
-    sensors: Annotated[Path, typer.Argument(help="sensor intervals: start end id [1], or start end Location Type Place")],
+    sensors: Annotated[Path, typer.Argument(help="sensor intervals: start end id [1], or start end Location Type "
+                                                 "Place")],
     activities: Annotated[Path, typer.Argument(help="activity intervals: start end activity (or id)")],
     dest: DestArgument,
     sensor_list: Annotated[Path | None, typer.Option("--sensor-list", help="CSV sensor,name[,type][,room] for "

@@ -132,7 +132,8 @@ def test_a_sensor_left_on_counts_until_the_log_ends_and_is_noted(tmp_path):
 
 def _error(tmp_path, text, **kwargs):
     with pytest.raises(DataError) as info:
-        import_casas(log_file=_write(tmp_path, text) if isinstance(text, str) else text, dest=tmp_path / "out", **kwargs)
+        log_file = _write(tmp_path, text) if isinstance(text, str) else text
+        import_casas(log_file=log_file, dest=tmp_path / "out", **kwargs)
     assert not (tmp_path / "out").exists()  # nothing is written when a line is bad
     return info.value
 

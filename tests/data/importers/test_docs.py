@@ -22,14 +22,15 @@ def _blocks():
         if title:
             files[title.group(1)] = body
         elif lang == "bash":
-            commands += [line for line in body.splitlines() if line.strip()]
+            commands += [line for line in body.replace("\\\n", " ").splitlines() if line.strip()]
     return files, commands
 
 
 def _globe(line, cwd):
     args = shlex.split(line)
     assert args[0] == "globe", line
-    return subprocess.run([sys.executable, "-m", "globe", *args[1:]], cwd=cwd, capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "globe", *args[1:]], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +52,8 @@ def test_every_command_of_the_page_succeeds(ran):
 def test_the_page_says_what_the_imports_wrote(ran):
     folder, _ = ran
     casas = load_household(folder, "MyCasasHome")
-    assert casas.objects == ("i006",) and [d.name for d in casas.train + casas.test] == ["train/2010-11-04", "test/2010-11-05"]
+    assert casas.objects == ("i006",)
+    assert [d.name for d in casas.train + casas.test] == ["train/2010-11-04", "test/2010-11-05"]
     day = casas.train[0]
     assert day.activities[:7] == ("Sleeping",) * 6 + ("idle",) and day.locations[6] == ("in_use#2",)
     assert day.activities[7] == "Meal_Preparation"

@@ -34,7 +34,8 @@ def _log(days: int) -> tuple[SensorLog, ObjectSelection]:
 
 def _write(tmp_path, days, **options):
     sensor_log, selection = _log(days)
-    return write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(**options), dest=tmp_path / "home")
+    return write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(**options),
+                        dest=tmp_path / "home")
 
 
 @pytest.mark.parametrize("step", [1, 2, 5, 10])
@@ -108,7 +109,9 @@ def test_days_outside_the_log_and_unannotated_days_are_dropped_and_listed(tmp_pa
     assert (result.train_days, result.test_days, result.dropped_days) == (1, 0, 3)
     report = json.loads(result.report.read_text(encoding="utf-8"))
     assert report["dropped_days"] == [
-        {"date": "2024-01-01", "why": "partial: the log starts at 2024-01-01 06:01:00, after this day's first row (06:00)"},
+        {"date": "2024-01-01",
+         "why": "partial: the log starts at 2024-01-01 06:01:00, after this day's first row (06:00)"},
         {"date": "2024-01-02", "why": "no annotation"},
-        {"date": "2024-01-04", "why": "partial: the log ends at 2024-01-04 00:30:00, before this day's last row (24:00)"},
+        {"date": "2024-01-04",
+         "why": "partial: the log ends at 2024-01-04 00:30:00, before this day's last row (24:00)"},
     ]

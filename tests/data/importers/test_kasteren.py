@@ -60,7 +60,8 @@ def _files(tmp_path, **texts):
 
 def _used(home, day):
     in_use = {n.node for n in home.nodes if n.cls == "in_use"}
-    return {obj: [m for m, row in zip(day.minutes, day.locations) if row[k] in in_use] for k, obj in enumerate(home.objects)}
+    return {obj: [m for m, row in zip(day.minutes, day.locations) if row[k] in in_use]
+            for k, obj in enumerate(home.objects)}
 
 
 def _acts(day):
@@ -179,11 +180,13 @@ def test_a_bad_activity_line_names_file_line_and_field(tmp_path, bad, field, mes
 
 def test_an_ordonez_log_needs_no_sensor_list(tmp_path):
     err, f = _error(tmp_path, sense=ORDONEZ_SENSORS, act=ORDONEZ_ADLS, sensors=SENSOR_LIST)
-    assert (err.source, err.line, err.field) == (str(f["sense"]), 3, "sensor") and "leave out --sensor-list" in err.message
+    assert (err.source, err.line, err.field) == (str(f["sense"]), 3, "sensor")
+    assert "leave out --sensor-list" in err.message
 
 
 def test_sensor_and_activity_lists_are_checked(tmp_path):
-    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, sensors=SENSOR_LIST + "7,Cups again,reed,kitchen\n")
+    twice = SENSOR_LIST + "7,Cups again,reed,kitchen\n"
+    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, sensors=twice)
     assert (err.source, err.line, err.field) == (str(f["sensors"]), 6, "sensor") and "listed twice" in err.message
     err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, activities="id,label\n4,x\n")
     assert (err.source, err.line, err.field) == (str(f["activities"]), 1, "activity")

@@ -90,12 +90,12 @@ def read_casas(path: Path, selection: ObjectSelection) -> SensorLog:
         sensor_log.saw(moment)
         key, value = fields[2], fields[3].upper()
         if not _SENSOR.fullmatch(key):
-            raise DataError(f"{show(key)} is not a sensor id (letters, digits, '_', '-', '.')", source=source, line=line,
-                            field="sensor")
+            raise DataError(f"{show(key)} is not a sensor id (letters, digits, '_', '-', '.')", source=source,
+                            line=line, field="sensor")
         binary = value in ACTIVE or value in INACTIVE
         if not binary and not _NUMBER.fullmatch(value):
-            raise DataError(f"{show(fields[3])} is not ON, OFF, OPEN, CLOSE, ABSENT, PRESENT or a number", source=source,
-                            line=line, field="value")
+            raise DataError(f"{show(fields[3])} is not ON, OFF, OPEN, CLOSE, ABSENT, PRESENT or a number",
+                            source=source, line=line, field="value")
         sensor_log.events[key] += 1
         choice = selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
         if choice.object is not None:

@@ -145,7 +145,8 @@ def _ceil_steps(delta: timedelta, step: timedelta) -> int:
     return -(-delta // step)
 
 
-def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *, error_field: str = "start") -> list[Annotation]:
+def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *,
+                   error_field: str = "start") -> list[Annotation]:
     """The annotations by start (ties: file order). Overlapping ones are an error unless
     ``overlaps="latest"``; an interval ending before it begins is always one."""
     for ann in annotations:
@@ -158,8 +159,8 @@ def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *, err
         for ann in ordered:
             if longest is not None and ann.start < longest.end:
                 raise DataError(f"{ann.activity!r} begins at {ann.start} while {longest.activity!r} (line "
-                                f"{longest.line}) lasts until {longest.end}: annotations may not overlap (one person, one "
-                                "activity; --overlaps latest lets the later one win while it lasts)",
+                                f"{longest.line}) lasts until {longest.end}: annotations may not overlap (one person, "
+                                "one activity; --overlaps latest lets the later one win while it lasts)",
                                 source=ann.source, line=ann.line, field=error_field)
             if longest is None or ann.end > longest.end:
                 longest = ann
@@ -336,7 +337,8 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
             (tmp / split).mkdir()
             for day in days:
                 write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
-        report = _report(sensor_log, selection, objects, home, options, settings or {}, grid, per_label, splits, dropped)
+        report = _report(sensor_log, selection, objects, home, options, settings or {}, grid, per_label, splits,
+                         dropped)
         (tmp / REPORT_FILE).write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
         if Path(dest).exists():
             Path(dest).rmdir()

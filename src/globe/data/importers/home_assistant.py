@@ -122,8 +122,8 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
             continue
         key = state.lower()
         if key not in ON_STATES and key not in OFF_STATES and key not in NO_DATA:
-            raise DataError(f"{show(state)} is not a state of a mapped binary sensor (on, off, open, closed, unavailable, "
-                            "unknown)", source=source, line=line, field="state")
+            raise DataError(f"{show(state)} is not a state of a mapped binary sensor (on, off, open, closed, "
+                            "unavailable, unknown)", source=source, line=line, field="state")
         if key in NO_DATA:
             no_data[entity] = no_data.get(entity, 0) + 1
         if key in ON_STATES:
@@ -136,8 +136,8 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
                         + (f" (entities such as {shown})" if shown else ""), source=source)
     _finish(sensor_log, states, on_since, no_data, activity_entity, source)
     if repeated:
-        sensor_log.notes.append(f"rows in an hour that a clock change repeats: {repeated}; each is held at its entity's "
-                                "previous local time, so that the home's clock never runs backwards")
+        sensor_log.notes.append(f"rows in an hour that a clock change repeats: {repeated}; each is held at its "
+                                "entity's previous local time, so that the home's clock never runs backwards")
     return sensor_log
 
 
@@ -174,8 +174,8 @@ def import_home_assistant(*, history: Path, dest: Path, activity_entity: str, op
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
     if mapping is not None and activity_entity in mapping.rows:
-        raise DataError(f"{activity_entity!r} is the activity entity; it cannot also be an object", source=mapping.source,
-                        line=mapping.rows[activity_entity].line, field="sensor")
+        raise DataError(f"{activity_entity!r} is the activity entity; it cannot also be an object",
+                        source=mapping.source, line=mapping.rows[activity_entity].line, field="sensor")
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
     sensor_log = read_home_assistant(history, selection, activity_entity=activity_entity, timezone=timezone)
     settings = {"activity_entity": activity_entity, "timezone": timezone}

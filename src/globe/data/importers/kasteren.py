@@ -134,7 +134,8 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
     if not kind:
         return False, "no sensor type known (map it with --objects, or give the sensor list a type column)"
     if kind not in OBJECT_TYPES:
-        return False, f"sensor type {sensor.kind!r}: not a thing a robot can fetch (map it with --objects to include it)"
+        return False, (f"sensor type {sensor.kind!r}: not a thing a robot can fetch (map it with --objects to "
+                       "include it)")
     if "door" in sensor.name.lower():
         return False, "a door: not a thing a robot can fetch (map it with --objects to include it)"
     return True, f"sensor type {sensor.kind!r}: a contact on something opened, or a switched appliance"

@@ -114,8 +114,8 @@ def read_mapping(path: Path) -> ObjectMapping:
                             line=line, field="sensor")
         obj = _name(cell["object"], what="object", source=source, line=line, field="object")
         if obj in FIXED_COLUMNS:
-            raise DataError(f"an object may not be called {obj!r} (a day file's fixed column)", source=source, line=line,
-                            field="object")
+            raise DataError(f"an object may not be called {obj!r} (a day file's fixed column)", source=source,
+                            line=line, field="object")
         room = cell.get("room", "")
         furniture = cell.get("furniture", "")
         if room:
@@ -123,8 +123,8 @@ def read_mapping(path: Path) -> ObjectMapping:
         if furniture:
             _name(furniture, what="furniture", source=source, line=line, field="furniture")
         if obj in homes and homes[obj][:2] != (room, furniture):
-            raise DataError(f"object {obj!r} is placed differently at line {homes[obj][2]} (one object, one home place)",
-                            source=source, line=line, field="room")
+            raise DataError(f"object {obj!r} is placed differently at line {homes[obj][2]} (one object, one home "
+                            "place)", source=source, line=line, field="room")
         homes.setdefault(obj, (room, furniture, line))
         mapping[sensor] = MappingRow(obj, room, furniture, line)
     return ObjectMapping(source, mapping)
@@ -173,9 +173,9 @@ class ObjectSelection:
         if self.mapping is not None:
             for key, row in self.mapping.rows.items():
                 if key not in self.choices:
-                    raise DataError(f"sensor {show(key)} is not in the log (remove the line, or check the sensor's name "
-                                    "as the import report lists it)", source=self.mapping.source, line=row.line,
-                                    field="sensor")
+                    raise DataError(f"sensor {show(key)} is not in the log (remove the line, or check the sensor's "
+                                    "name as the import report lists it)", source=self.mapping.source,
+                                    line=row.line, field="sensor")
             order = {row.object: row.line for row in reversed(self.mapping.rows.values())}
         by_object: dict[str, list[str]] = {}
         for key, choice in self.choices.items():
