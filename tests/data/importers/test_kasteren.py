@@ -197,3 +197,19 @@ def test_empty_and_header_only_files_are_refused(tmp_path):
     assert (err.source, err.line) == (str(f["sense"]), 1) and "empty file" in err.message
     err, f = _error(tmp_path, sense=KASTEREN_SENSE, act="Start time\tEnd time\tID\n")
     assert (err.source, err.line) == (str(f["act"]), 1) and "no records after 1 header lines" in err.message
+
+
+def test_one_object_from_sensors_in_two_places_needs_its_room_in_the_mapping(tmp_path):
+    f = _files(tmp_path, sensors=ORDONEZ_SENSORS, adls=ORDONEZ_ADLS)
+    mapping = tmp_path / "map.csv"
+    mapping.write_text("sensor,object\nCupboard Magnetic Kitchen,storage\nBasin PIR Bathroom,storage\n",
+                       encoding="utf-8")
+    with pytest.raises(DataError) as info:
+        import_kasteren(sensors_file=f["sensors"], activities_file=f["adls"], dest=tmp_path / "home", objects=mapping)
+    assert (info.value.source, info.value.line) == (str(f["sensors"]), 7) and "different rooms" in info.value.message
+    mapping.write_text("sensor,object,room\nCupboard Magnetic Kitchen,storage,kitchen\n"
+                       "Basin PIR Bathroom,storage,kitchen\n", encoding="utf-8")
+    import_kasteren(sensors_file=f["sensors"], activities_file=f["adls"], dest=tmp_path / "home", objects=mapping)
+    day = load_household(tmp_path, "home").train[0]
+    # either sensor marks the use: the cupboard at 06:20, the basin at 07:00
+    assert [m for m, row in zip(day.minutes, day.locations) if row[0] == "in_use#2"] == [380, 420]

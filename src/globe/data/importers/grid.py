@@ -201,6 +201,14 @@ class _Grid:
         return timedelta(minutes=self.options.day_start_minute)
 
 
+def _meets(ann: Annotation, base: datetime, window: timedelta) -> bool:
+    """Whether an annotation meets the day window ``[base, base + window)`` (one of no length:
+    whether its instant lies in it)."""
+    if ann.start == ann.end:
+        return base <= ann.start < base + window
+    return ann.start < base + window and ann.end > base
+
+
 def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: GridOptions
                  ) -> tuple[dict[date, datetime], list[dict[str, str]]]:
     """The kept days (date -> first step's start) and the dropped ones with why."""
@@ -212,7 +220,7 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
     for ann in ordered:
         for day in _touched_dates(ann.start, ann.end, offset, window):
             base = datetime.combine(day, time()) + offset
-            if ann.start < base + window and (ann.end > base or (ann.end == ann.start == base)):
+            if _meets(ann, base, window):
                 annotated.add(day)
     kept: dict[date, datetime] = {}
     dropped: list[dict[str, str]] = []
@@ -252,7 +260,7 @@ def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, 
         touched = placed = False
         for day in _touched_dates(ann.start, ann.end, grid.offset, grid.window):
             base = grid.bases.get(day)
-            if base is None or not (ann.start < base + grid.window and ann.end > base):
+            if base is None or not _meets(ann, base, grid.window):
                 continue
             touched = True
             first = max(0, _ceil_steps(ann.start - base, grid.step))
@@ -319,10 +327,10 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
     log.info("%s: %d days with annotations kept, %d dropped", sensor_log.format, len(kept), len(dropped))
     if not kept:
         reasons = Counter(d["why"].split(":")[0] for d in dropped)
-        raise DataError(f"no day to import: {len(dropped)} days, none both annotated and fully covered by the log "
-                        f"({', '.join(f'{n} {why}' for why, n in reasons.items())}); every record is outside "
-                        f"{_clock(options.day_start_minute)}..{_clock(options.day_end_minute)} or unannotated",
-                        source=", ".join(sensor_log.sources))
+        counts = ", ".join(f"{n} {why}" for why, n in reasons.items())
+        raise DataError(f"no day to import: none of the {len(dropped)} days is both annotated and covered by the log "
+                        f"from its first row ({_clock(options.day_start_minute)}) to its last "
+                        f"({_clock(options.day_end_minute)}): {counts}", source=", ".join(sensor_log.sources))
     grid = _Grid(options, kept, {day: [IDLE] * options.steps for day in kept}, {})
     per_label = _place_annotations(grid, ordered)
     _place_uses(grid, objects, sensor_log.activations)
@@ -394,7 +402,8 @@ def _report(sensor_log: SensorLog, selection: ObjectSelection, objects: Sequence
         "log_span": [f"{sensor_log.first:%Y-%m-%d %H:%M:%S}", f"{sensor_log.last:%Y-%m-%d %H:%M:%S}"],
         "objects": object_rows,
         "sensors_left_out": left_out,
-        "objects_rule": "mapping" if selection.mapping is not None else selection.default_help,
+        "objects_rule": (f"the mapping {selection.mapping.source}" if selection.mapping is not None
+                         else selection.default_help),
         "activities": activities,
         "days": {split: [d.isoformat() for d in days] for split, days in splits.items()},
         "dropped_days": dropped,

@@ -79,7 +79,7 @@ class ObjectMapping:
     rows: dict[str, MappingRow]
 
 
-DefaultRule = Callable[[Sensor], "tuple[bool, str]"]  # (is an object, why), for the report
+DefaultRule = Callable[[Sensor], tuple[bool, str]]  # (is an object, why), for the report
 
 
 def _name(value: str, *, what: str, source: str, line: int, field: str) -> str:
@@ -139,7 +139,6 @@ class ObjectSelection:
         self.default = default
         self.default_help = default_help
         self.choices: dict[str, Choice] = {}
-        self.sensors: dict[str, Sensor] = {}
         self.first_seen: dict[str, tuple[str, int]] = {}
 
     def choose(self, sensor: Sensor, *, source: str, line: int) -> Choice:
@@ -163,7 +162,6 @@ class ObjectSelection:
                                 source=source, line=line)
             choice = Choice(name if is_object else None, room_of_log or DEFAULT_ROOM, "", why)
         self.choices[sensor.key] = choice
-        self.sensors[sensor.key] = sensor
         self.first_seen[sensor.key] = (source, line)
         return choice
 
@@ -192,6 +190,12 @@ class ObjectSelection:
         for obj in sorted(by_object, key=lambda o: (order[o], o)):
             keys = by_object[obj]
             first = self.choices[keys[0]]
+            other = next((k for k in keys if self.choices[k].room != first.room), None)
+            if other is not None:
+                source, line = self.first_seen[other]
+                raise DataError(f"sensors {show(keys[0])} and {show(other)} of object {obj!r} are in different rooms "
+                                f"({first.room!r}, {self.choices[other].room!r}); give the object's room in the mapping",
+                                source=source, line=line)
             whys = "; ".join(dict.fromkeys(self.choices[k].why for k in keys))
             specs.append(ObjectSpec(obj, first.room, first.furniture, tuple(keys), whys))
         return tuple(specs)
