@@ -193,9 +193,9 @@ class ObjectSelection:
             other = next((k for k in keys if self.choices[k].room != first.room), None)
             if other is not None:
                 source, line = self.first_seen[other]
+                rooms = f"{first.room!r}, {self.choices[other].room!r}"
                 raise DataError(f"sensors {show(keys[0])} and {show(other)} of object {obj!r} are in different rooms "
-                                f"({first.room!r}, {self.choices[other].room!r}); give the object's room in the mapping",
-                                source=source, line=line)
+                                f"({rooms}); give the object's room in the mapping", source=source, line=line)
             whys = "; ".join(dict.fromkeys(self.choices[k].why for k in keys))
             specs.append(ObjectSpec(obj, first.room, first.furniture, tuple(keys), whys))
         return tuple(specs)
