@@ -196,7 +196,7 @@ def test_empty_and_header_only_files_are_refused(tmp_path):
     err, f = _error(tmp_path, sense="", act=KASTEREN_ACT)
     assert (err.source, err.line) == (str(f["sense"]), 1) and "empty file" in err.message
     err, f = _error(tmp_path, sense=KASTEREN_SENSE, act="Start time\tEnd time\tID\n")
-    assert (err.source, err.line) == (str(f["act"]), 1) and "no records after 1 header lines" in err.message
+    assert (err.source, err.line) == (str(f["act"]), 1) and "no records (only 1 header line)" in err.message
 
 
 def test_one_object_from_sensors_in_two_places_needs_its_room_in_the_mapping(tmp_path):

@@ -83,7 +83,7 @@ def read_intervals(path: Path) -> tuple[list[Interval], int]:
             raise DataError("nothing after the two times", source=source, line=line, field="sensor")
         records.append(Interval(line, start, end, rest))
     if not records:
-        raise DataError(f"no records after {header} header lines", source=source, line=1)
+        raise DataError(f"no records (only {header} header line{'s' if header > 1 else ''})", source=source, line=1)
     return records, header
 
 
