@@ -31,10 +31,14 @@ from globe.evaluation import lookahead, missing_labels
 from globe.evaluation.anticipation import method_models
 from globe.evaluation.tuning import tuned_models
 
+try:  # the memo of this version (an older one passed a dict)
+    from globe.evaluation.selection import Memo
+except ImportError:
+    Memo = dict
 part, name, data = sys.argv[1], sys.argv[2], sys.argv[3] or None
 cfg = GlobeConfig(evaluation={"workers": 1})
 household = load_household(resolve_data_root(data), name)
-cache = {}
+cache = Memo()
 if part != "selection":  # what the main job has chosen before these stages
     for family in ("witten_bell", "routine"):
         tuned_models(household, cfg, family, cache)
@@ -46,7 +50,7 @@ elif part == "lookahead":
     for method in cfg.lookahead.methods:
         lookahead.evaluate_lookahead(household, cfg, method_models(method, household, cfg, cache), method, cache)
 else:
-    missing_labels.run_missing_labels(cfg, [household], cache=cache)
+    missing_labels.run_missing_labels(cfg, [household], None, cache)
 print(json.dumps(time.perf_counter() - started))
 """
 

@@ -4,7 +4,6 @@ import math
 
 import pytest
 
-from globe.evaluation.tuning import folds, grid, select
 from globe.models.backoff import witten_bell_distribution
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
@@ -71,25 +70,3 @@ def test_object_distribution_mixes_over_the_activity_belief():
     got = object_distribution(om, "eat", {"eat": 0.6, "read": 0.4}, ctx, marginal=True)
     assert got == pytest.approx({"bowl": 0.3, "cup": 0.3, "book": 0.4})
     assert object_distribution(om, "eat", {"eat": 0.6, "read": 0.4}, ctx, marginal=False) == {"bowl": 0.5, "cup": 0.5}
-
-
-def test_folds_are_contiguous_and_cover_every_day():
-    splits = folds(10, 3)
-    assert [v for _, v in splits] == [[0, 1, 2], [3, 4, 5, 6], [7, 8, 9]]
-    for train, val in splits:
-        assert sorted(train + val) == list(range(10))
-
-
-def test_select_picks_the_best_candidate_on_held_out_items():
-    class Const:  # predicts a constant label; the data is mostly "b"
-        def __init__(self, label):
-            self.label = label
-
-        def fit(self, items):
-            return self
-
-    items = ["b", "b", "a", "b", "b", "b"]
-    sel = select(items, grid({"label": ["a", "b"]}), lambda p: Const(p["label"]),
-                 lambda m, val: (list(val), [m.label] * len(val)), k=3)
-    assert sel.best == {"label": "b"}
-    assert [round(s, 3) for _, s in sel.scores][1] > [round(s, 3) for _, s in sel.scores][0]

@@ -167,8 +167,12 @@ static PyObject *select_(PyObject *self, PyObject *args) {
         }
         for (Py_ssize_t i = 0; i < n; i++) {
             int64_t g = group[i];
+            double key = tie_key(w[i]);
             sum[g] += w[i];
-            if (rep[g] < 0 || tie_key(w[i]) > tie_key(w[rep[g]])) rep[g] = i;
+            if (rep[g] < 0 || key > kept_w[g]) { /* kept_w holds each group's best key until the output */
+                rep[g] = i;
+                kept_w[g] = key;
+            }
         }
     } else {
         for (Py_ssize_t i = 0; i < n; i++) {
@@ -180,7 +184,13 @@ static PyObject *select_(PyObject *self, PyObject *args) {
         int64_t i = rep[g];
         items[g] = (Item){query[i], lex[entry[i]], names[act[i]], g, tie_key(sum[g])};
     }
-    qsort(items, groups, sizeof(Item), by_rank);
+    /* the groups come query by query (the candidates do, and a group is numbered when first seen):
+     * each query's are sorted apart */
+    for (Py_ssize_t lo = 0, hi; lo < groups; lo = hi) {
+        for (hi = lo + 1; hi < groups && items[hi].query == items[lo].query; hi++)
+            ;
+        qsort(items + lo, hi - lo, sizeof(Item), by_rank);
+    }
     /* each query's first `keep`; when merging, those at least `floor` of their total */
     Py_ssize_t k = 0;
     for (Py_ssize_t lo = 0; lo < groups;) {
@@ -215,7 +225,11 @@ static PyObject *select_(PyObject *self, PyObject *args) {
         kept_w[r] = sum[g] / total[query[i]];
         items[r] = (Item){query[i], lex[entry[i]], names[act[i]], r, 0.0};
     }
-    qsort(items, k, sizeof(Item), by_history);
+    for (Py_ssize_t lo = 0, hi; lo < k; lo = hi) {
+        for (hi = lo + 1; hi < k && items[hi].query == items[lo].query; hi++)
+            ;
+        qsort(items + lo, hi - lo, sizeof(Item), by_history);
+    }
     for (Py_ssize_t r = 0, lo = 0; r < k; r++) {
         if (r && items[r].query != items[r - 1].query) lo = r;
         kept_lex[items[r].index] = r - lo;
@@ -320,9 +334,125 @@ done:
     return out;
 }
 
+/* extend_paths(floor, queries, rows, weight, query, lex, names) -> (entry, act, weight) bytes: every
+ * extension of the forecaster's paths (row r of `rows` times its weight) with weight at least
+ * `floor`, path by path in activity order; a query with none keeps one, the most probable of its
+ * paths' most probable next activities (ties: the path first in name order, `lex`). A path's
+ * most probable next activity is its row's largest (ties: the larger name rank, `names`). */
+static PyObject *extend_paths(PyObject *self, PyObject *args) {
+    double floor_;
+    Py_ssize_t nq;
+    PyObject *objs[5];
+    if (!PyArg_ParseTuple(args, "dnOOOOO", &floor_, &nq, &objs[0], &objs[1], &objs[2], &objs[3], &objs[4])) return NULL;
+    const char kinds[5] = {'d', 'd', 'q', 'q', 'q'};
+    const char *names_[5] = {"rows", "weight", "query", "lex", "names"};
+    Buf b[5] = {{0}};
+    PyObject *out = NULL;
+    double *cw = NULL, *fw = NULL;
+    int64_t *ce = NULL, *ca = NULL, *fe = NULL, *fa = NULL;
+    char *found = NULL;
+    for (int i = 0; i < 5; i++)
+        if (get_buf(objs[i], &b[i], kinds[i], names_[i]) < 0) goto done;
+    Py_ssize_t n = b[1].n, width = n ? b[0].n / n : 0;
+    const double *rows = b[0].view.buf, *weight = b[1].view.buf;
+    const int64_t *query = b[2].view.buf, *lex = b[3].view.buf, *names = b[4].view.buf;
+    if (nq < 0 || (n && b[0].n != n * width) || b[2].n != n || b[3].n != n || b[4].n < width) {
+        PyErr_SetString(PyExc_ValueError, "beam: the extension arrays disagree");
+        goto done;
+    }
+    for (Py_ssize_t r = 0; r < n; r++)
+        if (query[r] < 0 || query[r] >= nq || (r && query[r] < query[r - 1])) {
+            PyErr_SetString(PyExc_ValueError, "beam: a path's query is out of range");
+            goto done;
+        }
+    Py_ssize_t cells = n * width;
+    cw = malloc((cells ? cells : 1) * sizeof(double));
+    ce = malloc((cells ? cells : 1) * sizeof(int64_t));
+    ca = malloc((cells ? cells : 1) * sizeof(int64_t));
+    fw = malloc((nq ? nq : 1) * sizeof(double)); /* each query's fallback: weight, entry, activity */
+    fe = malloc((nq ? nq : 1) * sizeof(int64_t));
+    fa = malloc((nq ? nq : 1) * sizeof(int64_t));
+    found = calloc(nq ? nq : 1, 1);
+    if (!cw || !ce || !ca || !fw || !fe || !fa || !found) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t q = 0; q < nq; q++) fe[q] = -1;
+    Py_ssize_t k = 0;
+    for (Py_ssize_t r = 0; r < n; r++) {
+        const double *row = rows + r * width;
+        Py_ssize_t best = -1;
+        for (Py_ssize_t a = 0; a < width; a++)
+            if (row[a] > 0.0 && (best < 0 || row[a] > row[best] || (row[a] == row[best] && names[a] > names[best]))) best = a;
+        for (Py_ssize_t a = 0; a < width; a++) {
+            if (!(row[a] > 0.0)) continue;
+            double x = weight[r] * row[a];
+            if (x >= floor_) {
+                cw[k] = x;
+                ce[k] = r;
+                ca[k++] = a;
+                found[query[r]] = 1;
+            } else if (a == best) {
+                int64_t q = query[r], e = fe[q];
+                double kx = tie_key(x), ke = e >= 0 ? tie_key(fw[q]) : 0.0;
+                if (e < 0 || kx > ke || (kx == ke && (lex[r] < lex[e] || (lex[r] == lex[e] && names[a] < names[fa[q]])))) {
+                    fw[q] = x;
+                    fe[q] = r;
+                    fa[q] = a;
+                }
+            }
+        }
+    }
+    Py_ssize_t extra = 0;
+    for (Py_ssize_t q = 0; q < nq; q++) extra += !found[q] && fe[q] >= 0;
+    if (extra) { /* the fallbacks, in their place: history by history */
+        Py_ssize_t total = k + extra, i = k - 1, j = total - 1;
+        double *w2 = realloc(cw, total * sizeof(double));
+        if (w2) cw = w2;
+        int64_t *e2 = realloc(ce, total * sizeof(int64_t));
+        if (e2) ce = e2;
+        int64_t *a2 = realloc(ca, total * sizeof(int64_t));
+        if (a2) ca = a2;
+        if (!w2 || !e2 || !a2) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        for (Py_ssize_t q = nq - 1; q >= 0; q--) {
+            if (found[q] || fe[q] < 0) continue;
+            while (i >= 0 && (ce[i] > fe[q] || (ce[i] == fe[q] && ca[i] > fa[q]))) {
+                cw[j] = cw[i];
+                ce[j] = ce[i];
+                ca[j--] = ca[i--];
+            }
+            cw[j] = fw[q];
+            ce[j] = fe[q];
+            ca[j--] = fa[q];
+        }
+        k = total;
+    }
+    PyObject *e = bytes_of(ce, k), *a = bytes_of(ca, k), *w = PyBytes_FromStringAndSize(k ? (const char *)cw : "", k * 8);
+    out = (e && a && w) ? Py_BuildValue("(NNN)", e, a, w) : NULL;
+    if (!out) {
+        Py_XDECREF(e);
+        Py_XDECREF(a);
+        Py_XDECREF(w);
+    }
+done:
+    for (int i = 0; i < 5; i++) release(&b[i]);
+    free(cw);
+    free(ce);
+    free(ca);
+    free(fw);
+    free(fe);
+    free(fa);
+    free(found);
+    return out;
+}
+
 static PyMethodDef methods[] = {
     {"select", select_, METH_VARARGS, "Merge, rank, cut and renormalise a beam's extensions."},
     {"extend", extend, METH_VARARGS, "The filter's extensions above its floor."},
+    {"extend_paths", extend_paths, METH_VARARGS, "The forecaster's path extensions above the floor."},
     {NULL, NULL, 0, NULL},
 };
 

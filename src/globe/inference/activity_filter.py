@@ -148,6 +148,20 @@ class ActivityFilter:
             which[q] = i
         return None if len(tables) == 1 else Evidence(np.stack(tables), which)
 
+    def subset(self, belief: Belief, queries: Sequence[int]) -> Belief:
+        """The belief about some of the days only (numbered 0.. in the order given); their earlier
+        histories are not kept (:meth:`hypotheses` reads the last step only)."""
+        beam = belief.beam
+        pick = np.asarray(queries, dtype=np.int64)
+        number = np.full(belief.queries, -1, dtype=np.int64)
+        number[pick] = np.arange(len(pick))
+        mine = np.flatnonzero(number[beam.query] >= 0)
+        mine = mine[np.argsort(number[beam.query[mine]], kind="stable")]
+        part = Beam(number[beam.query[mine]], beam.weight[mine], beam.state[mine], beam.act[mine],
+                    np.full(len(mine), -1, dtype=np.int64), beam.lex[mine])
+        emissions = None if belief.emissions is None else tuple(belief.emissions[q] for q in queries)
+        return Belief(belief.step, len(pick), (part,), belief.duration[mine], emissions)
+
     # -- reading a belief ----------------------------------------------------------------------
     def predictive(self, belief: Belief) -> np.ndarray:
         """(days x labels): P(the activity at the next step | everything seen so far)."""
@@ -187,11 +201,8 @@ class ActivityFilter:
 
 def as_dicts(rows: np.ndarray, labels: Sequence[str]) -> list[dict[str, float]]:
     """Each row as {label: probability} over its nonzero entries, in code order."""
-    out = []
-    for row in rows:
-        nz = np.flatnonzero(row)
-        out.append(dict(zip([labels[i] for i in nz.tolist()], row[nz].tolist())))
-    return out
+    names = list(labels)
+    return [{names[i]: p for i, p in enumerate(row) if p} for row in rows.tolist()]
 
 
 def filtered_beliefs(flt: ActivityFilter, days: Sequence[Day], visible: Sequence[Sequence[bool]],
@@ -218,12 +229,18 @@ def filtered_beliefs(flt: ActivityFilter, days: Sequence[Day], visible: Sequence
         labels = [d.activities[t] if t < len(d) and m[t] else None for d, m in zip(days, visible)]
         if predictive:
             _append_rows(ahead, flt.predictive(belief), days, t)
-        if nowcast:
-            peek = flt.update(belief, t, None, moved)
-            _append_rows(now, flt.posterior(peek), days, t)
-            belief = peek if all(a is None for a in labels) else flt.update(belief, t, labels, moved)
-        else:
-            belief = flt.update(belief, t, labels, moved)
+        after = flt.update(belief, t, labels, moved)
+        if nowcast:  # where no label shows, the update is the nowcast; elsewhere, look without it
+            rows = flt.posterior(after)
+            seen = [q for q, a in enumerate(labels) if a is not None]
+            if seen:
+                peek = flt.update(flt.subset(belief, seen), t, None, [moved[q] for q in seen])
+                looked = flt.posterior(peek)
+                width = max(rows.shape[1], looked.shape[1])
+                rows = np.pad(rows, ((0, 0), (0, width - rows.shape[1])))
+                rows[seen] = np.pad(looked, ((0, 0), (0, width - looked.shape[1])))
+            _append_rows(now, rows, days, t)
+        belief = after
     width = len(flt.labels)
     stack = [_stack(rows, width) for rows in ahead] if predictive else None
     return stack, ([_stack(rows, width) for rows in now] if nowcast else None)

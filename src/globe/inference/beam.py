@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from globe.inference import _beam
-from globe.models.state_space import StateSpace, best_of
+from globe.models.state_space import StateSpace
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,7 +118,8 @@ def advance(beam: Beam, space: StateSpace, *, merge: bool, floor: float, keep: i
     else:
         if evidence is not None or labels is not None:
             raise ValueError("the path pass neither sees movements nor labels")
-        entry, act, w = _path_candidates(beam, rows, floor, nq, names)
+        entry, act, w = (np.frombuffer(x, dtype=np.float64 if i == 2 else np.int64) for i, x in enumerate(
+            _beam.extend_paths(floor, nq, np.ascontiguousarray(rows), beam.weight, beam.query, beam.lex, names)))
         child = _NONE
     kept, weight, lex = (np.frombuffer(x, dtype=np.float64 if i == 1 else np.int64) for i, x in enumerate(
         _beam.select(merge, keep, floor, nq, beam.query[entry], entry, act, w, child, beam.lex, names)))
@@ -154,20 +155,3 @@ def _unstick(beam: Beam, space: StateSpace, entry: np.ndarray, act: np.ndarray, 
     w = np.concatenate([w, beam.weight[stuck]])
     order = np.argsort(entry, kind="stable")  # candidates in beam order, as they would have come
     return entry[order], act[order], w[order]
-
-
-def _path_candidates(beam: Beam, rows: np.ndarray, floor: float, nq: int,
-                     names: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The extensions with probability at least ``floor``; a query with none keeps its most
-    probable one, chosen among each history's most probable next activity."""
-    entry, act = np.nonzero(rows)  # every extension with a chance, history by history
-    w = beam.weight[entry] * rows[entry, act]
-    best = best_of(rows, names)
-    query = beam.query[entry]
-    good = w >= floor
-    lacking = ~(np.bincount(query, weights=good.astype(float), minlength=nq) > 0)[query] & (act == best[entry])
-    if lacking.any():
-        idx = np.flatnonzero(lacking)
-        first = _first_per_group(query[idx], np.lexsort((names[act[idx]], beam.lex[entry[idx]], -tie_key(w[idx]), query[idx])))
-        good[idx[first]] = True
-    return entry[good], act[good], w[good]

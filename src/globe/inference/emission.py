@@ -118,6 +118,7 @@ class MovementEmission(CountingModel):
                 self.moves_[(*key, o)] += n
         self.activities_ = tuple(sorted({key[1] for key in self.steps_}))
         self._tables: dict[tuple, tuple[np.ndarray, ...]] = {}  # by (labels, boundary, switch): counts only
+        self._parts: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # ... and by the objects moved
         self._matrices: dict[tuple, np.ndarray] = {}
         return self
 
@@ -131,14 +132,15 @@ class MovementEmission(CountingModel):
                 raise ConfigError(f"MovementEmission.with_params: {name!r} changes the counts; fit a new one")
             setattr(other, name, value)
         other._validate_params()
-        other._matrices = {}  # the tables depend on the counts only: shared
+        other._matrices = {}  # the tables and parts depend on the counts (and the flags) only: shared
         return other
 
     # -- the likelihood ---------------------------------------------------------------------
     def _rates(self, labels: Vocabulary) -> tuple[np.ndarray, ...]:
-        """log p and log (1 - p) of each object moving, for the part credited to a_{s-1}
-        ((previous, current, object) over ``labels``) and to a_s ((previous or none, current,
-        object): the last row is "no previous activity")."""
+        """For the part credited to a_{s-1} ((previous, current) over ``labels``) and to a_s
+        ((previous or none, current): the last row is "no previous activity"): the log-likelihood
+        of nothing moving, sum over objects of log (1 - p), and each object's log odds,
+        log p - log (1 - p), (..., object), added for the objects that did move."""
         key = (labels, self.boundary, self.switch)
         tables = self._tables.get(key)
         if tables is not None:
@@ -168,7 +170,7 @@ class MovementEmission(CountingModel):
                 if seen:
                     rows, cols = np.array(seen).T
                     p0[rows, cols] = shrunk([(2, acts[i], acts[j]) for i, j in seen], p0[rows, cols])
-        tables = tuple(x for p in (p0, p1) for x in (np.log(p), np.log1p(-p)))
+        tables = tuple(x for p in (p0, p1) for x in (np.log1p(-p).sum(axis=2), np.log(p) - np.log1p(-p)))
         if len(self._tables) > 16:
             self._tables.clear()
         self._tables[key] = tables
@@ -199,11 +201,8 @@ class MovementEmission(CountingModel):
     def log_likelihoods(self, labels: Vocabulary, moved: np.ndarray) -> np.ndarray:
         """``weight`` * log P(exactly the objects flagged in ``moved`` moved | previous, current)
         over ``labels`` (see :meth:`likelihoods`; not relative)."""
-        log_p0, log_q0, log_p1, log_q1 = self._rates(labels)
+        part0, part1 = self._parts_of(labels, np.asarray(moved, dtype=bool))
         n = len(labels)
-        moved = np.asarray(moved, dtype=bool)
-        part0 = np.where(moved, log_p0, log_q0).sum(axis=2)  # (prev, current)
-        part1 = np.where(moved, log_p1, log_q1).sum(axis=2)  # (prev | none, current)
         lam = float(self.previous_share)
         out = np.empty((n + 1, n))
         out[n] = part1[n]  # no previous activity: all credited to the current one
@@ -214,6 +213,21 @@ class MovementEmission(CountingModel):
         else:
             out[:n] = np.logaddexp(np.log(lam) + part0, np.log1p(-lam) + part1[:n])
         return self.weight * out
+
+    def _parts_of(self, labels: Vocabulary, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """log P(exactly the flagged objects moved) for the part credited to a_{s-1} ((prev,
+        current)) and to a_s ((prev | none, current)), untempered: shared by every ``weight`` and
+        ``previous_share`` (a search compares them on the same days)."""
+        key = (labels, self.boundary, self.switch, moved.tobytes())
+        out = self._parts.get(key)
+        if out is None:
+            nothing0, odds0, nothing1, odds1 = self._rates(labels)
+            which = np.flatnonzero(moved)
+            out = (nothing0 + odds0[:, :, which].sum(axis=2), nothing1 + odds1[:, :, which].sum(axis=2))
+            if len(self._parts) >= _MEMO:
+                self._parts.clear()
+            self._parts[key] = out
+        return out
 
     def log_likelihood(self, previous: str | None, current: str, moved: Collection[str]) -> float:
         """``weight`` * log P(exactly ``moved`` moved | a_{s-1} = previous, a_s = current): one

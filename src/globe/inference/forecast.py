@@ -101,10 +101,17 @@ class Forecasts:
 
 
 def first_locations(destination: np.ndarray, targets: np.ndarray, horizons: int) -> tuple[np.ndarray, np.ndarray]:
-    """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array."""
-    joint = np.cumsum(destination[:, :horizons], axis=1)
-    best = joint.argmax(axis=3)
-    prob = np.take_along_axis(joint, best[..., None], axis=3)[..., 0]
+    """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array: the
+    destinations summed step by step, each step's most likely target (the first of ties)."""
+    nq, nsteps, nj, width = destination.shape
+    steps = max(0, min(horizons, nsteps))
+    best = np.empty((nq, steps, nj), dtype=np.int64)
+    prob = np.empty((nq, steps, nj))
+    joint = np.zeros((nq, nj, width))
+    for s in range(steps):
+        joint += destination[:, s]
+        best[:, s] = joint.argmax(axis=2)
+        prob[:, s] = np.take_along_axis(joint, best[:, s, :, None], axis=2)[..., 0]
     return targets[np.arange(targets.shape[0])[None, None, :], best], prob
 
 

@@ -160,8 +160,7 @@ class ActivityModelBase(CountingModel):
 
     def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
         """``[predict_proba(day[:t]) for t in range(len(day))]`` in one pass."""
-        space = self.states()
-        return space.distributions(space.path(day))
+        return self.states().scan(day)
 
     def ranked(self, distribution: Mapping[str, float]) -> list[str]:
         return rank(distribution, self.frequency_)

@@ -214,8 +214,16 @@ class RoutineStates(StateSpace):
         return (new << (2 * _STEP_BITS)) | ((step + 1) << _STEP_BITS) | (step + 1)
 
     def rows(self, states: np.ndarray) -> np.ndarray:
+        states = np.asarray(states, dtype=np.int64)
+        if len(states) > 64:  # many histories share a state (the filter's days, the paths' queries)
+            unique, inverse = np.unique(states, return_inverse=True)
+            if 2 * len(unique) < len(states):
+                return self._rows_of(unique)[inverse.reshape(-1)]
+        return self._rows_of(states)
+
+    def _rows_of(self, states: np.ndarray) -> np.ndarray:
         model = self._model
-        context, start, step = self._unpack(np.asarray(states, dtype=np.int64))
+        context, start, step = self._unpack(states)
         out = np.zeros((len(context), len(self.labels)))
         root = start < 0
         out[root] = self._first

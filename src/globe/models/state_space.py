@@ -130,6 +130,10 @@ class StateSpace:
                 sid = self.child(sid, self.code(activity))
         return out
 
+    def scan(self, day: Sequence[str]) -> list[dict[str, float]]:
+        """The next-step distribution before each step of ``day`` (what ``scan_proba`` answers)."""
+        return self.distributions(self.path(day))
+
     def distributions(self, states: np.ndarray) -> list[dict[str, float]]:
         """:meth:`rows` as {label: probability} over their nonzero entries, in code order."""
         labels = self.labels.labels
@@ -234,6 +238,18 @@ class NumberedStates(StateSpace):
     def distributions(self, states: np.ndarray) -> list[dict[str, float]]:
         """The model's own dicts (the rows hold the same numbers)."""
         return [dict(self._dist(sid)) for sid in np.asarray(states).tolist()]
+
+    def scan(self, day: Sequence[str]) -> list[dict[str, float]]:
+        """The model's own dicts along ``day``, its states walked without numbering them (a scan
+        visits each of its states once)."""
+        out: list[dict[str, float]] = []
+        key, last = self._keys[self.root], None
+        for t, activity in enumerate(day):
+            dist = self._distribution(key, t)
+            out.append(dict(dist) if dist or last is None else {last: 1.0})
+            if t + 1 < len(day):
+                key, last = self._advance(key, t, activity), activity
+        return out
 
 
 class HistoryStates(NumberedStates):
