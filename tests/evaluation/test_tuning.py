@@ -76,8 +76,8 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
         models = cfg.model_copy(update=params)
         for fold in data_folds(h, 3):
             train, held_out = fold_days(h, fold)
-            shared = activity_f1(fitted_activity(h, fold, models, "previous", memo), [d.activities for d in held_out])
-            alone = assembly.activity_model(models).fit([d.activities for d in train])
+            shared = activity_f1(fitted_activity(h, fold, models, "previous", memo, 10), [d.activities for d in held_out])
+            alone = assembly.activity_model(models, 10).fit([d.activities for d in train])
             assert shared == activity_f1(alone, [d.activities for d in held_out])  # type: ignore[arg-type]
     counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")
                                        and k.model != "sequences")]

@@ -344,7 +344,7 @@ def test_online_filter_for_the_service_matches_the_offline_scan(households):
     """Observations without an activity, fed one step at a time (as the service does), give the
     same beliefs as the offline scan of the day with every label hidden."""
     h, config = households["C"], GlobeConfig()
-    model = assembly.activity_model(config.models.model_copy(update={"activity_estimator": "routine"}))
+    model = assembly.activity_model(config.models.model_copy(update={"activity_estimator": "routine"}), 10)
     model.fit([d.activities for d in h.train])
     flt = assembly.household_filter(h, config, model)
     day = h.test[0]

@@ -11,9 +11,9 @@ from globe.errors import ConfigError, ModelFileError, NotFittedError
 from globe.models.activity import ActivityModel
 from globe.models.io import load_model, save_model
 from globe.models.objects import ObjectModel
-from globe.models.packed_days import PackedDays
 from globe.models.routine import RoutineModel
 from globe.models.suffix_index import END, SuffixIndex
+from globe.sequences.packed_days import PackedDays
 
 DAYS = [("sleep", "wake", "eat", "eat", "work"), ("sleep", "wake", "eat", "work", "work"),
         ("sleep", "sleep", "wake", "eat", "tv")]

@@ -274,7 +274,7 @@ def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, sett
     runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting in todo}
     for fold in data_folds(household, config.selection.folds) if todo else ():
         train, held_out = fold_days(household, fold)
-        activity = assembly.activity_model(models).fit([d.activities for d in train])
+        activity = assembly.activity_model(models, assembly.step_minutes(household, config)).fit([d.activities for d in train])
         refs = reference_queries(held_out, la.horizons, la.first_reference, la.last_reference, la.cv_stride)
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
         trees = None

@@ -160,7 +160,7 @@ def evidence_scores(household: Household, config: GlobeConfig, models: ModelConf
     scores = np.zeros((len(data_folds(household, k)), len(candidates)))
     for f, fold in enumerate(data_folds(household, k)):
         train, days = fold_days(household, fold)
-        activity = fitted_activity(household, fold, models, alignment, memo).model
+        activity = fitted_activity(household, fold, models, alignment, memo, assembly.step_minutes(household, config)).model
         objects = memo.get(FitKey("ObjectModel:remembered", fold.data, fold, models, alignment), _MemoObjects,
                            fitted_objects(household, fold, models, alignment, memo))
         chooser = assembly.object_chooser(objects, config.gate, None, marginal=models.object_marginal)
@@ -407,7 +407,8 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
 
 
 def _fold_filter(setup: FilterSetup, config: GlobeConfig, train: Sequence[Day]) -> tuple[ActivityModelBase, MovementEmission]:
-    activity = assembly.activity_model(setup.models).fit([d.activities for d in train])
+    step = assembly.step_minutes(setup.household, config)
+    activity = assembly.activity_model(setup.models, step).fit([d.activities for d in train])
     return activity, assembly.movement_emission(config.filter, **setup.selection.best).fit(train, setup.household.objects)
 
 

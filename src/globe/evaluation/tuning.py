@@ -57,11 +57,11 @@ def sequences(household: Household, fold: Fold | None, alignment: str, memo: Mem
 
 
 def fitted_activity(household: Household, fold: Fold | None, models: ModelConfig, alignment: str,
-                    memo: Memo) -> "ScanMemo":
+                    memo: Memo, step_minutes: int) -> "ScanMemo":
     """The activity model of ``models`` on a fold (or every training day). Candidates that count
     the same share one fit; each answers with its own prediction parameters, and its scans of the
     held-out days are kept with it."""
-    model = assembly.activity_model(models)
+    model = assembly.activity_model(models, step_minutes)
     data = DataKey.of(household)
     counted = memo.get(FitKey(type(model).__name__, data, fold, frozen_params(model.fit_params()), alignment),
                        lambda: model.fit(sequences(household, fold, alignment, memo).activities))
@@ -131,7 +131,7 @@ def model_search_key(h: Household, cfg: GlobeConfig, family: str) -> SearchKey:
 def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tuple[ModelConfig, dict[str, Selection]]:
     """Model configuration for ``family`` ("witten_bell" or "routine") chosen by k-fold CV on
     the training days; kept in ``memo`` so methods share one search."""
-    sel, alignment = cfg.selection, cfg.sequences.alignment
+    sel, alignment, step = cfg.selection, cfg.sequences.alignment, assembly.step_minutes(h, cfg)
     key = model_search_key(h, cfg, family)
     if key in memo:
         return memo.get(key, lambda: None)  # type: ignore[return-value]
@@ -152,7 +152,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     def activity_score(params: dict[str, Any]) -> float:
         models = cfg.models.model_copy(update=base | params)
         return mean_over_folds(h, sel.folds, lambda fold, days: activity_f1(
-            fitted_activity(h, fold, models, alignment, memo), [d.activities for d in days]))
+            fitted_activity(h, fold, models, alignment, memo, step), [d.activities for d in days]))
 
     act = select(simpler + space, activity_score)
     models = cfg.models.model_copy(update=base | act.best)
@@ -161,7 +161,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
         candidate = models.model_copy(update=params)
 
         def score_fold(fold: Fold, days: Sequence[Day]) -> float:
-            activity = fitted_activity(h, fold, candidate, alignment, memo)
+            activity = fitted_activity(h, fold, candidate, alignment, memo, step)
             objects = fitted_objects(h, fold, candidate, alignment, memo)
             chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=candidate.object_marginal)
             return object_f1(h, days, activity, chooser, alignment, _rankings(memo, fold, candidate, alignment))
@@ -185,7 +185,7 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
     """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is a candidate
     and wins ties, so the LLM must earn its place on held-out days. ``examples`` recent runs of
     the activity personalise the prompt (fixed, not searched)."""
-    sel, g, alignment = cfg.selection, cfg.gate, cfg.sequences.alignment
+    sel, g, alignment, step = cfg.selection, cfg.gate, cfg.sequences.alignment, assembly.step_minutes(h, cfg)
     key = SearchKey("gate", DataKey.of(h), (sel, g), (models, examples, backend.name, backend.model_name), sel.folds,
                     alignment)
     if key in memo:
@@ -199,7 +199,7 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
         gate = g.model_copy(update=params | {"examples": examples})
 
         def score_fold(fold: Fold, days: Sequence[Day]) -> float:
-            activity = fitted_activity(h, fold, models, alignment, memo)
+            activity = fitted_activity(h, fold, models, alignment, memo, step)
             objects = fitted_objects(h, fold, models, alignment, memo)
             chooser = assembly.object_chooser(objects, gate, backend, marginal=models.object_marginal)
             return object_f1(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment))

@@ -25,7 +25,7 @@ import numpy as np
 
 from globe.data.records import Day
 from globe.models.base import CountingModel
-from globe.models.packed_days import PackedDays
+from globe.sequences.packed_days import PackedDays
 
 UNKNOWN = "<unknown>"
 
@@ -50,12 +50,13 @@ class MovementModel(CountingModel):
         self.run_next = run_next
 
     # -- training ---------------------------------------------------------------------------
-    def fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementModel":
-        """Count, over ``days``, how often each object left its place and where it went."""
+    def fit(self, days: Sequence[Day] | PackedDays, objects: Sequence[str]) -> "MovementModel":
+        """Count, over ``days`` (or the same days packed), how often each object left its place
+        and where it went."""
         self._reset()
         return self.partial_fit(days, objects)
 
-    def partial_fit(self, days: Sequence[Day], objects: Sequence[str]) -> "MovementModel":
+    def partial_fit(self, days: Sequence[Day] | PackedDays, objects: Sequence[str]) -> "MovementModel":
         """Add ``days`` (an online assistant learning as it goes): everything is counted again over
         every day learned, which takes milliseconds (the shrinkage levels are not additive)."""
         if hasattr(self, "training_data_"):
@@ -63,8 +64,8 @@ class MovementModel(CountingModel):
                 raise ValueError("MovementModel.partial_fit: the object columns differ from the ones it was fitted on")
             days = tuple(self.training_data_) + tuple(days)
         self._validate_params()
-        days = tuple(days)
-        packed = self.training_data_ = PackedDays(days)  # a tenth of the memory of the parsed days
+        # a tenth of the memory of the parsed days (a packing made with the rest of a fit is reused)
+        packed = self.training_data_ = days if isinstance(days, PackedDays) else PackedDays(days)
         self.objects_ = tuple(objects)
         # A day's rows repeat until something moves: the packing numbered the distinct ones already.
         steps, row_labels, labels = packed.coded_rows(len(self.objects_))

@@ -20,13 +20,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Iterator
 
-from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.errors import DataError, GlobeError, LimitError, StoreError
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import timepolicy
-from globe.service.assistant import Observation, OnlineAssistant
+from globe.service.assistant import Observation, OnlineAssistant, build_assistant
 from globe.service.store import DayEncoding, HouseholdRow, Store, legacy_day
 from globe.service.upload import DayParser
 
@@ -127,7 +126,7 @@ class Registry:
             except (GlobeError, ValueError, KeyError) as err:
                 log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
         household = Household(row.name, nodes, objects, tuple(days), (), f"sqlite:{self.store.path}")
-        assistant = assembly.assistant(household, self.config, self.backend)
+        assistant = build_assistant(household, self.config, self.backend)
         tz = timepolicy.zone(row.timezone)
         bad: list[int] = []
         for stored in self.store.observations(row.name):
@@ -180,7 +179,7 @@ class Registry:
             helper = self._encoder.submit(encoding.run)
             try:
                 with no_gc():
-                    assistant = assembly.assistant(household, self.config, self.backend)
+                    assistant = build_assistant(household, self.config, self.backend)
             except BaseException:
                 encoding.stop()
                 raise
