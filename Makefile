@@ -13,7 +13,7 @@ STAMP := $(VENV)/.installed
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml setup.py $(wildcard src/globe/*/*.c src/globe/*/*.h) tools/llama_wheel.py
+$(STAMP): pyproject.toml setup.py $(wildcard src/globe/*/*.c) tools/llama_wheel.py
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python tools/llama_wheel.py $(WHEELS)
 	$(VENV)/bin/python -m pip install --find-links $(WHEELS) -e ".[all,dev]"

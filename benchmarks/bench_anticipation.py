@@ -20,14 +20,15 @@ from globe import assembly
 from globe.evaluation.anticipation import method_models, run_anticipation, write_anticipation_results
 from globe.evaluation.fetch import pooled
 from globe.evaluation.lookahead import lookahead_rows
+from globe.evaluation.selection import Memo
 
 
 def main() -> None:
     cfg, homes, args = setup(__doc__, {"--out": {"default": None, "help": "also write the results folder here"}})
-    cache: dict = {}
+    memo = Memo()
     started = time.perf_counter()
     result = run_anticipation(cfg, homes, progress=lambda msg: print(f"[{time.perf_counter() - started:6.1f} s] {msg}",
-                                                                     flush=True), cache=cache)
+                                                                     flush=True), memo=memo)
     print(f"total {time.perf_counter() - started:.1f} s")
     rows = lookahead_rows(result.lookahead, cfg.service.step_minutes)
     horizons = sorted({r["horizon_min"] for r in rows})
@@ -45,7 +46,7 @@ def main() -> None:
             print(f"{method:12s} {hh:5s} {line}   {acc}{verdict}")
     print("\nTraining time of the forecaster (activity + movement model), best of 5")
     for h in homes:
-        models = method_models(cfg.policy.method, h, cfg, cache)
+        models = method_models(cfg.policy.method, h, cfg, memo)
         best = min(assembly.forecaster(h, cfg, models=models).train_s for _ in range(5))
         print(f"  household {h.name}: {best:.4f} s (target < 0.1 s: {'ok' if best < 0.1 else 'MISSED'}, ratio {best / 0.1:.2f})")
     ratio = cfg.policy.cost_useless / cfg.policy.cost_missed

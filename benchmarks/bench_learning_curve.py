@@ -1,6 +1,6 @@
 """Learning curve through the real HTTP service: after 1, 2, 5, 10, 20, 40 and 65 training days,
 streamed step by step as observations into a fresh household, score the 10 test days (activity
-F1, object F1, fetch precision and recall). See globe.evaluation.learning_curve for the rules.
+F1, object F1, fetch precision and recall). See globe.service.learning_curve for the rules.
 
 Starts ``globe serve`` on a free loopback port with a temporary database and an admin token,
 writes learning_curve.csv and learning_curve.png into --out, prints the table and the time taken.
@@ -24,7 +24,10 @@ from pathlib import Path
 import httpx
 
 from common import setup
-from globe.evaluation.learning_curve import (
+from globe.evaluation.plots_learning import learning_curve_figure
+from globe.service.auth import create_token
+from globe.service.client import GlobeClient
+from globe.service.learning_curve import (
     CHECKPOINTS,
     COLUMNS,
     ISOLATE_UP_TO,
@@ -33,9 +36,6 @@ from globe.evaluation.learning_curve import (
     required_clock_skew,
     table_rows,
 )
-from globe.evaluation.plots_learning import learning_curve_figure
-from globe.service.auth import create_token
-from globe.service.client import GlobeClient
 
 
 def _free_port() -> int:

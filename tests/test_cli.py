@@ -179,3 +179,18 @@ def test_serve_on_a_port_in_use_and_on_every_interface(tmp_path):
         proc.terminate()
         proc.wait(timeout=30)
     assert first.startswith("warning: listening on 0.0.0.0") and "[yellow]" not in first, first
+
+
+def test_data_import_reports_bad_options_and_bad_lines_in_one_line(tmp_path):
+    log = tmp_path / "casas.txt"
+    log.write_text("2010-11-04 05:00:00 M001 ON Sleeping begin\n2010-11-04 04:00:00 M001 OFF\n", encoding="utf-8")
+    res = globe("data", "import", "casas", str(log), str(tmp_path / "home"), "--day-start", "6")
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "'--day-start'" in res.stderr
+    res = globe("data", "import", "casas", str(log), str(tmp_path / "home"), "--test-days", "1",
+                "--test-fraction", "0.5")
+    assert res.returncode == 2 and "not both" in res.stderr
+    res = globe("data", "import", "casas", str(log), str(tmp_path / "home"), "--step", "7")
+    assert res.returncode == 1 and "does not divide the day" in res.stderr
+    res = globe("data", "import", "casas", str(log), str(tmp_path / "home"))
+    assert res.returncode == 1 and res.stderr.startswith(f"error: {log}:2: column 'time': ")
+    assert not (tmp_path / "home").exists()

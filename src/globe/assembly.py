@@ -12,12 +12,15 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Sequence
 
 from globe.config import FilterConfig, GateConfig, GlobeConfig, LLMConfig, LookaheadConfig, ModelConfig, PolicyConfig
+from globe.data.csv_logs import household_step
 from globe.data.records import Day, Household
+from globe.inference.activity_filter import ActivityFilter
+from globe.inference.emission import MovementEmission
+from globe.inference.forecast import Forecaster
+from globe.inference.movements import MovementModel
 from globe.models.activity import ActivityModel
-from globe.models.activity_filter import ActivityFilter, MovementEmission, NextActivityModel
 from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
-from globe.models.forecast import Forecaster, MovementModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
@@ -26,20 +29,26 @@ from globe.reasoning.gate import UncertaintyGate
 from globe.sequences.runs import TrainingSequences, training_sequences
 
 if TYPE_CHECKING:
+    from globe.inference.fetch_policy import FetchPolicy
     from globe.noise.proposals import Scorer
     from globe.reasoning.backends.embedded import EmbeddedBackend
     from globe.reasoning.cache import AnswerCache
-    from globe.reasoning.fetch_policy import FetchPolicy
-    from globe.service.assistant import OnlineAssistant
 
 
-def activity_model(models: ModelConfig) -> ActivityModelBase:
-    """An unfitted next-activity model for the ``models`` section."""
+def step_minutes(household: Household, config: GlobeConfig) -> int:
+    """The minutes between a household's steps: configured (``data.step_minutes``), else its days'
+    most common gap, else the service's step (a household with no day yet)."""
+    return config.data.step_minutes or household_step(household.train) or config.service.step_minutes
+
+
+def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
+    """An unfitted next-activity model for the ``models`` section, over days of ``step_minutes``."""
     if models.activity_estimator == "persistence":
         return PersistenceModel()
     if models.activity_estimator == "routine":
         return RoutineModel(order=models.routine_order, time_weight=models.routine_time_weight,
-                            time_window=models.routine_time_window, shrinkage=models.routine_shrinkage)
+                            time_window=models.routine_time_window, shrinkage=models.routine_shrinkage,
+                            step_minutes=step_minutes)
     return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
                          time_weight=models.time_weight, time_window=models.time_window)
 
@@ -65,7 +74,7 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
     t0 = time.perf_counter()
     seqs = training_sequences(household, household.train if days is None else days, config.sequences.alignment)
     t1 = time.perf_counter()
-    activity = activity_model(config.models).fit(seqs.activities)
+    activity = activity_model(config.models, step_minutes(household, config)).fit(seqs.activities)
     objects = object_model(config.models).fit(seqs.runs)
     return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0, seqs)
 
@@ -79,21 +88,26 @@ def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight
                             boundary=boundary, switch=switch)
 
 
-def activity_filter(activity: NextActivityModel, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
+def activity_filter(activity: ActivityModelBase, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
     """The forward filter over the current activity, for days whose labels are partly missing."""
     return ActivityFilter(activity, emission, max_hypotheses=filter_cfg.max_hypotheses, min_weight=filter_cfg.min_weight)
 
 
-def household_filter(household: Household, config: GlobeConfig, activity: NextActivityModel,
+def household_emission(filter_cfg: FilterConfig) -> MovementEmission:
+    """An unfitted movement evidence with the fixed ``filter.emission_*`` settings (for online use:
+    no cross-validation on the request path)."""
+    fc = filter_cfg
+    return movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
+                             boundary=fc.emission_boundary, switch=fc.emission_switch)
+
+
+def household_filter(household: Household, config: GlobeConfig, activity: ActivityModelBase,
                      days: Sequence[Day] | None = None) -> ActivityFilter:
     """An activity filter over a fitted ``activity`` model for online use (the service), its
-    movement evidence counted on ``household``'s training days (or ``days``) with the fixed
-    ``filter.emission_*`` settings (no cross-validation on the request path)."""
-    fc = config.filter
-    emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
-                                 boundary=fc.emission_boundary, switch=fc.emission_switch)
-    emission.fit(household.train if days is None else days, household.objects)
-    return activity_filter(activity, emission, fc)
+    movement evidence (:func:`household_emission`) counted on ``household``'s training days (or
+    ``days``)."""
+    emission = household_emission(config.filter).fit(household.train if days is None else days, household.objects)
+    return activity_filter(activity, emission, config.filter)
 
 
 def _answer_cache(llm: LLMConfig) -> "AnswerCache | None":
@@ -158,31 +172,6 @@ def noise_scorer(config: GlobeConfig) -> "Scorer":
     return LLMScorer(embedded_backend(config.llm))
 
 
-def assistant(household: Household, config: GlobeConfig, backend: LLMBackend | None) -> "OnlineAssistant":
-    """The online assistant of one household: fitted models, the gate, the service settings."""
-    from globe.service.assistant import OnlineAssistant
-
-    fitted = fit_household(household, config)
-    activity = fitted.activity  # the filter's closure keeps this, not the counted sequences
-    chooser = object_chooser(fitted.objects, config.gate, backend, marginal=config.models.object_marginal)
-    s, fc = config.service, config.filter
-    # The filter's movement evidence is learned with the models; the filter itself is rebuilt per
-    # prediction over the current models (cheap), so it never reads stale counts.
-    emission = movement_emission(fc, previous_share=fc.emission_previous_share, weight=fc.emission_weight,
-                                 boundary=fc.emission_boundary, switch=fc.emission_switch).fit(household.train, household.objects,
-                                                                                        fitted.sequences.moves)
-    policy = None
-    if s.fetch_decision == "policy":
-        movements = movement_model(config.lookahead, run_end=True).fit(household.train, household.objects)
-        forecaster_ = Forecaster(activity, movements, min_path_probability=config.lookahead.min_path_probability,
-                                 max_paths=config.lookahead.max_paths)
-        policy = fetch_policy(forecaster_, config.policy, s.step_minutes)
-    return OnlineAssistant(household, activity, chooser, alignment=config.sequences.alignment,
-                           action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
-                           step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps, fetch_policy=policy,
-                           activity_filter=lambda: activity_filter(activity, emission, fc), emission=emission)
-
-
 def describe(activity: ActivityModelBase, chooser: ObjectChooser) -> dict[str, dict[str, Any]]:
     """The effective settings of built objects, read from the objects themselves (not from the
     configuration), so results folders and the service show what really ran."""
@@ -222,16 +211,21 @@ def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | 
     days = tuple(household.train if days is None else days)
     la = config.lookahead
     t0 = time.perf_counter()
-    activity = activity_model(models or config.models).fit([d.activities for d in days])
+    activity = activity_model(models or config.models, step_minutes(household, config)).fit([d.activities for d in days])
     movements = movement_model(la, run_end, run_memory, run_next).fit(days, household.objects)
     train_s = time.perf_counter() - t0
-    return FittedForecaster(Forecaster(activity, movements, min_path_probability=la.min_path_probability,
-                                       max_paths=la.max_paths), train_s)
+    return FittedForecaster(forecaster_over(activity, movements, la), train_s)
+
+
+def forecaster_over(activity: ActivityModelBase, movements: MovementModel, lookahead: LookaheadConfig) -> Forecaster:
+    """A forecaster over fitted ``activity`` and ``movements`` models, pruned as ``lookahead`` says."""
+    return Forecaster(activity, movements, min_path_probability=lookahead.min_path_probability,
+                      max_paths=lookahead.max_paths)
 
 
 def fetch_policy(forecaster: Forecaster, policy: PolicyConfig, step_minutes: int) -> "FetchPolicy":
     """The robot's fetch decision over ``forecaster`` with the ``policy`` costs and lead times."""
-    from globe.reasoning.fetch_policy import FetchPolicy
+    from globe.inference.fetch_policy import FetchPolicy
 
     return FetchPolicy(forecaster, cost_useless=policy.cost_useless, cost_missed=policy.cost_missed,
                        min_lead_steps=-(-policy.min_lead_minutes // step_minutes),

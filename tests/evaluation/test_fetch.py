@@ -15,8 +15,8 @@ from globe.evaluation.fetch import (
     replay_day,
     use_steps,
 )
-from globe.reasoning.fetch_policy import FetchCandidate, FetchPolicy
-from tests.models.test_forecast import toy_forecaster
+from globe.inference.fetch_policy import FetchCandidate, FetchPolicy
+from tests.inference.test_forecast import toy_forecaster
 
 HOME = Household("T", (Node("cup#1", "cup", "object", True, "shelf"), Node("book#2", "book", "object", True, "shelf")),
                  ("cup", "book"), (), ())

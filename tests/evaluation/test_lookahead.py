@@ -17,7 +17,7 @@ from globe.evaluation.lookahead import (
     relocation_counts,
     true_first_locations,
 )
-from globe.evaluation.tuning import Selection
+from globe.evaluation.selection import Memo, Selection
 
 # Steps 0..5 of a toy day; columns: cup (moves twice), book (moves away and back), pen (never moves).
 TOY = [
@@ -117,15 +117,15 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
     and each horizon takes the first listed threshold among equals."""
     from globe.evaluation import lookahead as lk
 
-    def fake_runs(household, cfg, models, settings, cache=None):
+    def fake_runs(household, cfg, models, settings, memo):
         pairs = [HorizonPairs([np.array([0.9, 0.45])], [np.array([True, True])], [np.array([True, True])])
                  for _ in range(cfg.lookahead.horizons)]
         return {s: LookaheadRun(cfg.lookahead.horizons, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}
 
-    monkeypatch.setattr(lk, "_cv_runs", fake_runs)
+    monkeypatch.setattr(lk, "cv_runs", fake_runs)
     cfg = config.model_copy(update={"lookahead": config.lookahead.model_copy(update={
         "run_end": (False, True), "run_memory": (False, True), "thresholds": (0.5, 0.4, 0.3)})})
-    chosen = lk.choose_settings(households["A"], cfg, cfg.models)
+    chosen = lk.choose_settings(households["A"], cfg, cfg.models, Memo())
     # threshold 0.5 finds 1 of 2 changes, 0.4 and 0.3 both: 0.4 is listed first among the best
     assert chosen.best == {"run_end": False, "run_memory": False, "run_next": False, "thresholds": (0.4,) * 6}
     # settings: the plain model, then with the run end: x (memory or not) x (next activity or not);

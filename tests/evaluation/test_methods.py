@@ -7,6 +7,7 @@ import pytest
 from globe.config import GlobeConfig
 from globe.evaluation.methods import METHODS
 from globe.evaluation.protocol import evaluate_days
+from globe.evaluation.selection import Memo
 from globe.reasoning.backends.base import Choice, LLMBackend
 
 
@@ -32,7 +33,7 @@ def small(households):
 def test_method_prepares_and_runs(small, name):
     method, backend = METHODS[name], LastCandidate()
     cfg = GlobeConfig().with_overrides({"selection.folds": 3})
-    prepared = method.prepare(small, cfg, backend if method.needs_llm else None, {})
+    prepared = method.prepare(small, cfg, backend if method.needs_llm else None, Memo())
     ev = evaluate_days(small, small.test, prepared.activity, prepared.chooser)
     assert ev.activity and ev.objects
     if name == "persistence":

@@ -21,7 +21,7 @@ from globe.evaluation.missing_labels import (
     write_missing_label_results,
 )
 from globe.evaluation.protocol import evaluate_days
-from globe.evaluation.tuning import Selection
+from globe.evaluation.selection import Memo, Selection
 
 
 def _setup(h, config: GlobeConfig, previous_share: float) -> FilterSetup:
@@ -38,7 +38,7 @@ def test_every_label_visible_is_the_protocol(households):
     h, config = households["C"], GlobeConfig()
     setup = _setup(h, config, previous_share=1.0)
     days = h.test[:2]
-    res = evaluate_fraction(setup, config, 1.0, days=days, lookahead=False)
+    res = evaluate_fraction(setup, config, 1.0, Memo(), days=days, lookahead=False)
     ref = evaluate_days(h, days, setup.activity, setup.chooser, alignment=config.sequences.alignment)
     assert res.hidden_steps == 0
     assert [(r.step, r.predicted, r.p_true) for r in res.activity] == [(r.step, r.predicted, pytest.approx(r.p_true))
@@ -50,8 +50,8 @@ def test_hidden_labels_change_the_activity_beliefs(households):
     h, config = households["C"], GlobeConfig()
     setup = _setup(h, config, previous_share=0.5)
     day = h.test[:1]
-    none = evaluate_fraction(setup, config, 0.0, days=day, lookahead=False)
-    full = evaluate_fraction(setup, config, 1.0, days=day, lookahead=False)
+    none = evaluate_fraction(setup, config, 0.0, Memo(), days=day, lookahead=False)
+    full = evaluate_fraction(setup, config, 1.0, Memo(), days=day, lookahead=False)
     assert none.hidden_steps == len(day[0]) and full.hidden_steps == 0
     assert len(none.activity) == len(full.activity) == len(day[0]) - 1
     assert len(none.objects) == len(full.objects)
@@ -61,7 +61,8 @@ def test_hidden_labels_change_the_activity_beliefs(households):
 def test_lookahead_through_the_filter_with_all_labels_is_the_plain_forecast(households):
     h, config = households["A"], GlobeConfig()
     setup = _setup(h, config, previous_share=0.5)
-    fc = assembly.forecaster(h, config, models=setup.models).forecaster
+    movements = assembly.movement_model(config.lookahead).fit(h.train, h.objects)
+    fc = assembly.forecaster_over(setup.activity, movements, config.lookahead)  # the filter's own model
     day = h.test[0]
     plain = lk.forecast_days(fc, [day], 3, 30, 45)
     wrapped = filtered_lookahead(fc, setup, config.filter, [day], {day.name: [True] * len(day)}, 3, 30, 45)
@@ -94,7 +95,7 @@ def test_masks_are_per_day_and_fractions_are_checked(households):
 def test_results_table_and_plot(households, tmp_path):
     h, config = households["B"], GlobeConfig()
     setup = _setup(h, config, previous_share=0.5)
-    results = [evaluate_fraction(setup, config, f, days=h.test[:1], lookahead=False) for f in (0.0, 1.0)]
+    results = [evaluate_fraction(setup, config, f, Memo(), days=h.test[:1], lookahead=False) for f in (0.0, 1.0)]
     rows = missing_label_rows(results, horizons=2)
     assert [(r["household"], r["labels_pct"]) for r in rows] == [("B", 0), ("B", 100), ("mean", 0), ("mean", 100)]
     assert rows[2]["object_f1"] == rows[0]["object_f1"] and 0 <= rows[0]["object_f1"] <= 1
@@ -116,7 +117,7 @@ def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(mo
     setup = _setup(h, config, previous_share=0.5)
     seen: list[tuple] = []
 
-    def fake_hidden(setup_, cfg, fraction, cache=None, setting=(True, False, False)):
+    def fake_hidden(setup_, cfg, fraction, memo=None, setting=(True, False, False)):
         seen.append((fraction, setting))
         # a change at every pair, found with p = 0.35 (horizon 0) or 0.22 (the others)
         pairs = [lk.HorizonPairs([np.array([0.35 if s == 0 else 0.22])], [np.array([True])], [np.array([True])])
@@ -127,11 +128,11 @@ def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(mo
     monkeypatch.setattr(ml, "hidden_cv_run", fake_hidden)
     monkeypatch.setattr(lk, "choose_settings", lambda *a, **k: Selection(dict(labelled)))
     # thresholds <= p score F1 1, higher 0: first listed of (0.5, 0.4, 0.3, 0.25, 0.2, 0.15) at or below p
-    assert ml._lookahead_thresholds(setup, config, {}, 0.0) == (0.3,) + (0.2,) * 5
+    assert ml.label_share_thresholds(setup, config, Memo(), 0.0) == (0.3,) + (0.2,) * 5
     assert seen == [(0.0, (True, False, True))]
-    assert ml._lookahead_thresholds(setup, config, {}, 1.0) == labelled["thresholds"]
+    assert ml.label_share_thresholds(setup, config, Memo(), 1.0) == labelled["thresholds"]
     off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
-    assert ml._lookahead_thresholds(setup, off, {}, 0.25) == labelled["thresholds"]
+    assert ml.label_share_thresholds(setup, off, Memo(), 0.25) == labelled["thresholds"]
     assert len(seen) == 1
 
 

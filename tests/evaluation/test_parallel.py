@@ -6,7 +6,8 @@ import pytest
 
 from globe.config import GlobeConfig
 from globe.evaluation.parallel import precompute_selections, run_parallel, worker_count
-from globe.evaluation.tuning import selection_key, tuned_models
+from globe.evaluation.selection import Memo
+from globe.evaluation.tuning import model_search_key, tuned_models
 
 
 def _square(x: int) -> int:
@@ -23,15 +24,15 @@ def test_selections_computed_on_other_processes_equal_the_ones_computed_here(hou
     config = GlobeConfig().with_overrides({"evaluation.workers": 2, "selection.folds": 3,
                                            "selection.routine_orders": (2, 3), "selection.time_weights": (0.0, 1.0)})
     small = [replace(h, train=h.train[:15], test=()) for h in households.values()][:2]
-    cache: dict = {}
-    ran = precompute_selections(config, [(h, cache) for h in small], ["routine"])
-    assert ran == 2 and len(cache) == 2
+    memo = Memo()
+    ran = precompute_selections(config, small, ["routine"], memo)
+    assert ran == 2 and len(memo) == 2
     for h in small:
-        here = tuned_models(h, config, "routine", {})
-        there = cache[selection_key(h, config, "routine")]
+        here = tuned_models(h, config, "routine", Memo())
+        there = memo.get(model_search_key(h, config, "routine"), lambda: None)
         assert there[0] == here[0]
         assert [s.scores for s in there[1].values()] == [s.scores for s in here[1].values()]
-    assert precompute_selections(config, [(h, cache) for h in small], ["routine"]) == 0  # nothing left to run
+    assert precompute_selections(config, small, ["routine"], memo) == 0  # nothing left to run
 
 
 def test_a_script_without_a_main_guard_runs_once(tmp_path):

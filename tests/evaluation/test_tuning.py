@@ -4,15 +4,9 @@ import random
 from dataclasses import replace
 
 from globe.config import GlobeConfig
-from globe.evaluation.tuning import folds, tuned_gate, tuned_models
+from globe.evaluation.selection import Memo
+from globe.evaluation.tuning import tuned_gate, tuned_models
 from globe.reasoning.backends.base import Choice, LLMBackend
-
-
-def test_folds_are_contiguous_and_cover_every_item_once():
-    splits = folds(13, 5)
-    assert [v for _, v in splits] == [[0, 1, 2], [3, 4], [5, 6, 7], [8, 9], [10, 11, 12]]  # bounds round(i * 13 / 5)
-    for train, val in splits:
-        assert sorted(train + val) == list(range(13))
 
 
 def _patternless(household, seed: int):
@@ -30,14 +24,14 @@ def _patternless(household, seed: int):
 
 def test_cv_picks_persistence_when_the_routine_has_no_pattern(households, seed):
     h = _patternless(households["C"], seed)
-    models, selection = tuned_models(h, GlobeConfig(), "routine", {})
+    models, selection = tuned_models(h, GlobeConfig(), "routine", Memo())
     assert models.activity_estimator == "persistence", selection["activity"].scores[:3]
     assert {p["activity_estimator"] for p, _ in selection["activity"].scores} == {"persistence", "longest", "routine"}
 
 
 def test_cv_keeps_the_routine_model_on_a_real_routine(households):
     h = replace(households["B"], train=households["B"].train[:30])
-    models, selection = tuned_models(h, GlobeConfig(), "routine", {})
+    models, selection = tuned_models(h, GlobeConfig(), "routine", Memo())
     assert models.activity_estimator == "routine"
     best = max(s for _, s in selection["activity"].scores)
     persistence = next(s for p, s in selection["activity"].scores if p["activity_estimator"] == "persistence")
@@ -56,8 +50,9 @@ class EchoNgram(LLMBackend):
 def test_gate_cv_prefers_never_asking_when_the_llm_adds_nothing(households):
     h = replace(households["C"], train=households["C"].train[:15])
     cfg = GlobeConfig()
-    models, _ = tuned_models(h, cfg, "routine", {})
-    gate, selection = tuned_gate(h, cfg, models, EchoNgram(), {}, examples=2)
+    memo = Memo()
+    models, _ = tuned_models(h, cfg, "routine", memo)
+    gate, selection = tuned_gate(h, cfg, models, EchoNgram(), memo, examples=2)
     scores = [s for _, s in selection.scores]
     assert max(scores) == scores[0]  # asking only repeats the n-gram: no candidate beats never asking
     assert gate.threshold == 0.0 and gate.examples == 2
@@ -65,18 +60,25 @@ def test_gate_cv_prefers_never_asking_when_the_llm_adds_nothing(households):
 
 
 def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(households):
+    """Candidates that count the same share one fit per fold (prediction parameters aside): their
+    scores are those of models fitted one by one."""
     from globe import assembly
-    from globe.evaluation.tuning import _SharedFit, activity_fold, grid, select
+    from globe.evaluation.selection import FitKey, grid
+    from globe.evaluation.tuning import activity_f1, data_folds, fitted_activity, fold_days
 
-    h = households["A"]
-    days = [d.activities for d in h.train[:24]]
+    h = replace(households["A"], train=households["A"].train[:24])
     cfg = GlobeConfig().models
     space = [{"activity_estimator": "longest"}] + grid({"activity_estimator": ["witten_bell", "routine"],
                                                         "routine_order": [2, 4], "time_weight": [0.0, 2.0],
                                                         "routine_time_weight": [0.0, 1.0]})
-    fits: dict = {}
-    shared = select(days, space, lambda p: _SharedFit(assembly.activity_model(cfg.model_copy(update=p)), fits), activity_fold, 3)
-    alone = select(days, space, lambda p: assembly.activity_model(cfg.model_copy(update=p)), activity_fold, 3)
-    assert shared.scores == alone.scores and shared.best == alone.best
-    assert len(fits) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit
-    assert len({s for _, s in alone.scores}) > 3  # the candidates really predict differently
+    memo = Memo()
+    for params in space:
+        models = cfg.model_copy(update=params)
+        for fold in data_folds(h, 3):
+            train, held_out = fold_days(h, fold)
+            shared = activity_f1(fitted_activity(h, fold, models, "previous", memo, 10), [d.activities for d in held_out])
+            alone = assembly.activity_model(models, 10).fit([d.activities for d in train])
+            assert shared == activity_f1(alone, [d.activities for d in held_out])  # type: ignore[arg-type]
+    counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")
+                                       and k.model != "sequences")]
+    assert len(counted) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit

@@ -11,9 +11,9 @@ from globe.errors import ConfigError, ModelFileError, NotFittedError
 from globe.models.activity import ActivityModel
 from globe.models.io import load_model, save_model
 from globe.models.objects import ObjectModel
-from globe.models.packed_days import PackedDays
 from globe.models.routine import RoutineModel
 from globe.models.suffix_index import END, SuffixIndex
+from globe.sequences.packed_days import PackedDays
 
 DAYS = [("sleep", "wake", "eat", "eat", "work"), ("sleep", "wake", "eat", "work", "work"),
         ("sleep", "sleep", "wake", "eat", "tv")]
@@ -175,17 +175,16 @@ class DictSuffixIndex:
 
 def test_compact_suffix_index_answers_exactly_like_one_dict_per_state(seed):
     """Same states, links, counts and successor order (distributions are summed in that order),
-    whether sequences are added to a compacted index, an uncompacted one, or a mix."""
+    whether sequences are added one batch at a time or several at once."""
     rng = random.Random(seed)
     for _ in range(200):
         alphabet = [f"a{i}" for i in range(rng.randint(1, 9))]
         ref, got = DictSuffixIndex(["a0"]), SuffixIndex(["a0"])
-        for _ in range(rng.randint(1, 10)):
-            seq = [rng.choice(alphabet) for _ in range(rng.randint(0, 30))]
-            ref.add(seq)
-            got.add(seq)
-            if rng.random() < 0.6:
-                got.compact()
+        for _ in range(rng.randint(1, 5)):
+            batch = [[rng.choice(alphabet) for _ in range(rng.randint(0, 30))] for _ in range(rng.randint(1, 3))]
+            for seq in batch:
+                ref.add(seq)
+            got.add_all(batch)
         states = len(ref.len)
         assert [got.length(s) for s in range(states)] == ref.len and [got.link(s) for s in range(states)] == ref.link
         for s in range(states):
@@ -201,10 +200,10 @@ def test_fitted_models_keep_their_automata_compact():
     activity = ActivityModel().fit(DAYS)
     objects = ObjectModel().fit(RUNS)
     for index in (activity.index_, *objects.indexes_.values()):
-        assert not index._more and len(index._start) == len(index._len) + 1 and isinstance(index._label1, array)
+        assert len(index._start) == len(index._len) + 1 and isinstance(index._label1, array)
     activity.partial_fit([("sleep", "tv")])
     # "<day> sleep" was followed by wake (days 1, 2), sleep (day 3) and tv (the day learned)
-    assert not activity.index_._more and activity.predict_proba(["sleep"]) == {"wake": 0.5, "sleep": 0.25, "tv": 0.25}
+    assert activity.predict_proba(["sleep"]) == {"wake": 0.5, "sleep": 0.25, "tv": 0.25}
 
 
 def test_packed_days_give_back_the_days_packed(seed):

@@ -4,7 +4,6 @@ import math
 
 import pytest
 
-from globe.evaluation.tuning import folds, grid, select
 from globe.models.backoff import witten_bell_distribution
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
@@ -16,7 +15,7 @@ def test_witten_bell_by_hand():
     # training "a b a b a c": after "a": b twice, c once (c=3, N1+=2);
     # unigram level (empty context): a 3, b 2, c 1 (c=6, N1+=3); floor: uniform 1/3
     index = SuffixIndex()
-    index.add("ababac")
+    index.add_all(["ababac"])
     vocab = ("a", "b", "c")
     state, matched = index.match("a")
     p = witten_bell_distribution(index, state, matched, max_context=1, vocabulary=vocab)
@@ -31,7 +30,7 @@ def test_witten_bell_applies_each_context_length_of_a_state():
     # "x y" is followed by z once; contexts "y" and "x y" share one automaton state (both seen
     # once, followed by z), so that state contributes two interpolation levels
     index = SuffixIndex()
-    index.add("xyz")
+    index.add_all(["xyz"])
     vocab = ("x", "y", "z")
     state, matched = index.match("xy")
     got = witten_bell_distribution(index, state, matched, max_context=2, vocabulary=vocab)
@@ -45,7 +44,7 @@ def test_witten_bell_applies_each_context_length_of_a_state():
 def test_routine_stay_probability_by_hand():
     # "eat" runs last 2, 2 and 3 steps; days are long enough that every run end is observed
     days = [("x", "eat", "eat", "y"), ("x", "eat", "eat", "y"), ("x", "eat", "eat", "eat", "y")]
-    m = RoutineModel(shrinkage=1.0, hour_steps=100).fit(days)
+    m = RoutineModel(shrinkage=1.0, step_minutes=1).fit(days)
     # level (eat,): 7 eat steps with a next step, 4 stayed -> (4 + 2 * 0.5) / (7 + 2) = 5/9
     # level (eat, d=1): seen 3, stayed 3 -> (3 + 1 * 5/9) / 4 = 8/9
     # level (eat, 1, hour 0): the same 3 -> (3 + 8/9) / 4 = 35/36
@@ -71,25 +70,3 @@ def test_object_distribution_mixes_over_the_activity_belief():
     got = object_distribution(om, "eat", {"eat": 0.6, "read": 0.4}, ctx, marginal=True)
     assert got == pytest.approx({"bowl": 0.3, "cup": 0.3, "book": 0.4})
     assert object_distribution(om, "eat", {"eat": 0.6, "read": 0.4}, ctx, marginal=False) == {"bowl": 0.5, "cup": 0.5}
-
-
-def test_folds_are_contiguous_and_cover_every_day():
-    splits = folds(10, 3)
-    assert [v for _, v in splits] == [[0, 1, 2], [3, 4, 5, 6], [7, 8, 9]]
-    for train, val in splits:
-        assert sorted(train + val) == list(range(10))
-
-
-def test_select_picks_the_best_candidate_on_held_out_items():
-    class Const:  # predicts a constant label; the data is mostly "b"
-        def __init__(self, label):
-            self.label = label
-
-        def fit(self, items):
-            return self
-
-    items = ["b", "b", "a", "b", "b", "b"]
-    sel = select(items, grid({"label": ["a", "b"]}), lambda p: Const(p["label"]),
-                 lambda m, val: (list(val), [m.label] * len(val)), k=3)
-    assert sel.best == {"label": "b"}
-    assert [round(s, 3) for _, s in sel.scores][1] > [round(s, 3) for _, s in sel.scores][0]

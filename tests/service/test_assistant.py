@@ -8,7 +8,7 @@ from globe.assembly import fit_household
 from globe.data.records import Household
 from globe.errors import DataError
 from globe.reasoning.choice import ObjectChooser
-from globe.service.assistant import Observation, OnlineAssistant, fill_unknown
+from globe.service.assistant import Observation, OnlineAssistant, build_assistant, fill_unknown
 
 
 @pytest.fixture()
@@ -71,14 +71,13 @@ def test_fetch_policy_and_filter_in_the_assembled_assistant(households):
     threshold, and hiding labels changes the belief without breaking the prediction."""
     from dataclasses import replace
 
-    from globe import assembly
     from globe.config import GlobeConfig
 
     h = households["A"]
     cfg = GlobeConfig().with_overrides({"llm.backend": "none"})
     day = h.test[0]
-    full = assembly.assistant(replace(h, train=h.train[:20]), cfg, None)
-    hidden = assembly.assistant(replace(h, train=h.train[:20]), cfg, None)
+    full = build_assistant(replace(h, train=h.train[:20]), cfg, None)
+    hidden = build_assistant(replace(h, train=h.train[:20]), cfg, None)
     threshold = full.fetch_policy.threshold
     fetched, differs = [], 0
     for t in range(60):
@@ -133,11 +132,10 @@ def test_policy_makes_no_fetch_without_a_basis_today(households):
     the policy has nothing to forecast from: no fetch, and no error."""
     from dataclasses import replace
 
-    from globe import assembly
     from globe.config import GlobeConfig
 
     h = households["A"]
-    a = assembly.assistant(replace(h, train=h.train[:5]), GlobeConfig().with_overrides({"llm.backend": "none"}), None)
+    a = build_assistant(replace(h, train=h.train[:5]), GlobeConfig().with_overrides({"llm.backend": "none"}), None)
     assert a.fetch_policy is not None
     assert not a.predict().act
     a.observe(Observation(at(360), None, dict(zip(h.objects, h.test[0].locations[0]))))

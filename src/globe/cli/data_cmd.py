@@ -1,4 +1,4 @@
-"""``globe data``: validate observation logs, import native HOMER+ files."""
+"""``globe data``: validate observation logs, import native HOMER+ files and real homes' logs."""
 
 from __future__ import annotations
 
@@ -18,9 +18,16 @@ from globe.cli.common import (
     resolve,
 )
 from globe.data.csv_logs import household_step
+from globe.data.importers import GridOptions, ImportResult, import_casas, import_home_assistant, import_kasteren
+from globe.data.importers.grid import DEFAULT_STEP_MINUTES, DEFAULT_TEST_FRACTION
+from globe.data.importers.text import parse_clock
 from globe.sequences.runs import activity_runs
 
 app = typer.Typer(help="Validate and import household observation logs.", no_args_is_help=True)
+import_app = typer.Typer(help="Import a real home's log (CASAS, van Kasteren / Ordóñez, Home Assistant) into a "
+                              "household folder on GLOBE's step grid; the folder's import.json says what became of "
+                              "each sensor, annotation and day.", no_args_is_help=True)
+app.add_typer(import_app, name="import")
 
 
 @app.command("validate")
@@ -51,3 +58,118 @@ def import_pt(
 
     written = import_household(source, dest)
     out.print(f"wrote {len(written)} day files and nodes.csv to {dest}", markup=False, highlight=False)
+
+
+DestArgument = Annotated[Path, typer.Argument(
+    help="household folder to write (new or empty): nodes.csv, train/, test/, import.json")]
+ObjectsOption = Annotated[Path | None, typer.Option(
+    "--objects", help="CSV sensor,object[,room][,furniture]: the sensors that are objects (default: by sensor type, "
+                      "see docs/your-home.md)")]
+StepOption = Annotated[int, typer.Option("--step", help="minutes between rows (1, 2, 5, 10, ...; must divide the day)")]
+DayStartOption = Annotated[str, typer.Option("--day-start", help="first row of a day, HH:MM")]
+DayEndOption = Annotated[str, typer.Option("--day-end", help="last row of a day, HH:MM (24:00 = midnight)")]
+TestDaysOption = Annotated[int | None, typer.Option("--test-days", help="the last N kept days are test days")]
+TestFractionOption = Annotated[float | None, typer.Option(
+    "--test-fraction", help=f"the last share of kept days that are test days (default {DEFAULT_TEST_FRACTION}, "
+                            "at least one when two or more days are kept)")]
+OverlapsOption = Annotated[str, typer.Option(
+    "--overlaps", help="overlapping annotations: 'error', or 'latest' (the one that began last wins while it lasts)")]
+
+
+def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_fraction: float | None,
+          overlaps: str) -> GridOptions:
+    """The grid options from the command line (parsing only; GridOptions.check judges them)."""
+    minutes = {}
+    for name, value in (("--day-start", day_start), ("--day-end", day_end)):
+        try:
+            minutes[name] = parse_clock(value)
+        except ValueError as err:
+            raise typer.BadParameter(str(err), param_hint=f"'{name}'") from None
+    if test_days is not None and test_fraction is not None:
+        raise typer.BadParameter("give --test-days or --test-fraction, not both", param_hint="'--test-days'")
+    if overlaps not in ("error", "latest"):
+        raise typer.BadParameter(f"{overlaps!r} is not 'error' or 'latest'", param_hint="'--overlaps'")
+    fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
+    return GridOptions(step_minutes=step, day_start_minute=minutes["--day-start"], day_end_minute=minutes["--day-end"],
+                       test_days=test_days, test_fraction=fraction,
+                       overlaps="latest" if overlaps == "latest" else "error")
+
+
+def _summary(result: ImportResult) -> None:
+    def say(text: str) -> None:
+        out.print(text, markup=False, highlight=False, soft_wrap=True)
+
+    objects = f"objects: {', '.join(result.objects)}" if result.objects else "no objects"
+    say(f"wrote {result.train_days} training and {result.test_days} test days to {result.dest} ({objects}; activities: "
+        f"{', '.join(result.activities)})")
+    if result.dropped_days:
+        say(f"left out {result.dropped_days} days (unannotated, or not covered by the log from first to last row): "
+            f"see {result.report}")
+    for note in result.notes:
+        say(f"note: {note}")
+
+
+@import_app.command("casas")
+def import_casas_cmd(
+    log_file: Annotated[Path, typer.Argument(help="a CASAS event log: date time sensor value [activity begin|end]")],
+    dest: DestArgument,
+    objects: ObjectsOption = None,
+    step: StepOption = DEFAULT_STEP_MINUTES,
+    day_start: DayStartOption = "06:00",
+    day_end: DayEndOption = "24:00",
+    test_days: TestDaysOption = None,
+    test_fraction: TestFractionOption = None,
+    overlaps: OverlapsOption = "error",
+) -> None:
+    """A CASAS event log (without --objects, item sensors I... are the objects)."""
+    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
+    _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects))
+
+
+@import_app.command("kasteren")
+def import_kasteren_cmd(
+    sensors: Annotated[Path, typer.Argument(help="sensor intervals: start end id [1], or start end Location Type "
+                                                 "Place")],
+    activities: Annotated[Path, typer.Argument(help="activity intervals: start end activity (or id)")],
+    dest: DestArgument,
+    sensor_list: Annotated[Path | None, typer.Option("--sensor-list", help="CSV sensor,name[,type][,room] for "
+                                                                           "numeric sensor ids")] = None,
+    activity_list: Annotated[Path | None, typer.Option("--activity-list", help="CSV id,activity for numeric "
+                                                                               "activity ids")] = None,
+    objects: ObjectsOption = None,
+    step: StepOption = DEFAULT_STEP_MINUTES,
+    day_start: DayStartOption = "06:00",
+    day_end: DayEndOption = "24:00",
+    test_days: TestDaysOption = None,
+    test_fraction: TestFractionOption = None,
+    overlaps: OverlapsOption = "error",
+) -> None:
+    """A van Kasteren or Ordóñez interval log (without --objects, contact and electric sensors are the objects).
+
+    Doors are left out; the report lists every sensor and why.
+    """
+    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
+    _summary(import_kasteren(sensors_file=sensors, activities_file=activities, dest=dest, options=options,
+                             objects=objects, sensor_list=sensor_list, activity_list=activity_list))
+
+
+@import_app.command("home-assistant")
+def import_home_assistant_cmd(
+    history: Annotated[Path, typer.Argument(help="a Home Assistant history CSV: entity_id,state,last_changed")],
+    dest: DestArgument,
+    activity_entity: Annotated[str, typer.Option("--activity-entity", help="the entity whose state is the activity, "
+                                                                           "e.g. input_select.activity")],
+    timezone: Annotated[str | None, typer.Option("--timezone", help="the home's IANA time zone (required when "
+                                                                    "timestamps carry a UTC offset)")] = None,
+    objects: ObjectsOption = None,
+    step: StepOption = DEFAULT_STEP_MINUTES,
+    day_start: DayStartOption = "06:00",
+    day_end: DayEndOption = "24:00",
+    test_days: TestDaysOption = None,
+    test_fraction: TestFractionOption = None,
+    overlaps: OverlapsOption = "error",
+) -> None:
+    """A Home Assistant history export (objects only from --objects)."""
+    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
+    _summary(import_home_assistant(history=history, dest=dest, activity_entity=activity_entity, options=options,
+                                   objects=objects, timezone=timezone))

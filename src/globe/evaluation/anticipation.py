@@ -28,6 +28,7 @@ from globe.evaluation.lookahead import (
 )
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_figure, lookahead_figure, save_figure
+from globe.evaluation.selection import Memo, SearchKey
 from globe.evaluation.tuning import tuned_models
 
 TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0}
@@ -35,14 +36,14 @@ TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0}
 the parallel run starts the longest first."""
 
 
-def method_models(method: str, household: Household, config: GlobeConfig, cache: dict) -> ModelConfig:
+def method_models(method: str, household: Household, config: GlobeConfig, memo: Memo) -> ModelConfig:
     """The activity-model configuration a lookahead method forecasts with."""
     if method == "persistence":
         return config.models.model_copy(update={"activity_estimator": "persistence"})
     if method == "ngram":
         return config.models.model_copy(update={"activity_estimator": "longest"})
     if method == "routine":
-        return tuned_models(household, config, "routine", cache)[0]
+        return tuned_models(household, config, "routine", memo)[0]
     raise ValueError(f"unknown lookahead method {method!r}; expected persistence, ngram or routine")
 
 
@@ -54,35 +55,35 @@ class AnticipationResult:
 
 
 def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | Sequence[Household],
-                     progress: Callable[[str], None] | None = None, cache: dict | None = None) -> AnticipationResult:
+                     progress: Callable[[str], None] | None = None, memo: Memo | None = None) -> AnticipationResult:
     """Lookahead for every configured method and the fetch policy on every household's test
-    days. ``cache`` may be the main job's model-selection cache (so the routine CV runs once).
+    days. ``memo`` may be the main job's (so the routine CV runs once).
 
     Each (household, method) runs on its own process (``evaluation.workers``; the fetch policy
     with its method's lookahead, whose forecaster it shares). The lookahead's cross-validated
-    pairs come back into ``cache``, where the missing-label runs look for them."""
+    pairs come back into ``memo``, where the missing-label runs look for them."""
     homes = list(households.values()) if isinstance(households, Mapping) else list(households)
-    cache = {} if cache is None else cache
+    memo = Memo() if memo is None else memo
     policy_method = config.policy.method
     tasks: list[tuple[Household, str | None]] = [(h, m) for h in homes for m in config.lookahead.methods]
     tasks += [(h, None) for h in homes if policy_method not in config.lookahead.methods]
     if progress:
         progress(f"lookahead and fetch policy: {len(tasks)} households x methods (in parallel)")
-    before = set(cache)
+    before = memo.keys()
 
     def run(i: int) -> tuple[LookaheadResult | None, FetchEvaluation | None, dict]:
         h, method = tasks[i]
         look = None
         if method is not None:
-            look = evaluate_lookahead(h, config, method_models(method, h, config, cache), method, cache)
-        fetch = _fetch(h, config, cache, look) if method in (None, policy_method) else None
-        shared = {k: v for k, v in cache.items() if k not in before and isinstance(k, tuple) and k[0] == "lookahead_cv"}
+            look = evaluate_lookahead(h, config, method_models(method, h, config, memo), method, memo)
+        fetch = _fetch(h, config, memo, look) if method in (None, policy_method) else None
+        shared = memo.entries(lambda k: k not in before and isinstance(k, SearchKey) and k.search == "lookahead-cv")
         return None if look is None else replace(look, forecaster=None), fetch, shared
 
     look, fetch = [], []
     cost = [TASK_COST.get(method or "", 1.0) for _, method in tasks]
     for result, evaluation, shared in run_forked(run, len(tasks), worker_count(config.evaluation.workers), cost):
-        cache.update(shared)
+        memo.update(shared)
         look += [result] if result is not None else []
         fetch += [evaluation] if evaluation is not None else []
     order = {h.name: i for i, h in enumerate(homes)}
@@ -90,15 +91,15 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
     return AnticipationResult(tuple(look), tuple(fetch), config)
 
 
-def _fetch(h: Household, config: GlobeConfig, cache: dict, same: LookaheadResult | None) -> FetchEvaluation:
+def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult | None) -> FetchEvaluation:
     """The fetch policy on ``h``'s test days, over ``same`` (the lookahead of the policy's method,
     when it ran) or a forecaster with settings chosen on training days."""
-    models = method_models(config.policy.method, h, config, cache)
+    models = method_models(config.policy.method, h, config, memo)
     if same is not None and same.forecaster is not None:  # the lookahead's forecaster (its paths are shared)
         forecaster = same.forecaster
     else:
         if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
-            run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, cache=cache).best)
+            run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
         else:
             run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
         forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory,

@@ -13,6 +13,7 @@ from globe.data.records import Household
 from globe.evaluation.methods import METHODS
 from globe.evaluation.metrics import AVERAGES, Average, calibration, f1, log_loss
 from globe.evaluation.protocol import Evaluation, evaluate_days
+from globe.evaluation.selection import Memo
 from globe.reasoning.backends.base import LLMBackend
 
 log = logging.getLogger(__name__)
@@ -42,21 +43,21 @@ def run_methods(
     households: Iterable[Household],
     methods: Iterable[str],
     backend: LLMBackend | None,
-    selection_cache: dict | None = None,
+    memo: Memo | None = None,
 ) -> list[MethodRun]:
     """Evaluate each method on each household's test days (plus the true-activity oracle).
 
-    ``selection_cache`` keeps cross-validation results between calls on the same households, so
+    ``memo`` keeps cross-validation results and fits between calls on the same households, so
     methods of one family (``routine``, ``globe_routine``) share one search."""
     runs = []
-    cache = {} if selection_cache is None else selection_cache
+    memo = Memo() if memo is None else memo
     for name in methods:
         method = METHODS[name]
         if method.needs_llm and backend is None:
             log.warning("skipping %s: no LLM backend configured", name)
             continue
         for h in households:
-            prepared = method.prepare(h, config, backend, cache)
+            prepared = method.prepare(h, config, backend, memo)
             ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, oracle=True)
             runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection,

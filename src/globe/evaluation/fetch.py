@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from globe.data.records import Day, Household
-from globe.reasoning.fetch_policy import FetchCandidate, FetchPolicy
+from globe.inference.fetch_policy import FetchCandidate, FetchPolicy
 
 
 @dataclass(slots=True)

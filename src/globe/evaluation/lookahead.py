@@ -17,6 +17,7 @@ cross-validation on training days (the listed first values win ties).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -25,9 +26,11 @@ import numpy as np
 from globe import assembly
 from globe.config import GlobeConfig, LookaheadConfig, ModelConfig
 from globe.data.records import Day, Household
-from globe.evaluation.tuning import Selection, folds
+from globe.evaluation.selection import DataKey, FitKey, Fold, Memo, SearchKey, Selection, best_of
+from globe.evaluation.tuning import data_folds, fold_days
+from globe.inference.forecast import Forecaster, Forecasts
+from globe.inference.movements import MovementModel
 from globe.models.base import ActivityModelBase
-from globe.models.forecast import Forecaster, Forecasts, MovementModel
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +103,10 @@ class LookaheadRun:
     pairs: list[HorizonPairs]
     activity_correct: np.ndarray
     activity_total: np.ndarray
+
+    @classmethod
+    def empty(cls, horizons: int) -> "LookaheadRun":
+        return cls(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int), np.zeros(horizons, int))
 
     def f1s(self, threshold: float) -> list[float]:
         return [p.counts(threshold).f1 for p in self.pairs]
@@ -204,7 +211,7 @@ def top_activities(dense: np.ndarray, names: Sequence[str], model: ActivityModel
 def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, first: int = 1, last: int = 102,
                   stride: int = 1, chunk: int = 256) -> LookaheadRun:
     """Forecast every reference step of ``days`` and collect the pairs of each horizon."""
-    run = LookaheadRun(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int), np.zeros(horizons, int))
+    run = LookaheadRun.empty(horizons)
     refs = reference_queries(days, horizons, first, last, stride)
     rows: dict = {}
     for lo in range(0, len(refs), chunk):
@@ -231,7 +238,7 @@ def threshold_f1s(run: LookaheadRun, thresholds: Sequence[float]) -> list[list[f
 
 def best_thresholds(f1s: Sequence[Sequence[float]], thresholds: Sequence[float]) -> tuple[float, ...]:
     """Each horizon's best threshold of :func:`threshold_f1s` (the first listed wins ties)."""
-    return tuple(float(thresholds[list(row).index(max(row))]) for row in f1s)
+    return tuple(float(best_of(list(zip(thresholds, row)))) for row in f1s)
 
 
 def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> list[Setting]:
@@ -241,66 +248,50 @@ def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> li
             for nxt in la.run_next if e or not (mem or nxt)]
 
 
-def _cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[Setting],
-             cache: dict | None = None) -> dict[Setting, LookaheadRun]:
+def movements_on(household: Household, la: LookaheadConfig, fold: Fold | None, setting: Setting,
+                 memo: Memo) -> MovementModel:
+    """The movement model of ``setting`` fitted on a fold's training part (or every training day),
+    once: every activity model of a cross-validation shares the folds' movement models."""
+    days = household.train if fold is None else fold_days(household, fold)[0]
+    key = FitKey("MovementModel", DataKey.of(household), fold,
+                 (la.hazard_shrinkage, la.duration_cap, la.destination_shrinkage, setting))
+    return memo.get(key, lambda: assembly.movement_model(la, *setting).fit(days, household.objects))
+
+
+def cv_key(household: Household, config: GlobeConfig, models: ModelConfig, setting: Setting) -> SearchKey:
+    """What the held-out pairs of one movement setting depend on."""
+    return SearchKey("lookahead-cv", DataKey.of(household), (config.lookahead, setting), models, config.selection.folds,
+                     None)
+
+
+def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[Setting],
+            memo: Memo) -> dict[Setting, LookaheadRun]:
     """Pairs of every held-out *training* day (contiguous folds, every ``cv_stride``-th reference)
-    for each movement setting (run end, run memory, next activity): each fold's activity model is fitted once
-    and its activity paths are shared by every setting. Memoised in ``cache``."""
+    for each movement setting (run end, run memory, next activity): each fold's activity model is
+    fitted once and its activity paths are shared by every setting. Kept in ``memo``."""
     la = config.lookahead
-    out: dict[Setting, LookaheadRun] = {}
-    todo = []
-    for setting in dict.fromkeys(settings):
-        key = ("lookahead_cv", household.name, hash(household.train), household.objects, models, la, config.selection.folds,
-               setting)
-        if cache is not None and key in cache:
-            out[setting] = cache[key]
-        else:
-            todo.append((setting, key))
-    if not todo:
-        return out
-    runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting, _ in todo}
-    data = (household.name, hash(household.train), household.objects)
-    for train_idx, val_idx in folds(len(household.train), config.selection.folds):
-        train = [household.train[i] for i in train_idx]
-        activity = assembly.activity_model(models).fit([d.activities for d in train])
-        refs = reference_queries([household.train[i] for i in val_idx], la.horizons, la.first_reference,
-                                 la.last_reference, la.cv_stride)
+    todo = [s for s in dict.fromkeys(settings) if cv_key(household, config, models, s) not in memo]
+    runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting in todo}
+    for fold in data_folds(household, config.selection.folds) if todo else ():
+        train, held_out = fold_days(household, fold)
+        activity = assembly.activity_model(models, assembly.step_minutes(household, config)).fit([d.activities for d in train])
+        refs = reference_queries(held_out, la.horizons, la.first_reference, la.last_reference, la.cv_stride)
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
         trees = None
-        for setting, _ in todo:
-            movements = _movements(household, la, train, setting, cache, (data, tuple(train_idx)))
-            fc = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
+        for setting in todo:
+            fc = assembly.forecaster_over(activity, movements_on(household, la, fold, setting, memo), la)
             if trees is None:
-                trees = fc.trees([tuple(a) for a, _ in queries], [r for _, r in refs], la.horizons - 1)
-            run = LookaheadRun(la.horizons, [HorizonPairs() for _ in range(la.horizons)], np.zeros(la.horizons, int),
-                               np.zeros(la.horizons, int))
+                trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs]), la.horizons - 1)
+            run = LookaheadRun.empty(la.horizons)
             score_forecasts(run, fc.forecast_many(queries, la.horizons - 1, trees=trees), refs, activity, {})
             runs[setting].append(run)
-    for setting, key in todo:
-        out[setting] = _pool(runs[setting], la.horizons)
-        if cache is not None:
-            cache[key] = out[setting]
-    return out
+    for setting in todo:
+        memo.put(cv_key(household, config, models, setting), pool(runs[setting], la.horizons))
+    return {s: memo.get(cv_key(household, config, models, s), lambda: None) for s in settings}  # type: ignore[misc]
 
 
-def _movements(household: Household, la: LookaheadConfig, days: Sequence[Day], setting: Setting,
-               cache: dict | None, data_key: Any = None) -> MovementModel:
-    """The movement model of ``setting`` fitted on ``days`` (memoised in ``cache`` under
-    ``data_key``, which names the days: every activity model of a cross-validation shares the
-    folds' movement models)."""
-    key = ("lookahead_movements", data_key, la.hazard_shrinkage, la.duration_cap, la.destination_shrinkage, setting)
-    if data_key is None:
-        cache = None
-    if cache is not None and key in cache:
-        return cache[key]
-    model = assembly.movement_model(la, *setting).fit(days, household.objects)
-    if cache is not None:
-        cache[key] = model
-    return model
-
-
-def choose_settings(household: Household, config: GlobeConfig, models: ModelConfig,
-                    run_ends: Sequence[bool] | None = None, cache: dict | None = None) -> Selection:
+def choose_settings(household: Household, config: GlobeConfig, models: ModelConfig, memo: Memo,
+                    run_ends: Sequence[bool] | None = None) -> Selection:
     """The movement model's settings (run end of ``run_ends``, default ``lookahead.run_end``;
     run memory of ``lookahead.run_memory`` and the next activity of ``lookahead.run_next``, both
     only with the run end) and a change threshold per horizon, by F1 on held-out *training* days.
@@ -310,24 +301,28 @@ def choose_settings(household: Household, config: GlobeConfig, models: ModelConf
     ``best``: ``{"run_end": bool, "run_memory": bool, "run_next": bool, "thresholds": (one per horizon)}``."""
     la = config.lookahead
     settings = _settings(config, run_ends)
-    pooled_runs = _cv_runs(household, config, models, settings, cache)
+    key = SearchKey("lookahead", DataKey.of(household), (la, tuple(settings)), models, config.selection.folds, None)
+    return memo.get(key, _choose, household, config, models, settings, memo)
+
+
+def _choose(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[Setting],
+            memo: Memo) -> Selection:
+    la = config.lookahead
+    started = time.perf_counter()
+    pooled_runs = cv_runs(household, config, models, settings, memo)
     scores: list[tuple[dict, float]] = []
-    best: dict | None = None
-    best_score = -1.0
+    per_setting: list[tuple[dict, float]] = []
     for setting in settings:
         named = dict(zip(SETTING_KEYS, setting))
         per = threshold_f1s(pooled_runs[setting], la.thresholds)
         scores.extend(({**named, "horizon": s, "threshold": t}, f) for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
-        score = float(np.mean([max(row) for row in per]))
-        if score > best_score:
-            best_score = score
-            best = {**named, "thresholds": best_thresholds(per, la.thresholds)}
-    return Selection(best or {"run_end": True, "run_memory": False, "run_next": False, "thresholds": (0.5,) * la.horizons},
-                     scores)
+        per_setting.append(({**named, "thresholds": best_thresholds(per, la.thresholds)}, float(np.mean([max(row) for row in per]))))
+    return Selection(best_of(per_setting), scores, time.perf_counter() - started)
 
 
-def _pool(runs: Sequence[LookaheadRun], horizons: int) -> LookaheadRun:
-    pooled = LookaheadRun(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int), np.zeros(horizons, int))
+def pool(runs: Sequence[LookaheadRun], horizons: int) -> LookaheadRun:
+    """The pairs and activity counts of several runs together."""
+    pooled = LookaheadRun.empty(horizons)
     for run in runs:
         for s in range(horizons):
             for name in ("probability", "hit", "true"):
@@ -358,10 +353,10 @@ TIMING_FITS = 3  # the training time reported is the best of this many fits (as 
 
 
 def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelConfig, method: str,
-                       cache: dict | None = None) -> LookaheadResult:
+                       memo: Memo) -> LookaheadResult:
     """Choose the settings on training days, fit on all of them, score the test days."""
     la = config.lookahead
-    chosen = choose_settings(household, config, models, cache=cache)
+    chosen = choose_settings(household, config, models, memo)
     run_end, run_memory, run_next = setting_of(chosen.best)
     fits = [assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory,
                                 run_next=run_next) for _ in range(TIMING_FITS)]

@@ -27,6 +27,7 @@ from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.results import Table1Results, write_table1_results
 from globe.evaluation.robustness import RobustnessResults, run_suite
 from globe.evaluation.robustness_results import write_robustness_results
+from globe.evaluation.selection import Memo
 from globe.noise.dataset import generate_dataset, read_summary
 from globe.reasoning.backends.base import LLMBackend
 
@@ -85,30 +86,30 @@ def backend_for(config: GlobeConfig, methods: Sequence[str] = ()) -> LLMBackend 
 
 def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequence[str], out_dir: Path,
              backend: LLMBackend | None = None, stages: Stages | None = None,
-             selection_cache: dict | None = None) -> Table1Results:
+             memo: Memo | None = None) -> Table1Results:
     """Table I rows for ``methods`` on each household's test days, written to ``out_dir``.
-    ``selection_cache`` (cross-validation results on these households) is filled and reused."""
+    ``memo`` (cross-validation results and fits) is filled and reused."""
     methods = check_methods(methods)
     stages = stages or Stages(out_dir)
-    selection_cache = {} if selection_cache is None else selection_cache
+    memo = Memo() if memo is None else memo
     needed = families([m for m in methods if backend is not None or not METHODS[m].needs_llm])
     if needed:
         with stages.stage("table1: model selection (cross-validation, in parallel)"):
-            precompute_selections(config, [(h, selection_cache) for h in households], needed)
+            precompute_selections(config, households, needed, memo)
     runs = []
     for method in methods:
         with stages.stage(f"table1: {method}"):
-            runs += run_methods(config, households, [method], backend, selection_cache)
+            runs += run_methods(config, households, [method], backend, memo)
     with stages.stage("table1: write results"):
         return write_table1_results(out_dir, runs, config)
 
 
 def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: Path, out_dir: Path,
                backend: LLMBackend | None = None, stages: Stages | None = None,
-               clean_cache: dict | None = None) -> tuple[dict, RobustnessResults]:
+               memo: Memo | None = None) -> tuple[dict, RobustnessResults]:
     """HOMER-Noise (generated unless ``noise_dir`` already holds this configuration's) and the
     robustness suite, written to ``out_dir``. Returns the noise summary and the suite's rows.
-    ``clean_cache`` holds cross-validation results already computed on the clean households."""
+    ``memo`` holds cross-validation results already computed (on the clean households, say)."""
     stages = stages or Stages(out_dir)
     written: dict = {}  # the noisy households just generated: the suite need not read them back
     with stages.stage("homer-noise"):
@@ -118,7 +119,7 @@ def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: 
                                        written)
     assert summary is not None
     with stages.stage("robustness suite"):
-        res = run_suite(config, households, noise_dir, backend, progress=stages.note, clean_cache=clean_cache,
+        res = run_suite(config, households, noise_dir, backend, progress=stages.note, memo=memo,
                         loaded=written)
         write_robustness_results(out_dir, res, config.noise)
     return summary, res
@@ -135,19 +136,19 @@ def _same_noise(summary: dict | None, config: GlobeConfig) -> bool:
 
 
 def anticipation(config: GlobeConfig, households: Sequence[Household], out_dir: Path, stages: Stages | None = None,
-                 selection_cache: dict | None = None) -> tuple["AnticipationResult", "MissingLabelResults"]:
+                 memo: Memo | None = None) -> tuple["AnticipationResult", "MissingLabelResults"]:
     """Lookahead (SLaTe-PRO's relocation metric), the fetch policy, and prediction with missing
-    activity labels, written to ``out_dir``. ``selection_cache`` shares the main job's CV."""
+    activity labels, written to ``out_dir``. ``memo`` shares the main job's cross-validations."""
     from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
     from globe.evaluation.missing_labels import run_missing_labels, write_missing_label_results
 
     stages = stages or Stages(out_dir)
-    cache = {} if selection_cache is None else selection_cache
+    memo = Memo() if memo is None else memo
     with stages.stage("anticipation: lookahead and fetch policy"):
-        ahead = run_anticipation(config, households, progress=stages.note, cache=cache)
+        ahead = run_anticipation(config, households, progress=stages.note, memo=memo)
         write_anticipation_results(out_dir, ahead)
     with stages.stage("anticipation: missing activity labels"):
-        missing = run_missing_labels(config, households, progress=stages.note, cache=cache)
+        missing = run_missing_labels(config, households, progress=stages.note, memo=memo)
         write_missing_label_results(out_dir, missing.rows, missing.selection_rows)
     return ahead, missing
 
@@ -168,11 +169,11 @@ def reproduce(config: GlobeConfig, households: Sequence[Household], out_dir: Pat
     stages = Stages(out_dir, progress)
     with stages.stage("load LLM"):
         backend = backend_for(config, config.evaluation.methods)
-    selection_cache: dict = {}
-    table1 = evaluate(config, households, config.evaluation.methods, out_dir, backend, stages, selection_cache)
+    memo = Memo()
+    table1 = evaluate(config, households, config.evaluation.methods, out_dir, backend, stages, memo)
     summary, res = None, None
     if with_robustness:
         summary, res = robustness(config, households, out_dir / "homer_noise", out_dir / "robustness", backend, stages,
-                                  selection_cache)
-    ahead, missing = anticipation(config, households, out_dir, stages, selection_cache) if with_anticipation else (None, None)
+                                  memo)
+    ahead, missing = anticipation(config, households, out_dir, stages, memo) if with_anticipation else (None, None)
     return MainJobResults(table1, summary, res, ahead, missing, stages.times)

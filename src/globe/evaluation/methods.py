@@ -15,7 +15,8 @@ from globe import assembly
 from globe.assembly import FittedHousehold
 from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
-from globe.evaluation.tuning import Selection, tuned_gate, tuned_models
+from globe.evaluation.selection import DataKey, FitKey, Memo, Selection
+from globe.evaluation.tuning import tuned_gate, tuned_models
 from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
 from globe.reasoning.backends.base import LLMBackend
@@ -38,43 +39,40 @@ class Method:
     name: str
     label: str
     needs_llm: bool
-    prepare: Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]
+    prepare: Callable[[Household, GlobeConfig, LLMBackend | None, Memo], Prepared]
     family: str | None = None  # the model family chosen by cross-validation, if any
 
 
-def _fit(h: Household, cfg: GlobeConfig, cache: dict, models: ModelConfig | None = None) -> FittedHousehold:
+def _fit(h: Household, cfg: GlobeConfig, memo: Memo, models: ModelConfig | None = None) -> FittedHousehold:
     """Both models of ``models`` (default ``cfg.models``) on ``h``'s training days, fitted once per
-    household and configuration in ``cache``: the n-gram rows, GLOBE's variants and every gate
-    threshold of the robustness suite train the same models (read-only afterwards)."""
+    household and configuration: the n-gram rows, GLOBE's variants and every gate threshold of the
+    robustness suite train the same models (read-only afterwards)."""
     cfg = cfg if models is None else cfg.model_copy(update={"models": models})
-    key = ("fit", h.name, cfg.models, cfg.sequences.alignment)
-    hit = cache.get(key)
-    if hit is None or hit[0] is not h:  # the very same household object, not another of its name
-        hit = cache[key] = (h, assembly.fit_household(h, cfg))
-    return hit[1]
+    key = FitKey("household", DataKey.of(h), None, cfg.models, cfg.sequences.alignment)
+    return memo.get(key, lambda: assembly.fit_household(h, cfg))
 
 
-def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    fitted = _fit(h, cfg, cache)
+def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    fitted = _fit(h, cfg, memo)
     t = time.perf_counter()
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, ObjectChooser(fitted.objects), time.perf_counter() - t + fitted.train_s)
 
 
-def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    fitted = _fit(h, cfg, cache)
+def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    fitted = _fit(h, cfg, memo)
     return Prepared(fitted.activity, assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=cfg.models.object_marginal),
                     fitted.train_s)
 
 
-def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    fitted = _fit(h, cfg, cache)
+def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    fitted = _fit(h, cfg, memo)
     chooser = assembly.object_chooser(fitted.objects, cfg.gate, backend, marginal=cfg.models.object_marginal)
     return Prepared(fitted.activity, chooser, fitted.train_s)
 
 
-def _globe_combine(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    return _globe(h, cfg.with_overrides({"gate.mode": "combine"}), backend, cache)
+def _globe_combine(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    return _globe(h, cfg.with_overrides({"gate.mode": "combine"}), backend, memo)
 
 
 def personal_examples(cfg: GlobeConfig) -> int:
@@ -82,14 +80,14 @@ def personal_examples(cfg: GlobeConfig) -> int:
     return cfg.gate.examples or cfg.evaluation.personal_examples
 
 
-def _globe_personal(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-    return _globe(h, cfg.with_overrides({"gate.examples": personal_examples(cfg)}), backend, cache)
+def _globe_personal(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    return _globe(h, cfg.with_overrides({"gate.examples": personal_examples(cfg)}), backend, memo)
 
 
-def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
+def _llm_only(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
     if backend is None:
         raise ValueError("llm_only needs an LLM backend")
-    fitted = _fit(h, cfg, cache)  # only O(a), the candidate lists, is taken from training
+    fitted = _fit(h, cfg, memo)  # only O(a), the candidate lists, is taken from training
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, LLMOnlyChooser(fitted.objects, backend), fitted.train_s)
 
@@ -99,13 +97,13 @@ def families(methods: Sequence[str]) -> list[str]:
     return list(dict.fromkeys(f for m in methods if (f := METHODS[m].family)))
 
 
-def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LLMBackend | None, dict], Prepared]:
-    def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, cache: dict) -> Prepared:
-        models, selection = tuned_models(h, cfg, family, cache)
-        fitted = _fit(h, cfg, cache, models)
+def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LLMBackend | None, Memo], Prepared]:
+    def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+        models, selection = tuned_models(h, cfg, family, memo)
+        fitted = _fit(h, cfg, memo, models)
         gate_cfg = cfg.gate
         if with_gate and backend is not None:
-            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, cache, personal_examples(cfg))
+            gate_cfg, gate_sel = tuned_gate(h, cfg, models, backend, memo, personal_examples(cfg))
             selection = selection | {"gate": gate_sel}
         chooser = assembly.object_chooser(fitted.objects, gate_cfg, backend if with_gate else None,
                                           marginal=models.object_marginal)

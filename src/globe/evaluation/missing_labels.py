@@ -3,7 +3,7 @@
 A robot rarely gets a clean activity label for every step. Per test day, a fixed share of the
 steps (``filter.fractions``; which ones is drawn with a seed from ``filter.seed``, the household
 and the day, nested across shares) shows its label; the others must be inferred by the activity
-filter (:mod:`globe.models.activity_filter`) from the time of day, the routine and the object
+filter (:mod:`globe.inference.activity_filter`) from the time of day, the routine and the object
 movements it sees. Everything else is the protocol of :func:`globe.evaluation.protocol.evaluate_days`:
 
 - **Activity:** at every step t = 1..T-1, predict a_t from the visible labels among a_0..a_{t-1}
@@ -28,7 +28,6 @@ activity a movement tells about, and how much to trust it) is chosen by cross-va
 
 from __future__ import annotations
 
-import copy
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -41,14 +40,19 @@ from globe import assembly
 from globe.config import FilterConfig, GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.errors import ConfigError
+from globe.evaluation import lookahead as lk
 from globe.evaluation import report
 from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
-from globe.evaluation.tuning import Selection, folds, grid, select, tuned_models
-from globe.models.activity_filter import MovementEmission, NextActivityModel, filtered_beliefs, label_mask, moved_objects
+from globe.evaluation.selection import DataKey, FitKey, Memo, SearchKey, Selection, best_of, grid
+from globe.evaluation.tuning import data_folds, fitted_activity, fitted_objects, fold_days, tuned_models
+from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts, filtered_beliefs, label_mask
+from globe.inference.beam import tie_key
+from globe.inference.emission import MovementEmission, moved_objects
+from globe.inference.forecast import Forecaster, first_locations
+from globe.inference.paths import Roots
 from globe.models.base import ActivityModelBase
-from globe.models.forecast import Forecaster, first_locations
 from globe.reasoning.choice import NextObjectModel
 
 Progress = Callable[[str], None]
@@ -69,64 +73,48 @@ def check_fractions(fractions: Sequence[float]) -> tuple[float, ...]:
     return tuple(fractions)
 
 
-def _filter_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
-                    visible: Sequence[bool], objects: Sequence[str], activity_question: bool
-                    ) -> tuple[list[dict[str, float]] | None, list[dict[str, float]]]:
-    """:func:`beliefs`; without ``activity_question`` the first part is None when a nowcast
-    answers the object questions (its mixture is not computed)."""
+def day_beliefs(activity: ActivityModelBase, emission: MovementEmission | None, config: GlobeConfig,
+                days: Sequence[Day], masks: Sequence[Sequence[bool]], objects: Sequence[str],
+                activity_question: bool = True, emissions: Sequence[MovementEmission | None] | None = None
+                ) -> list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]]:
+    """Per day and step t: the filter's P(a_t) for the activity question (labels and movements of
+    steps < t; None without ``activity_question`` when a nowcast answers the object questions) and
+    for the object questions whose activity step is t. A movement seen at step t+1 is credited to
+    a_t (``sequences.alignment = "previous"``), so its object question may also use the places seen
+    at t; under another alignment the object would be seen at t itself, so both questions get the
+    predictive distribution. Every day is filtered at once (``emissions``: each day's evidence)."""
     flt = assembly.activity_filter(activity, emission, config.filter)
     nowcast = config.sequences.alignment == "previous"
-    predictive, now = filtered_beliefs(flt, day, visible, objects, nowcast=nowcast,
-                                       predictive=activity_question or not nowcast)
-    for_objects = now if now is not None else predictive
-    assert for_objects is not None
-    return predictive, for_objects
+    ahead, now = filtered_beliefs(flt, days, masks, objects, nowcast=nowcast, predictive=activity_question or not nowcast,
+                                  emissions=emissions)
+    out: list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]] = []
+    for q in range(len(days)):
+        predictive = as_dicts(ahead[q], flt.labels) if ahead is not None else None
+        for_objects = as_dicts(now[q], flt.labels) if now is not None else predictive
+        assert for_objects is not None
+        out.append((predictive, for_objects))
+    return out
 
 
-def beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
-            visible: Sequence[bool], objects: Sequence[str]) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
-    """Per step t of ``day``: the filter's P(a_t) for the activity question (labels and movements
-    of steps < t) and for the object questions whose activity step is t. A movement seen at step
-    t+1 is credited to a_t (``sequences.alignment = "previous"``), so its object question may also
-    use the places seen at t; under another alignment the object would be seen at t itself, so
-    both questions get the predictive distribution."""
-    predictive, for_objects = _filter_beliefs(activity, emission, config, day, visible, objects, True)
-    assert predictive is not None
-    return predictive, for_objects
+class _FixedScan:
+    """The protocol's activity predictor, answering with precomputed filtered distributions."""
 
+    def __init__(self, model: Any, dists: list[dict[str, float]]) -> None:
+        self.model, self.dists = model, dists
 
-def object_beliefs(activity: NextActivityModel, emission: MovementEmission | None, config: GlobeConfig, day: Day,
-                   visible: Sequence[bool], objects: Sequence[str]) -> list[dict[str, float]]:
-    """The second half of :func:`beliefs` only (the same numbers; the activity question's
-    distributions are not mixed when a nowcast answers the object questions)."""
-    return _filter_beliefs(activity, emission, config, day, visible, objects, False)[1]
+    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
+        if len(day) != len(self.dists):
+            raise ValueError(f"{len(self.dists)} filtered distributions for a day of {len(day)} steps")
+        return self.dists
+
+    def ranked(self, distribution: dict[str, float]) -> list[str]:
+        return self.model.ranked(distribution)
+
+    def top(self, distribution: dict[str, float]) -> str | None:
+        return self.model.top(distribution)
 
 
 # -- choosing the movement evidence on training days --------------------------------------------
-
-class _FoldFilter:
-    """The activity model and the movement emission of one candidate, fitted on a fold of
-    training days (activity fits are shared between candidates through ``memo``)."""
-
-    def __init__(self, household: Household, config: GlobeConfig, models: ModelConfig, params: dict[str, Any],
-                 memo: dict) -> None:
-        self.household, self.config, self.models, self.params, self.memo = household, config, models, params, memo
-
-    def fit(self, days: Sequence[Day]) -> "_FoldFilter":
-        fold = tuple(d.name for d in days)
-        if ("models", fold) not in self.memo:
-            cfg = self.config.model_copy(update={"models": self.models})
-            fitted = assembly.fit_household(self.household, cfg, days=days)
-            chooser = assembly.object_chooser(_MemoObjects(fitted.objects), cfg.gate, None,
-                                              marginal=self.models.object_marginal)
-            self.memo[("models", fold)] = fitted.activity, chooser
-        self.activity, self.chooser = self.memo[("models", fold)]
-        if ("emission", fold) not in self.memo:  # the counts do not depend on the candidate
-            self.memo[("emission", fold)] = assembly.movement_emission(self.config.filter, **self.params).fit(
-                days, self.household.objects)
-        self.emission = self.memo[("emission", fold)].with_params(**self.params)
-        return self
-
 
 class _MemoObjects:
     """A fold's object model whose next-object distributions are remembered: every candidate
@@ -153,19 +141,6 @@ class _MemoObjects:
         return self.model.recent_runs(activity, k)
 
 
-def _hidden_fold(model: _FoldFilter, days: Sequence[Day]) -> tuple[list[str], list[str]]:
-    """Object predictions under the protocol on held-out days with every activity label hidden."""
-    true: list[str] = []
-    pred: list[str] = []
-    for day in days:
-        objects = object_beliefs(model.activity, model.emission, model.config, day, [False] * len(day), model.household.objects)
-        ev = evaluate_days(model.household, [day], _FixedScan(model.activity, objects), model.chooser,
-                           alignment=model.config.sequences.alignment)
-        true.extend(r.true for r in ev.objects)
-        pred.extend(r.predicted for r in ev.objects)
-    return true, pred
-
-
 def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
     """The movement evidence's search space, simplest first (ties go to the first listed). The
     switch table only exists with the change flag and a share credited to a_{s-1}, so it is
@@ -176,49 +151,48 @@ def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
             for switch in (fc.emission_switches if params["boundary"] and params["previous_share"] > 0 else (False,))]
 
 
-def score_filter_candidates(household: Household, config: GlobeConfig, models: ModelConfig,
-                            candidates: Sequence[dict[str, Any]]) -> Selection:
-    """:func:`tune_filter` over ``candidates`` only (each one's score does not depend on the
-    others, so a search split into parts and joined by :func:`join_selections` is the same)."""
-    memo: dict = {}
-    return select(list(household.train), list(candidates), lambda p: _FoldFilter(household, config, models, p, memo),
-                  _hidden_fold, config.selection.folds)
+def evidence_scores(household: Household, config: GlobeConfig, models: ModelConfig, candidates: Sequence[dict[str, Any]],
+                    memo: Memo) -> list[float]:
+    """Each candidate evidence's mean object F1 over the folds of training days, under the
+    protocol with every activity label hidden (the case the evidence is for). On each fold the
+    candidates share the models and the counts, and are filtered together, day by day."""
+    alignment, k = config.sequences.alignment, config.selection.folds
+    scores = np.zeros((len(data_folds(household, k)), len(candidates)))
+    for f, fold in enumerate(data_folds(household, k)):
+        train, days = fold_days(household, fold)
+        activity = fitted_activity(household, fold, models, alignment, memo, assembly.step_minutes(household, config)).model
+        objects = memo.get(FitKey("ObjectModel:remembered", fold.data, fold, models, alignment), _MemoObjects,
+                           fitted_objects(household, fold, models, alignment, memo))
+        chooser = assembly.object_chooser(objects, config.gate, None, marginal=models.object_marginal)
+        counts = memo.get(FitKey("MovementEmission", fold.data, fold, config.filter.emission_smoothing),
+                          assembly.movement_emission(config.filter, **candidates[0]).fit, train, household.objects)
+        emissions = [counts.with_params(**c) for c in candidates for _ in days]
+        found = day_beliefs(activity, None, config, list(days) * len(candidates), [[False] * len(d) for d in days] * len(candidates),
+                            household.objects, False, emissions)
+        for c in range(len(candidates)):
+            true, pred = [], []
+            for day, (_, objects_dists) in zip(days, found[c * len(days):(c + 1) * len(days)]):
+                ev = evaluate_days(household, [day], _FixedScan(activity, objects_dists), chooser, alignment=alignment)
+                true += [r.true for r in ev.objects]
+                pred += [r.predicted for r in ev.objects]
+            scores[f, c] = f1(true, pred) or 0.0  # a fold with nothing to score counts 0
+    return scores.mean(axis=0).tolist()
 
 
-def join_selections(parts: Sequence[Selection]) -> Selection:
-    """One search from searches over consecutive parts of its candidate list (the first best)."""
-    scores = [ps for part in parts for ps in part.scores]
-    best = max(scores, key=lambda ps: ps[1])[0] if scores else {}
-    return Selection(dict(best), scores, sum(part.seconds for part in parts))
-
-
-def tune_filter(household: Household, config: GlobeConfig, models: ModelConfig) -> Selection:
+def tune_evidence(household: Household, config: GlobeConfig, models: ModelConfig, memo: Memo,
+                  scores: Sequence[float] | None = None) -> Selection:
     """The movement evidence (move rates by activity change or not, share credited to the earlier
-    activity, weight) with the best object F1 under the protocol on held-out training days with
-    no activity labels at all (the case the evidence is for); ties go to the first listed
+    activity, weight) with the best object F1 on held-out training days with no activity labels
+    (:func:`evidence_scores`, or the ``scores`` already computed); ties go to the first listed
     candidate, so the simpler evidence (no change-dependent rates) wins them."""
-    return score_filter_candidates(household, config, models, filter_candidates(config.filter))
+    started = time.perf_counter()
+    candidates = filter_candidates(config.filter)
+    scores = evidence_scores(household, config, models, candidates, memo) if scores is None else scores
+    scored = list(zip(candidates, scores))
+    return Selection(dict(best_of(scored)), scored, time.perf_counter() - started)
 
 
 # -- evaluation ---------------------------------------------------------------------------------
-
-class _FixedScan:
-    """The protocol's activity predictor, answering with precomputed filtered distributions."""
-
-    def __init__(self, model: ActivityModelBase, dists: list[dict[str, float]]) -> None:
-        self.model, self.dists = model, dists
-
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
-        if len(day) != len(self.dists):
-            raise ValueError(f"{len(self.dists)} filtered distributions for a day of {len(day)} steps")
-        return self.dists
-
-    def ranked(self, distribution: dict[str, float]) -> list[str]:
-        return self.model.ranked(distribution)
-
-    def top(self, distribution: dict[str, float]) -> str | None:
-        return self.model.top(distribution)
-
 
 @dataclass(slots=True)
 class FractionResult:
@@ -247,218 +221,195 @@ class FilterSetup:
     train_s: float
 
 
-def setup_household(household: Household, config: GlobeConfig, cache: dict | None = None,
-                    selection: Selection | None = None) -> FilterSetup:
-    """Choose the models on training days (cached in ``cache`` like the main job's), fit them on
-    all training days, and fit the chosen movement emission (``selection``: the evidence
-    already chosen by :func:`tune_filter`)."""
-    models, _ = tuned_models(household, config, "routine", {} if cache is None else cache)
-    selection = tune_filter(household, config, models) if selection is None else selection
+def setup_household(household: Household, config: GlobeConfig, memo: Memo, selection: Selection | None = None) -> FilterSetup:
+    """The models chosen on training days, fitted on all of them, and the chosen movement emission
+    (``selection``: the evidence already chosen by :func:`tune_evidence`)."""
+    models, _ = tuned_models(household, config, "routine", memo)
+    selection = tune_evidence(household, config, models, memo) if selection is None else selection
     started = time.perf_counter()
-    fitted = assembly.fit_household(household, config.model_copy(update={"models": models}))
+    cfg = config.model_copy(update={"models": models})
+    fitted = memo.get(FitKey("household", DataKey.of(household), None, models, config.sequences.alignment),
+                      lambda: assembly.fit_household(household, cfg))
     emission = assembly.movement_emission(config.filter, **selection.best).fit(household.train, household.objects)
     train_s = fitted.train_s + time.perf_counter() - started
     chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=models.object_marginal)
     return FilterSetup(household, models, fitted.activity, emission, chooser, selection, train_s)
 
 
-def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, days: Sequence[Day] | None = None,
-                      lookahead: bool = True, cache: dict | None = None) -> FractionResult:
-    """One label fraction on ``days`` (default: the test days); ``cache`` memoises the
-    lookahead's threshold choice across fractions."""
+def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, memo: Memo,
+                      days: Sequence[Day] | None = None, lookahead: bool = True) -> FractionResult:
+    """One label fraction on ``days`` (default: the test days)."""
     h = setup.household
     days = h.test if days is None else days
     started = time.perf_counter()
     res = FractionResult(h.name, fraction)
     masks = {day.name: day_mask(config.filter, h.name, day, fraction) for day in days}
-    for day in days:
-        mask = masks[day.name]
-        predictive, for_objects = beliefs(setup.activity, setup.emission, config, day, mask, h.objects)
+    found = day_beliefs(setup.activity, setup.emission, config, days, [masks[d.name] for d in days], h.objects)
+    for day, (predictive, for_objects) in zip(days, found):
+        assert predictive is not None
         ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=config.sequences.alignment)
         res.activity.extend(ev.activity)
         if for_objects is not predictive:
             ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser,
                                alignment=config.sequences.alignment)
         res.objects.extend(ev.objects)
-        res.hidden_steps += sum(not v for v in mask)
+        res.hidden_steps += sum(not v for v in masks[day.name])
     if lookahead:
-        la = _lookahead(setup, config, days, masks, {} if cache is None else cache, fraction)
-        if la is not None:
-            res.lookahead_f1, res.lookahead_accuracy = la
+        thresholds = label_share_thresholds(setup, config, memo, fraction)
+        la = config.lookahead
+        run = filtered_lookahead(forecaster_of(setup, config, memo), setup, config.filter, days, masks, la.horizons,
+                                 la.first_reference, la.last_reference)
+        res.lookahead_f1 = tuple(p.counts(t).f1 for p, t in zip(run.pairs, thresholds))
+        res.lookahead_accuracy = tuple(float(a) for a in run.activity_accuracy())
     res.seconds = time.perf_counter() - started
     return res
 
 
 # -- lookahead through the filter -------------------------------------------------------------
 
-def filtered_references(setup: FilterSetup, fcfg: FilterConfig, day: Day, mask: Sequence[bool], horizons: int,
-                        first: int, last: int, stride: int = 1) -> list[tuple[int, list[tuple[tuple[str, ...], float]]]]:
-    """Per reference step r of ``day``: the filter's most probable histories a_0..a_{r-1} (at most
-    ``forecast_hypotheses``, given the visible labels and every movement up to r) and their
-    posterior weights, renormalised over those kept. With every label visible there is one, the
-    true history."""
-    from globe.evaluation.lookahead import reference_steps
+@dataclass(frozen=True, slots=True)
+class Reference:
+    """A reference step r of a day through the filter: the most probable histories a_0..a_{r-1}
+    (at most ``forecast_hypotheses``, given the visible labels and every movement up to r) as
+    states of the filter's model (``roots``), and their posterior weights, renormalised over those
+    kept. With every label visible there is one, the true history."""
 
-    moved = moved_objects(day, setup.household.objects)
+    day: Day
+    step: int
+    roots: Roots
+    weights: np.ndarray
+
+
+def filtered_references(setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day], masks: dict[str, list[bool]],
+                        horizons: int, first: int, last: int, stride: int = 1) -> list[Reference]:
+    """:class:`Reference` of every reference step of ``days`` (filtered all at once), in order."""
     flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
-    out = []
-    for r in reference_steps(day, horizons, first, last, stride):
-        while flt.step < r - 1:  # labels and movements of steps 0..r-1
-            t = flt.step + 1
-            flt.update(t, day.activities[t] if mask[t] else None, moved[t])
-        peek = copy.copy(flt)
-        peek.update(r, None, moved[r])  # the movements seen at r tell about a_{r-1} (and a_r)
-        prefixes: dict[tuple[str, ...], float] = {}
-        for hyp in peek.hypotheses():
-            prefixes[hyp.history[:r]] = prefixes.get(hyp.history[:r], 0.0) + hyp.weight
-        top = sorted(prefixes.items(), key=lambda kv: (-kv[1], kv[0]))[: fcfg.forecast_hypotheses]
-        total = sum(w for _, w in top)
-        out.append((r, [(prefix, w / total) for prefix, w in top]))
-    return out
+    moved = [moved_objects(day, setup.household.objects) for day in days]
+    steps = [set(lk.reference_steps(day, horizons, first, last, stride)) for day in days]
+    found: list[list[Reference]] = [[] for _ in days]
+    belief = flt.start(len(days))
+    for t in range(max((len(d) for d in days), default=0)):
+        seen = [m[t] if t < len(m) else None for m in moved]
+        asked = [q for q, refs in enumerate(steps) if t in refs]
+        if asked:  # the movements seen at t tell about a_{t-1} (and a_t)
+            peek = flt.update(belief, t, None, seen)
+            for q in asked:
+                found[q].append(_reference(days[q], t, peek, belief, q, fcfg.forecast_hypotheses, flt))
+        labels = [d.activities[t] if t < len(d) and masks[d.name][t] else None for d in days]
+        belief = flt.update(belief, t, labels, seen)
+    return [ref for refs in found for ref in refs]
+
+
+def _reference(day: Day, r: int, peek: Belief, before: Belief, q: int, most: int, flt: ActivityFilter) -> Reference:
+    """The prefixes a_0..a_{r-1} of day ``q``'s histories after ``peek`` (the update at r): each is
+    a history of ``before`` (its entry there), weighted by the posterior of its extensions."""
+    beam, prev = peek.beam, before.beam
+    mine = np.flatnonzero(beam.query == q)
+    parents, inverse = np.unique(beam.parent[mine], return_inverse=True)
+    weight = np.bincount(inverse.reshape(-1), weights=beam.weight[mine])
+    order = np.lexsort((prev.lex[parents], -tie_key(weight)))[:most]  # most probable first, then by history
+    parents, weight = parents[order], weight[order]
+    roots = Roots(flt.space, prev.state[parents], prev.act[parents], before.duration[parents])
+    return Reference(day, r, roots, weight / weight.sum())
 
 
 def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
                        masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int = 102,
-                       chunk: int = 512, stride: int = 1) -> Any:
-    """The lookahead's pairs (:class:`globe.evaluation.lookahead.LookaheadRun`) when labels are
-    partly hidden: the forecast at reference r mixes ``forecaster``'s forecasts from the filter's
-    most probable histories (:func:`filtered_references`), weighted by their posterior. With
-    every label visible it is the plain forecast."""
-    from globe.evaluation import lookahead as lk
-
-    run = lk.LookaheadRun(horizons, [lk.HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int),
-                          np.zeros(horizons, int))
-    refs: list[tuple[Day, int]] = []
-    parts: list[list[tuple[tuple[str, ...], float]]] = []
-    for day in days:
-        for r, mix in filtered_references(setup, fcfg, day, masks[day.name], horizons, first, last, stride):
-            refs.append((day, r))
-            parts.append(mix)
+                       chunk: int = 512, stride: int = 1) -> lk.LookaheadRun:
+    """The lookahead's pairs when labels are partly hidden: the forecast at reference r mixes
+    ``forecaster``'s forecasts from the filter's most probable histories
+    (:func:`filtered_references`), weighted by their posterior. With every label visible it is
+    the plain forecast. ``forecaster`` must forecast with the filter's activity model (its paths
+    start from the filter's states)."""
+    run = lk.LookaheadRun.empty(horizons)
+    refs = filtered_references(setup, fcfg, days, masks, horizons, first, last, stride)
     rows: dict = {}
     lo = 0
     while lo < len(refs):
         hi, size = lo, 0
-        while hi < len(refs) and (size + len(parts[hi]) <= chunk or hi == lo):
-            size += len(parts[hi])
+        while hi < len(refs) and (size + len(refs[hi].weights) <= chunk or hi == lo):
+            size += len(refs[hi].weights)
             hi += 1
-        queries, owner, weight, rank = [], [], [], []
-        for i in range(lo, hi):
-            day, r = refs[i]
-            for k, (prefix, w) in enumerate(parts[i]):
-                queries.append((prefix, day.locations[: r + 1]))
-                owner.append(i - lo)
-                weight.append(w)
-                rank.append(k)
-        fcs = forecaster.forecast_many(queries, horizons - 1)
-        n = hi - lo
-        owners, weights, ranks = np.array(owner), np.array(weight), np.array(rank)
+        part = refs[lo:hi]
+        roots = Roots(part[0].roots.space, *(np.concatenate([getattr(ref.roots, name) for ref in part])
+                                             for name in ("state", "prev", "duration")))
+        locations = [ref.day.locations[: ref.step + 1] for ref in part for _ in ref.weights]
+        owners = np.repeat(np.arange(len(part)), [len(ref.weights) for ref in part])
+        ranks = np.concatenate([np.arange(len(ref.weights)) for ref in part])
+        weights = np.concatenate([ref.weights for ref in part])
+        fcs = forecaster.forecast_roots(roots, locations, horizons - 1)
         acts = fcs.trees.activity_matrix()
-        destination = np.zeros((n,) + fcs.destination.shape[1:])
-        activity = np.zeros((n,) + acts.shape[1:])
+        destination = np.zeros((len(part),) + fcs.destination.shape[1:])
+        activity = np.zeros((len(part),) + acts.shape[1:])
         for k in range(int(ranks.max(initial=-1)) + 1):  # mixed in order, as a running sum would
             mine = ranks == k
             destination[owners[mine]] += weights[mine][:, None, None, None] * fcs.destination[mine]
             activity[owners[mine]] += weights[mine][:, None, None] * acts[mine]
         best, prob = first_locations(destination, fcs.targets, horizons)
         top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
-        lk.score_arrays(run, refs[lo:hi], best, prob, top, fcs.trees.names, fcs.locations, rows)
+        lk.score_arrays(run, [(ref.day, ref.step) for ref in part], best, prob, top, fcs.trees.names, fcs.locations, rows)
         lo = hi
     return run
 
 
-def _lookahead(setup: FilterSetup, config: GlobeConfig, days: Sequence[Day], masks: dict[str, list[bool]], cache: dict,
-               fraction: float = 1.0) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-    """Relocation F1 and activity accuracy per horizon through the filter, or None when the
-    lookahead module is not available."""
-    try:
-        from globe.evaluation import lookahead as lk  # noqa: F401
-    except ImportError:  # pragma: no cover - the lookahead part ships separately
-        return None
-    la = config.lookahead
-    thresholds = _lookahead_thresholds(setup, config, cache, fraction)
-    forecaster = _forecaster(setup, config, cache)
-    run = filtered_lookahead(forecaster, setup, config.filter, days, masks, la.horizons, la.first_reference,
-                             la.last_reference)
-    counts = [p.counts(t) for p, t in zip(run.pairs, thresholds)]
-    return tuple(c.f1 for c in counts), tuple(float(a) for a in run.activity_accuracy())
+def lookahead_choice(setup: FilterSetup, config: GlobeConfig, memo: Memo) -> dict[str, Any]:
+    """The lookahead's choice on fully labelled training days (movement setting and a threshold per
+    horizon); the main job's lookahead stage has made its cross-validation already."""
+    return dict(lk.choose_settings(setup.household, config, setup.models, memo).best)
 
 
-def _lookahead_selection(setup: FilterSetup, config: GlobeConfig, cache: dict) -> dict[str, Any]:
-    """The lookahead's choice on fully labelled training days (movement setting and a threshold
-    per horizon), memoised; the main job's lookahead stage has usually made it already."""
-    from globe.evaluation import lookahead as lk
-
-    h = setup.household
-    key = ("missing_labels_lookahead", h.name, hash(h.train), setup.models, config.lookahead, config.selection.folds)
-    if key not in cache:
-        cache[key] = dict(lk.choose_settings(h, config, setup.models, cache=cache).best)
-    return cache[key]
-
-
-def _forecaster(setup: FilterSetup, config: GlobeConfig, cache: dict) -> Forecaster:
+def forecaster_of(setup: FilterSetup, config: GlobeConfig, memo: Memo) -> Forecaster:
     """The lookahead's forecaster (its chosen movement setting) over the filter's own activity
-    model (memoised: its distributions are shared across label shares)."""
-    from globe.evaluation import lookahead as lk
-
+    model, once: its state space is shared across label shares."""
     h, la = setup.household, config.lookahead
-    setting = lk.setting_of(_lookahead_selection(setup, config, cache))
-    key = ("missing_labels_forecaster", h.name, hash(h.train), setup.models, la, setting)
-    forecaster = cache.get(key)
-    if forecaster is None:
-        movements = assembly.movement_model(la, *setting).fit(h.train, h.objects)
-        forecaster = cache[key] = Forecaster(setup.activity, movements, min_path_probability=la.min_path_probability,
-                                             max_paths=la.max_paths)
-    return forecaster
+    setting = lk.setting_of(lookahead_choice(setup, config, memo))
+    key = FitKey("Forecaster:filter", DataKey.of(h), None, (setup.models, la, setting), config.sequences.alignment)
+    return memo.get(key, lambda: assembly.forecaster_over(setup.activity, lk.movements_on(h, la, None, setting, memo), la))
 
 
-def _lookahead_thresholds(setup: FilterSetup, config: GlobeConfig, cache: dict, fraction: float = 1.0) -> tuple[float, ...]:
-    """The lookahead's change threshold per horizon at label share ``fraction`` (memoised): the
-    lookahead's own, chosen on fully labelled training days, or, with
-    ``filter.threshold_per_fraction`` and labels missing, the best per horizon on held-out
-    training days with the same share of labels visible (a forecast mixed over hidden histories
-    is less sure, so its best threshold may be lower); ties go to the first listed."""
-    from globe.evaluation import lookahead as lk
-
+def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo, fraction: float = 1.0) -> tuple[float, ...]:
+    """The lookahead's change threshold per horizon at label share ``fraction``: the lookahead's
+    own, chosen on fully labelled training days, or, with ``filter.threshold_per_fraction`` and
+    labels missing, the best per horizon on held-out training days with the same share of labels
+    visible (a forecast mixed over hidden histories is less sure, so its best threshold may be
+    lower); ties go to the first listed."""
     h, la = setup.household, config.lookahead
-    chosen = _lookahead_selection(setup, config, cache)
+    chosen = lookahead_choice(setup, config, memo)
     if fraction >= 1.0 or not config.filter.threshold_per_fraction:
         return tuple(float(t) for t in chosen["thresholds"])
-    key = ("lookahead_threshold_hidden", h.name, hash(h.train), setup.models, la, config.filter, config.selection.folds,
-           tuple(sorted(setup.selection.best.items())), lk.setting_of(chosen), fraction)
-    if key not in cache:
-        run = hidden_cv_run(setup, config, fraction, cache, lk.setting_of(chosen))
-        cache[key] = lk.best_thresholds(lk.threshold_f1s(run, la.thresholds), la.thresholds)
-    return cache[key]
+    setting = lk.setting_of(chosen)
+    key = SearchKey("label-share-thresholds", DataKey.of(h), (la, config.filter, fraction),
+                    (setup.models, tuple(sorted(setup.selection.best.items())), setting), config.selection.folds,
+                    config.sequences.alignment)
+    return memo.get(key, lambda: lk.best_thresholds(lk.threshold_f1s(hidden_cv_run(setup, config, fraction, memo, setting),
+                                                                    la.thresholds), la.thresholds))
 
 
-def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, cache: dict | None,
-                  setting: tuple[bool, bool, bool]) -> Any:
+def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo: Memo,
+                  setting: tuple[bool, bool, bool]) -> lk.LookaheadRun:
     """The lookahead's pairs through the filter on held-out *training* days (contiguous folds,
     every ``cv_stride``-th reference) with ``fraction`` of their labels visible; each fold's
     activity model, movement model (of ``setting``: run end, run memory, next activity) and
     emission (the chosen evidence) are fitted on the other folds."""
-    from globe.evaluation import lookahead as lk
-
     h, la = setup.household, config.lookahead
     runs = []
-    data = (h.name, hash(h.train), h.objects)
-    for train_idx, val_idx in folds(len(h.train), config.selection.folds):
-        train, val = [h.train[i] for i in train_idx], [h.train[i] for i in val_idx]
-        key = ("hidden_cv_fold", data, tuple(train_idx), setup.models, config.filter, tuple(sorted(setup.selection.best.items())))
-        if cache is not None and key in cache:
-            activity, emission = cache[key]
-        else:
-            activity = assembly.activity_model(setup.models).fit([d.activities for d in train])
-            emission = assembly.movement_emission(config.filter, **setup.selection.best).fit(train, h.objects)
-            if cache is not None:
-                cache[key] = activity, emission
-        movements = lk._movements(h, la, train, setting, cache, (data, tuple(train_idx)))
-        fold = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
-        forecaster = Forecaster(activity, movements, min_path_probability=la.min_path_probability, max_paths=la.max_paths)
-        masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in val}
-        runs.append(filtered_lookahead(forecaster, fold, config.filter, val, masks, la.horizons, la.first_reference,
-                                       la.last_reference, stride=la.cv_stride))
-    return lk._pool(runs, la.horizons)
+    for fold in data_folds(h, config.selection.folds):
+        train, held_out = fold_days(h, fold)
+        evidence = tuple(sorted(setup.selection.best.items()))
+        activity, emission = memo.get(FitKey("filter", fold.data, fold, (setup.models, config.filter, evidence)),
+                                      _fold_filter, setup, config, train)
+        fold_setup = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
+        forecaster = assembly.forecaster_over(activity, lk.movements_on(h, la, fold, setting, memo), la)
+        masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in held_out}
+        runs.append(filtered_lookahead(forecaster, fold_setup, config.filter, held_out, masks, la.horizons,
+                                       la.first_reference, la.last_reference, stride=la.cv_stride))
+    return lk.pool(runs, la.horizons)
+
+
+def _fold_filter(setup: FilterSetup, config: GlobeConfig, train: Sequence[Day]) -> tuple[ActivityModelBase, MovementEmission]:
+    step = assembly.step_minutes(setup.household, config)
+    activity = assembly.activity_model(setup.models, step).fit([d.activities for d in train])
+    return activity, assembly.movement_emission(config.filter, **setup.selection.best).fit(train, setup.household.objects)
 
 
 # -- the whole run ------------------------------------------------------------------------------
@@ -471,37 +422,38 @@ class MissingLabelResults:
 
 
 def run_missing_labels(config: GlobeConfig, households: Sequence[Household], progress: Progress | None = None,
-                       cache: dict | None = None, lookahead: bool = True) -> MissingLabelResults:
+                       memo: Memo | None = None, lookahead: bool = True) -> MissingLabelResults:
     """Every household at every label fraction of ``config.filter.fractions`` (the library entry
-    point of ``globe reproduce``; ``cache`` shares the main job's cross-validated model choices)."""
+    point of ``globe reproduce``; ``memo`` shares the main job's cross-validations)."""
     fractions = check_fractions(config.filter.fractions)
-    cache = {} if cache is None else cache
+    memo = Memo() if memo is None else memo
     workers = worker_count(config.evaluation.workers)
-    models = {h.name: tuned_models(h, config, "routine", cache)[0] for h in households}
+    models = {h.name: tuned_models(h, config, "routine", memo)[0] for h in households}
     # 1. The movement evidence of every household, its candidates split over the processes.
     candidates = filter_candidates(config.filter)
     size = -(-len(candidates) // max(1, min(workers, len(candidates))))
     parts = [(h, candidates[i:i + size]) for h in households for i in range(0, len(candidates), size)]
     if progress:
         progress("missing labels: choosing the filter's movement evidence (cross-validation, in parallel)")
-    scored = run_forked(lambda i: score_filter_candidates(parts[i][0], config, models[parts[i][0].name], parts[i][1]),
+    scored = run_forked(lambda i: evidence_scores(parts[i][0], config, models[parts[i][0].name], parts[i][1], memo),
                         len(parts), workers)
     setups: dict[str, FilterSetup] = {}
     selection_rows: list[dict] = []
     for h in households:
-        selection = join_selections([sel for (hh, _), sel in zip(parts, scored) if hh is h])
-        setup = setups[h.name] = setup_household(h, config, cache, selection)
+        scores = [s for (hh, _), part in zip(parts, scored) if hh is h for s in part]
+        selection = tune_evidence(h, config, models[h.name], memo, scores)
+        setup = setups[h.name] = setup_household(h, config, memo, selection)
         for params, score in selection.scores:
             selection_rows.append({"household": h.name, "params": params, "cv_object_f1_no_labels": round(score, 4),
                                    "chosen": params == selection.best})
         if lookahead:  # shared by every label share: made once, before the processes fork
-            _lookahead_thresholds(setup, config, cache)
-            _forecaster(setup, config, cache)
+            label_share_thresholds(setup, config, memo)
+            forecaster_of(setup, config, memo)
     # 2. Every (household, label share) on its own.
     tasks = [(setups[h.name], fraction) for h in households for fraction in fractions]
     if progress:
         progress(f"missing labels: {len(tasks)} households x label shares (in parallel)")
-    results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], lookahead=lookahead, cache=cache),
+    results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], memo, lookahead=lookahead),
                          len(tasks), workers, [2.0 - fraction for _, fraction in tasks])  # fewer labels, more hypotheses
     return MissingLabelResults(missing_label_rows(results, config.lookahead.horizons), selection_rows, results)
 

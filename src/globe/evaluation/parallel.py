@@ -20,7 +20,8 @@ from typing import Callable, Sequence, TypeVar
 
 from globe.config import GlobeConfig
 from globe.data.records import Household
-from globe.evaluation.tuning import selection_key, tuned_models
+from globe.evaluation.selection import Memo
+from globe.evaluation.tuning import model_search_key, tuned_models
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -89,16 +90,15 @@ def run_forked(fn: Callable[[int], R], n: int, workers: int, cost: Sequence[floa
 
 def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
     household, config, family = task
-    return tuned_models(household, config, family, {})
+    return tuned_models(household, config, family, Memo())
 
 
-def precompute_selections(config: GlobeConfig, households: Sequence[tuple[Household, dict]], families: Sequence[str]) -> int:
-    """Run every (household, family) cross-validation missing from its household's cache (the
-    pairs ``households``: a household and the cache of its dataset) on
-    ``config.evaluation.workers`` processes, and store each result where
+def precompute_selections(config: GlobeConfig, households: Sequence[Household], families: Sequence[str], memo: Memo) -> int:
+    """Run every (household, family) cross-validation missing from ``memo`` on
+    ``config.evaluation.workers`` processes, and keep each result where
     :func:`~globe.evaluation.tuning.tuned_models` looks for it. Returns how many ran."""
-    todo = [(h, cache, f) for h, cache in households for f in dict.fromkeys(families) if selection_key(h, config, f) not in cache]
-    results = run_parallel(_select, [(h, config, f) for h, _, f in todo], worker_count(config.evaluation.workers))
-    for (h, cache, f), result in zip(todo, results):
-        cache[selection_key(h, config, f)] = result
+    todo = [(h, f) for h in households for f in dict.fromkeys(families) if model_search_key(h, config, f) not in memo]
+    results = run_parallel(_select, [(h, config, f) for h, f in todo], worker_count(config.evaluation.workers))
+    for (h, f), result in zip(todo, results):
+        memo.put(model_search_key(h, config, f), result)
     return len(todo)

@@ -22,18 +22,19 @@ from globe.evaluation.methods import METHODS, families
 from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1, mean_present
 from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
-from globe.noise.dataset import CLEAN, Dataset, clean_dataset, noisy_dataset
+from globe.evaluation.selection import Memo
+from globe.noise.dataset import Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
 
 
 def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMBackend | None,
-                     cache: dict | None = None) -> list[Evaluation]:
+                     memo: Memo | None = None) -> list[Evaluation]:
     """Train on each household's training days and score its test days, marking injected events.
-    ``cache`` holds cross-validation results for *this* dataset (names repeat across datasets)."""
-    cache = {} if cache is None else cache
+    ``memo`` keeps cross-validation results and fits (keyed by the days themselves)."""
+    memo = Memo() if memo is None else memo
     out = []
     for h in data.households:
-        prepared = METHODS[method].prepare(h, cfg, backend, cache)
+        prepared = METHODS[method].prepare(h, cfg, backend, memo)
 
         def injected(day: str, step: int, obj: str, household: str = h.name) -> bool:
             return (household, day, step, obj) in data.injected
@@ -85,37 +86,36 @@ class RobustnessResults:
 
 def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, backend: LLMBackend | None,
               methods: Sequence[str] = ("ngram", "globe", "globe_personal", "routine"),
-              progress: Callable[[str], None] | None = None, clean_cache: dict | None = None,
+              progress: Callable[[str], None] | None = None, memo: Memo | None = None,
               loaded: dict[tuple[Path, str], Household] | None = None) -> RobustnessResults:
     """Robustness per noise type, consistency groups, and the two ablations (see the module doc).
 
     Each (dataset, training level, method, threshold) is evaluated once and reused by every table
-    that needs it; ``clean_cache`` holds cross-validation results already computed on ``clean``;
+    that needs it; ``memo`` holds cross-validation results already computed (on ``clean``, say);
     ``loaded`` the noisy households already in memory (by folder and name)."""
     names = [h.name for h in clean]
     n = cfg.noise
     methods = [m for m in methods if backend is not None or not METHODS[m].needs_llm]
     gate_method = "globe" if backend is not None else "ngram"
     groups = {d: consistency_groups(clean, d) for d in CONSISTENCY_DEFINITIONS}
-    caches: dict[tuple[str, float], dict] = {(CLEAN, 0.0): {} if clean_cache is None else clean_cache}
-    memo: dict[tuple[str, float, str, float], list[Evaluation]] = {}
+    memo = Memo() if memo is None else memo
+    done: dict[tuple[str, float, str, float], list[Evaluation]] = {}
 
     def evaluated(data: Dataset, level: float, method: str, threshold: float) -> list[Evaluation]:
         key = (data.name, level, method, threshold)
-        if key not in memo:
+        if key not in done:
             if progress:
                 progress(f"{data.name} (train level {level:g}): {method}, d = {threshold:g}")
             run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
-            memo[key] = evaluate_dataset(run_cfg, data, method, backend, caches.setdefault((data.name, level), {}))
-        return memo[key]
+            done[key] = evaluate_dataset(run_cfg, data, method, backend, memo)
+        return done[key]
 
     res = RobustnessResults([], [], [], [])
     loaded = {} if loaded is None else loaded  # noisy households, shared by the datasets built from them
     datasets = [(clean_dataset(clean), 0.0)] + [
         (noisy_dataset(noise_root, t, n.train_level, n.test_level, names, loaded), n.train_level) for t in n.types]
     # every dataset's cross-validations at once, on several processes
-    precompute_selections(cfg, [(h, caches.setdefault((data.name, level), {})) for data, level in datasets
-                                for h in data.households], families(methods))
+    precompute_selections(cfg, [h for data, _ in datasets for h in data.households], families(methods), memo)
     for data, level in datasets:
         for method in methods:
             evals = evaluated(data, level, method, cfg.gate.threshold)

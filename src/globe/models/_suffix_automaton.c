@@ -1,9 +1,7 @@
-/* Appending training sequences to a compacted SuffixIndex, in C.
- *
- * The same appends, clones and redirections, in the same order, as SuffixIndex._add_python (see
- * globe/models/suffix_index.py) followed by SuffixIndex.compact(): the arrays it returns are
- * equal to those, state for state and transition for transition (each state's further
- * transitions keep their insertion order). Optional: without it GLOBE runs the Python loop.
+/* Appending training sequences to a SuffixIndex (globe/models/suffix_index.py): the one loop that
+ * builds the automata of the n-gram models (appends, clones and redirections of the classic
+ * online construction), returning the index's arrays with each state's further transitions in
+ * insertion order.
  *
  * extend(ids, names, link, length, own, label1, target1, start, labels, targets, last, sequences)
  *   ids: dict label -> number and names: list number -> label (new labels are added to both);

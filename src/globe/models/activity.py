@@ -11,6 +11,7 @@ from globe.models.backoff import (
     witten_bell_distribution,
 )
 from globe.models.base import ActivityModelBase
+from globe.models.state_space import NumberedStates
 from globe.models.suffix_index import SuffixIndex
 
 DAY_START = "<day>"
@@ -57,15 +58,23 @@ class ActivityModel(ActivityModelBase):
                 self.by_step_.append(Counter())
             self.by_step_[t][a] += n
         self.classes_ = tuple(sorted(self.frequency_))
+        self._learnt()
         return self
 
-    # -- prediction -------------------------------------------------------------------------
-    def _distribution(self, state: int, matched: int, step: int) -> dict[str, float]:
+    # -- the hook: the state is the suffix-automaton match of the day so far -------------------
+    def root_state(self) -> tuple[int, int]:
+        return self.index_.match((DAY_START,))
+
+    def advance(self, state: tuple[int, int], step: int, activity: str) -> tuple[int, int]:
+        return self.index_.step(*state, activity)
+
+    def next_distribution(self, state: tuple[int, int], step: int) -> dict[str, float]:
+        matched_state, matched = state
         max_context = self.max_order - 1
         if self.estimator == "longest":
-            dist = longest_distribution(self.index_, state, matched, max_context)
+            dist = longest_distribution(self.index_, matched_state, matched, max_context)
         else:
-            dist = witten_bell_distribution(self.index_, state, matched, max_context, self.classes_)
+            dist = witten_bell_distribution(self.index_, matched_state, matched, max_context, self.classes_)
         if self.time_weight > 0 and dist:
             dist = self._with_time(dist, step)
         return dist
@@ -76,16 +85,5 @@ class ActivityModel(ActivityModelBase):
         total = sum(mixed.values())
         return {a: p / total for a, p in mixed.items()} if total > 0 else dict(dist)
 
-    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
-        """Distribution of the next activity after ``history`` (the day so far, from 06:00)."""
-        self._check_fitted()
-        state, matched = self.index_.match((DAY_START, *history))
-        return self._distribution(state, matched, len(history))
-
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
-        """``[predict_proba(day[:t]) for t in range(len(day))]`` in one linear pass."""
-        self._check_fitted()
-        out = []
-        for t, (state, matched) in enumerate(self.index_.scan((DAY_START, *day[:-1]) if day else ())):
-            out.append(self._distribution(state, matched, t))
-        return out
+    def _build_states(self) -> NumberedStates:
+        return NumberedStates(self, self.classes_, self.root_state(), self.advance, self.next_distribution)

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import copy
+import itertools
 from collections import Counter
-from typing import Any, ClassVar, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping, Sequence
+
+import numpy as np
 
 from globe.errors import ConfigError, NotFittedError
+
+if TYPE_CHECKING:
+    from globe.models.state_space import StateSpace
 
 
 class CountingModel:
@@ -41,7 +47,11 @@ class CountingModel:
         for name, value in params.items():
             setattr(clone, name, value)
         clone._validate_params()
+        clone._forget()  # its memos answer with its own parameters
         return clone
+
+    def _forget(self) -> None:
+        """Drop what was derived from the counts and the parameters (a model's memos)."""
 
     def _validate_params(self) -> None:
         for name, allowed in self._parameter_constraints.items():
@@ -97,11 +107,14 @@ def top(distribution: Mapping[str, float], frequency: Mapping[str, int]) -> str 
 
 class ActivityModelBase(CountingModel):
     """What every next-activity model shares: fit = reset + partial_fit, ranking, argmax,
-    confidence, and a default prefix scan (subclasses override it with a linear pass)."""
+    confidence, and ``predict_proba`` / ``scan_proba`` written once over the model's integer state
+    space (:mod:`globe.models.state_space`), the one hook each model implements (``_build_states``)."""
 
     frequency_: Counter
     classes_: tuple[str, ...]
+    fit_version_: int
     _priors: tuple[int, dict[tuple[int, int], dict[str, float]]] | None = None
+    _space: Any = None
 
     def fit(self, days: Sequence[Sequence[str]]):
         """Train from scratch on per-day activity sequences."""
@@ -111,12 +124,43 @@ class ActivityModelBase(CountingModel):
     def partial_fit(self, days: Sequence[Sequence[str]]):  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:  # pragma: no cover - abstract
-        raise NotImplementedError
+    def _learnt(self) -> None:
+        """Called at the end of every ``partial_fit``: memos over the old counts are stale."""
+        self.fit_version_ = _next_version()
+        self._forget()
+
+    def _forget(self) -> None:
+        self._priors = None
+        self._space = None
+
+    # -- the hook ---------------------------------------------------------------------------
+    def _build_states(self) -> "StateSpace":
+        """A fresh state space of this fitted model: each model builds its own; a subclass that
+        only overrides ``predict_proba`` (a test double) gets one whose state is the whole history."""
+        if type(self).predict_proba is ActivityModelBase.predict_proba:
+            raise NotImplementedError(f"{type(self).__name__} implements neither _build_states nor predict_proba")
+        from globe.models.state_space import HistoryStates
+
+        return HistoryStates(self)
+
+    def states(self) -> "StateSpace":
+        """This model's state space, shared by every filter and forecaster over it (a fresh one
+        once it is full: holders of the old one keep it)."""
+        self._check_fitted()
+        space = self._space
+        if space is None or not space.current():
+            space = self._space = self._build_states()
+        return space
+
+    # -- prediction, once for every model ---------------------------------------------------------
+    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
+        """P(the next activity | ``history``, the day so far from its first step)."""
+        space = self.states()
+        return space.distributions(np.array([space.state(history)]))[0]
 
     def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
-        """``[predict_proba(day[:t]) for t in range(len(day))]``."""
-        return [self.predict_proba(day[:t]) for t in range(len(day))]
+        """``[predict_proba(day[:t]) for t in range(len(day))]`` in one pass."""
+        return self.states().scan(day)
 
     def ranked(self, distribution: Mapping[str, float]) -> list[str]:
         return rank(distribution, self.frequency_)
@@ -132,7 +176,7 @@ class ActivityModelBase(CountingModel):
     def step_prior(self, by_step: Sequence[Mapping[str, int]], step: int, window: int) -> dict[str, float]:
         """:func:`windowed_prior` over ``classes_``, memoised per step until days are added (every
         scan of every cross-validation fold asks it again at each step)."""
-        version = len(getattr(self, "training_data_", ()))
+        version = getattr(self, "fit_version_", 0)
         if self._priors is None or self._priors[0] != version:
             self._priors = (version, {})
         memo = self._priors[1]
@@ -149,3 +193,11 @@ class ActivityModelBase(CountingModel):
     def confidence(self, history: Sequence[str]) -> float:
         """The top probability: what the gate and the robot's action threshold look at."""
         return max(self.predict_proba(history).values(), default=0.0)
+
+
+_VERSIONS = itertools.count(1)
+
+
+def _next_version() -> int:
+    """A number no model has had: a model's ``fit_version_`` after each fit or partial fit."""
+    return next(_VERSIONS)

@@ -5,7 +5,10 @@ from __future__ import annotations
 from collections import Counter
 from typing import Sequence
 
+import numpy as np
+
 from globe.models.base import ActivityModelBase
+from globe.models.state_space import StateSpace
 
 
 class PersistenceModel(ActivityModelBase):
@@ -26,11 +29,38 @@ class PersistenceModel(ActivityModelBase):
             if day:
                 self.first_[day[0]] += 1
             self.frequency_.update(day)
+        self.classes_ = tuple(sorted(self.frequency_))
+        self._learnt()
         return self
 
-    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
-        self._check_fitted()
-        if history:
-            return {history[-1]: 1.0}
-        total = sum(self.first_.values())
-        return {a: c / total for a, c in self.first_.items()} if total else {}
+    def _build_states(self) -> "PersistenceStates":
+        return PersistenceStates(self)
+
+
+class PersistenceStates(StateSpace):
+    """The state is the last activity's code plus one (0: nothing yet, predicting the first)."""
+
+    def __init__(self, model: PersistenceModel) -> None:
+        super().__init__(model, model.classes_)
+        total = sum(model.first_.values())
+        self._first = np.zeros(len(self.labels))
+        if total:
+            self._first[[self.labels.index(a) for a in model.first_]] = [c / total for c in model.first_.values()]
+        self.root = 0
+
+    def _grow_labels(self) -> None:
+        self._first = np.concatenate([self._first, np.zeros(len(self.labels) - len(self._first))])
+
+    def last(self, states: np.ndarray) -> np.ndarray:
+        return np.asarray(states, dtype=np.int64) - 1
+
+    def children(self, states: np.ndarray, codes: np.ndarray) -> np.ndarray:
+        return np.asarray(codes, dtype=np.int64) + 1
+
+    def rows(self, states: np.ndarray) -> np.ndarray:
+        states = np.asarray(states, dtype=np.int64)
+        out = np.zeros((len(states), len(self.labels)))
+        out[states == 0] = self._first
+        held = np.flatnonzero(states > 0)
+        out[held, states[held] - 1] = 1.0
+        return out

@@ -8,6 +8,7 @@ from typing import Sequence, TypeVar
 
 from globe.data.records import Day, Household
 from globe.sequences.movements import Alignment, MovementEvent, activity_step_for, extract_movements, moved_steps
+from globe.sequences.packed_days import PackedDays
 
 T = TypeVar("T")
 
@@ -75,12 +76,14 @@ def run_objects(day: Day, objects: tuple[str, ...], alignment: Alignment = "prev
 
 @dataclass(frozen=True, slots=True)
 class TrainingSequences:
-    """What the models count: per-day activity sequences and (activity, objects) per run, and
-    each day's moved steps (the movement evidence counts them too)."""
+    """What every model counts, from one walk over the training days: per-day activity sequences
+    (the activity models), (activity, objects) per run (the object model), each day's moved steps
+    (the movement evidence) and the days packed, their rows of places numbered (the movement model)."""
 
     activities: list[tuple[str, ...]]
     runs: list[tuple[str, tuple[str, ...]]]
     moves: list[Moves] = field(default_factory=list, compare=False)
+    packed: PackedDays = field(default_factory=PackedDays, compare=False)
 
 
 def training_sequences(household: Household, days: Sequence[Day], alignment: Alignment) -> TrainingSequences:
@@ -90,4 +93,5 @@ def training_sequences(household: Household, days: Sequence[Day], alignment: Ali
         [d.activities for d in days],
         [run for d, m in zip(days, moves) for run in run_objects(d, household.objects, alignment, m)],
         moves,
+        PackedDays(days),
     )

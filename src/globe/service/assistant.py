@@ -25,11 +25,15 @@ from collections import Counter, defaultdict
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
+from globe import assembly
+from globe.config import GlobeConfig
 from globe.data.records import Day, Household
 from globe.errors import DataError, UnknownLabelError
-from globe.models.activity_filter import ActivityFilter, MovementEmission
+from globe.inference.activity_filter import ActivityFilter, as_dicts
+from globe.inference.emission import MovementEmission
+from globe.inference.fetch_policy import FetchPolicy
+from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
-from globe.reasoning.fetch_policy import FetchPolicy
 from globe.sequences.runs import ActivityRun, activity_runs
 from globe.service.schemas import Prediction
 
@@ -211,12 +215,13 @@ class OnlineAssistant:
         if self._new_filter is None or all(a is not None for a in self._activities):
             return self.activity_model.predict_proba(tuple(self.activity_history()))
         flt = self._new_filter()
+        belief = flt.start()
         previous: tuple[str, ...] | None = None
         for step, (label, state) in enumerate(zip(self._activities, self._states)):
             moved = None if previous is None else frozenset(o for o, x, y in zip(self.household.objects, previous, state) if x != y)
-            flt.update(step, label, moved)
+            belief = flt.update(belief, step, [label], [moved])
             previous = state
-        return flt.predictive()
+        return as_dicts(flt.predictive(belief), flt.labels)[0]
 
     def fetch_decision(self, choice: ObjectChoice, activity: str) -> tuple[str | None, str | None, float | None]:
         """What to fetch now: (object, where to, P(used within the lead window)), or Nones.
@@ -339,3 +344,24 @@ class OnlineAssistant:
 def _instant(time: dt.datetime) -> dt.datetime:
     """The UTC instant of ``time`` (naive = UTC, for library callers without a zone)."""
     return time.astimezone(UTC) if time.tzinfo else time.replace(tzinfo=UTC)
+
+
+def build_assistant(household: Household, config: GlobeConfig, backend: LLMBackend | None) -> OnlineAssistant:
+    """The online assistant of one household: its models, gate, filter and fetch policy, each
+    built by :mod:`globe.assembly` from ``config``, and the service's settings."""
+    fitted = assembly.fit_household(household, config)
+    activity = fitted.activity  # the filter's closure keeps this, not the counted sequences
+    chooser = assembly.object_chooser(fitted.objects, config.gate, backend, marginal=config.models.object_marginal)
+    s, fc = config.service, config.filter
+    # The filter's movement evidence is learned with the models; the filter itself is rebuilt per
+    # prediction over the current models (cheap), so it never reads stale counts.
+    emission = assembly.household_emission(fc).fit(household.train, household.objects, fitted.sequences.moves)
+    policy = None
+    if s.fetch_decision == "policy":
+        movements = assembly.movement_model(config.lookahead, run_end=True).fit(fitted.sequences.packed, household.objects)
+        policy = assembly.fetch_policy(assembly.forecaster_over(activity, movements, config.lookahead), config.policy,
+                                       s.step_minutes)
+    return OnlineAssistant(household, activity, chooser, alignment=config.sequences.alignment,
+                           action_threshold=s.action_threshold, day_start_minute=s.day_start_minute,
+                           step_minutes=s.step_minutes, max_gap_steps=s.max_gap_steps, fetch_policy=policy,
+                           activity_filter=lambda: assembly.activity_filter(activity, emission, fc), emission=emission)

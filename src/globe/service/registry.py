@@ -38,7 +38,7 @@ from globe.errors import (
 from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import timepolicy
-from globe.service.assistant import Observation, OnlineAssistant
+from globe.service.assistant import Observation, OnlineAssistant, build_assistant
 from globe.service.schemas import (
     FeedbackCounts,
     HouseholdInfo,
@@ -138,7 +138,7 @@ class Registry:
                 log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
                 set_aside += 1
         household = Household(row.name, nodes, objects, tuple(days), (), f"sqlite:{self.store.path}")
-        assistant = assembly.assistant(household, self.config, self.backend)
+        assistant = build_assistant(household, self.config, self.backend)
         assistant.training_days_set_aside = set_aside
         bad: list[int] = []
         replay: list[tuple[dt.datetime, int, Observation]] = []
@@ -233,7 +233,7 @@ class Registry:
             encoding = DayEncoding(day_texts)
             helper = self._encoder.submit(encoding.run)
             try:
-                assistant = assembly.assistant(household, self.config, self.backend)
+                assistant = build_assistant(household, self.config, self.backend)
             except BaseException:
                 encoding.stop()
                 raise

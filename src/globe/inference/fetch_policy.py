@@ -10,7 +10,7 @@ fetch c_u and of a need the robot missed c_m,
     E[fetch] - E[no fetch] = p * c_m - (1 - p) * c_u > 0   <=>   p > c_u / (c_u + c_m),
 
 so the robot team sets two costs, not a bare threshold. Probabilities come from the
-:class:`~globe.models.forecast.Forecaster`, which propagates the activity distribution ahead.
+:class:`~globe.inference.forecast.Forecaster`, which propagates the activity distribution ahead.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Collection, Sequence
 import numpy as np
 
 from globe.data.records import Day
-from globe.models.forecast import Forecast, Forecaster, Forecasts
+from globe.inference.forecast import Forecast, Forecaster, Forecasts
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,11 +58,9 @@ class FetchPolicy:
 
     def learn(self, days: Sequence[Day]) -> None:
         """Add finished days to the movement model (an online assistant learning as it goes; the
-        activity model is shared with the assistant, which updates it). Counting over every
-        learned day again takes milliseconds."""
+        activity model is shared with the assistant, which updates it)."""
         movements = self.forecaster.movements
-        objects = movements.objects_ if hasattr(movements, "objects_") else ()
-        movements.fit(tuple(getattr(movements, "training_data_", ())) + tuple(days), objects)
+        movements.partial_fit(days, movements.objects_)
 
     @property
     def threshold(self) -> float:

@@ -1,4 +1,5 @@
-"""The forecaster against hand computation on a toy home, and its invariants on HOMER+."""
+"""The forecaster against hand computation and every path enumerated on a toy home, and its
+invariants on HOMER+."""
 
 from __future__ import annotations
 
@@ -9,8 +10,9 @@ import pytest
 
 from globe import assembly
 from globe.data.records import Day
+from globe.inference.forecast import Forecaster
+from globe.inference.movements import MovementModel, durations, moved_in_run
 from globe.models.base import ActivityModelBase
-from globe.models.forecast import Forecaster, MovementModel, durations, moved_in_run
 
 OBJECTS = ("cup", "book")
 
@@ -188,7 +190,7 @@ def test_memos_follow_the_models_when_they_learn():
     f = toy_forecaster()
     before = f.forecast(("a",), [("shelf", "shelf"), ("shelf", "shelf")], horizon=0).departure.copy()
     extra = toy_day("train/002", "abbb", ["shelf", "shelf", "shelf", "shelf"], ["shelf"] * 4)  # b moves nothing
-    f.movements.fit(TOY_DAYS + (extra,) * 4, OBJECTS)
+    f.movements.partial_fit((extra,) * 4, OBJECTS)
     after = f.forecast(("a",), [("shelf", "shelf"), ("shelf", "shelf")], horizon=0).departure
     assert after[0, 0] < before[0, 0]  # the cup now leaves with b only 2 times in 6
 
@@ -251,8 +253,8 @@ def test_a_batch_of_forecasts_is_each_forecast_alone(households, config, estimat
 
 
 def test_shared_memos_do_not_keep_a_model_alive():
-    """The registries of activity paths and dynamics are keyed weakly by the model: once nothing
-    else holds a fitted model (a cross-validation fold's), it and its memos are freed."""
+    """Nothing registers a model for good: once nothing else holds a fitted model (a
+    cross-validation fold's), it and its state space are freed."""
     import gc
     import weakref
 
@@ -319,244 +321,107 @@ def test_counts_are_those_of_every_transition_and_object(run_end, run_memory):
         mv = MovementModel(hazard_shrinkage=1e-12, duration_cap=cap, run_end=run_end, run_memory=run_memory).fit(days, objects)
         seen, moved, dest = _counted_one_by_one(days, objects, cap, run_end, run_memory)
         for (a, d, e, m, j, place), n in seen.items():
-            pair = int(np.searchsorted(mv._pairs, j * len(mv.locations_) + mv.location_index(place)))
+            pair = int(np.searchsorted(mv.pairs_, j * len(mv.locations_) + mv.location_index(place)))
             assert mv.hazard_[mv.activity_index(a), d, int(e), int(m), pair] == pytest.approx(moved[(a, d, e, m, j, place)] / n,
                                                                                                rel=1e-9, abs=1e-9)
         got = [((mv.activities_[key[0]], key[1], mv.locations_[key[2]]), [(mv.locations_[x], n) for x, n in c.items()])
-               for key, c in mv._dest.items() if len(key) == 3]
+               for key, c in mv.destinations_.items() if len(key) == 3]
         assert got == [(k, list(c.items())) for k, c in dest.items()]
 
 
-# -- the compiled forecaster (globe.models._forecast_core) against the numpy one, to the bit -------
-
-from contextlib import contextmanager  # noqa: E402
-
-from globe.models import forecast as forecast_module  # noqa: E402
-from globe.models.forecast import Forecasts, TreeLevel, first_locations  # noqa: E402
-
-compiled_only = pytest.mark.skipif(forecast_module._native is None,
-                                   reason="globe.models._forecast_core was not compiled in this install")
-SETTINGS = ((False, False, False), (True, False, False), (True, False, True), (True, True, False), (True, True, True))
+def test_movement_model_partial_fit_equals_fit():
+    whole = MovementModel(run_end=True, run_memory=True, run_next=True).fit(TOY_DAYS, OBJECTS)
+    parts = MovementModel(run_end=True, run_memory=True, run_next=True).fit(TOY_DAYS[:1], OBJECTS).partial_fit(
+        TOY_DAYS[1:], OBJECTS)
+    np.testing.assert_array_equal(whole.hazard_, parts.hazard_)
+    assert whole.destinations_ == parts.destinations_
+    with pytest.raises(ValueError, match="object columns"):
+        parts.partial_fit(TOY_DAYS, ("cup",))
 
 
-@contextmanager
-def forecaster_path(compiled: bool):
-    """Run the compiled forecaster, or the numpy and Python one (the reference)."""
-    before = forecast_module.COMPILED
-    forecast_module.COMPILED = compiled
-    try:
-        yield
-    finally:
-        forecast_module.COMPILED = before
+class TreeModel(ActivityModelBase):
+    """Test double: three activities, each next step depending on the last two (a second-order
+    chain, so paths do not merge), every probability a few bits long."""
 
-
-def same_bits(x: np.ndarray, y: np.ndarray) -> bool:
-    x, y = np.asarray(x), np.asarray(y)
-    return x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()
-
-
-def assert_same_forecasts(a: Forecasts, b: Forecasts) -> None:
-    """Every number of two batches of forecasts, to the bit: the activity paths' levels (local ids
-    numbered in the same order too), the departures and destinations, the first new places."""
-    assert a.trees.names == b.trees.names and len(a.trees.levels) == len(b.trees.levels)
-    for k, (la, lb) in enumerate(zip(a.trees.levels, b.trees.levels)):
-        for name in TreeLevel.__slots__:
-            assert same_bits(getattr(la, name), getattr(lb, name)), f"level {k}: {name}"
-    for name in ("start", "departure", "destination", "targets", "real"):
-        assert same_bits(getattr(a, name), getattr(b, name)), name
-    steps = a.departure.shape[1]
-    for horizons in (1, steps):
-        for x, y in zip(a.first_locations(horizons), b.first_locations(horizons)):
-            assert same_bits(x, y)
-
-
-def fresh_forecasters(h, config, models, **kwargs):
-    """Forecasters of every movement setting over one freshly fitted activity model (no memo
-    shared with another path), as cross-validation makes them."""
-    la = config.lookahead
-    activity = assembly.activity_model(models).fit([d.activities for d in h.train])
-    options = {"min_path_probability": la.min_path_probability, "max_paths": la.max_paths, **kwargs}
-    return lambda setting: Forecaster(activity, assembly.movement_model(la, *setting).fit(h.train, h.objects), **options)
-
-
-def both_paths(factory, queries, horizon: int, settings=SETTINGS) -> None:
-    """Forecast ``queries`` with every movement setting on each path (``factory()``: fresh models
-    per path; later settings reuse the first one's activity paths, as cross-validation does)
-    and compare."""
-    out: dict[bool, list[Forecasts]] = {}
-    for compiled in (False, True):
-        with forecaster_path(compiled):
-            make, trees, runs = factory(), None, []
-            for setting in settings:
-                fc = make(setting)
-                if trees is None:
-                    trees = fc.trees([tuple(a) for a, _ in queries], [len(loc) - 1 for _, loc in queries], horizon)
-                runs.append(fc.forecast_many(queries, horizon, trees=trees))
-            out[compiled] = runs
-    for ref, fast in zip(out[False], out[True]):
-        assert_same_forecasts(ref, fast)
-
-
-@compiled_only
-@pytest.mark.parametrize("name", ["A", "B", "C"])
-@pytest.mark.parametrize("estimator", ["routine", "longest", "persistence"])
-def test_compiled_forecasts_are_the_reference_on_homer(households, config, name, estimator):
-    """Real queries of two test days (the activity at m unknown, as the lookahead asks, and known,
-    as the fetch policy asks), every movement setting: the same bits on both paths."""
-    h = households[name]
-    models = config.models.model_copy(update={"activity_estimator": estimator})
-    for known in (0, 1):
-        queries = [(day.activities[: r + known], day.locations[: r + 1]) for day in h.test[:2] for r in range(1, 100, 4)]
-        both_paths(lambda: fresh_forecasters(h, config, models), queries, 5)
-
-
-@compiled_only
-def test_compiled_forecasts_are_the_reference_on_filtered_histories(households, config):
-    """The missing-label lookahead forecasts from the filter's most probable histories (several per
-    reference step, unlike the true one): the same bits on both paths."""
-    from globe.evaluation.missing_labels import FilterSetup, day_mask, filtered_references
-    from globe.evaluation.tuning import Selection
-
-    h = households["A"]
-    models = config.models.model_copy(update={"activity_estimator": "routine"})
-    fc = config.filter
-    evidence = {"boundary": fc.emission_boundary, "previous_share": fc.emission_previous_share, "weight": fc.emission_weight,
-                "switch": fc.emission_switch}
-    activity = assembly.activity_model(models).fit([d.activities for d in h.train])
-    emission = assembly.movement_emission(fc, **evidence).fit(h.train, h.objects)
-    setup = FilterSetup(h, models, activity, emission, None, Selection(evidence), 0.0)
-    queries = []
-    for day in h.test[:2]:
-        for r, mix in filtered_references(setup, fc, day, day_mask(fc, h.name, day, 0.25), 6, 1, 102, 2):
-            queries += [(prefix, day.locations[: r + 1]) for prefix, _ in mix]
-    assert len({q[0] for q in queries}) > len(queries) // 2  # mostly distinct histories
-    both_paths(lambda: fresh_forecasters(h, config, models), queries, 5, SETTINGS[2:])
-
-
-@compiled_only
-@pytest.mark.parametrize("update,options", [
-    ({"routine_order": 1, "routine_time_weight": 0.0}, {}),  # one run label; no time of day (step-free memo)
-    ({"routine_order": 4}, {"max_paths": 2, "min_path_probability": 0.0}),  # every beam cut to its most likely
-    ({}, {"min_path_probability": 0.6}),  # mostly nothing above the floor: the most probable extension
-    ({}, {"memo_size": 40}),  # the compiled states start over between forecasts
-])
-def test_compiled_forecasts_are_the_reference_at_the_edges(households, config, update, options):
-    """Other orders, pruning and memo sizes; a day start (no activity, one row of places), a
-    history with an activity never seen in training, horizon 0 and 1."""
-    h = households["B"]
-    models = config.models.model_copy(update={"activity_estimator": "routine", **update})
-    day = h.test[0]
-    odd = tuple(day.activities[:20]) + ("<never seen>",) * 3
-    for known in (0, 1):
-        queries = [(day.activities[: r + known], day.locations[: r + 1]) for r in (0, 1, 2, 30, 60)]
-        queries += [(odd[: 23 - 1 + known], day.locations[:23])]
-        for horizon in (0, 1, 5):
-            both_paths(lambda: fresh_forecasters(h, config, models, **options), queries, horizon, SETTINGS[-1:])
-
-
-@compiled_only
-def test_compiled_paths_are_the_reference(households, config):
-    """:meth:`Forecaster.paths` (one history) on both paths, and one forecaster switching paths
-    between batches (the names and memos they share stay consistent)."""
-    h = households["C"]
-    models = config.models.model_copy(update={"activity_estimator": "routine"})
-    day = h.test[1]
-    out = {}
-    for compiled in (False, True):
-        with forecaster_path(compiled):
-            fc = fresh_forecasters(h, config, models)((True, True, True))
-            out[compiled] = [fc.paths(day.activities[:r], 6) for r in (0, 5, 40, 80)]
-    assert out[False] == out[True] and all(len(p) > 1 for p in out[True][1:])
-    fc = fresh_forecasters(h, config, models)((True, True, True))
-    queries = [(day.activities[:r], day.locations[: r + 1]) for r in range(1, 90, 7)]
-    runs = []
-    for compiled in (True, False, True, False):
-        with forecaster_path(compiled):
-            runs.append(fc.forecast_many(queries[len(runs):], 5))
-            runs[-1] = (runs[-1], fc.forecast_many(queries[len(runs) - 1:], 5))[1]
-    with forecaster_path(False):
-        alone = fresh_forecasters(h, config, models)((True, True, True))
-        for k, run in enumerate(runs):
-            assert_same_forecasts(alone.forecast_many(queries[k:], 5), run)
-
-
-class TieModel(ChainModel):
-    """Test double with ties: after a, a and b with 0.4 each (the larger name, b, is the most
-    probable), c with 0.2; after b or c, b or c with 0.5 each."""
+    def partial_fit(self, days):
+        self.training_data_ = list(days)
+        self.frequency_ = {"a": 3, "b": 2, "c": 1}
+        self.classes_ = ("a", "b", "c")
+        return self
 
     def predict_proba(self, history):
-        return {"a": 0.4, "b": 0.4, "c": 0.2} if history[-1] == "a" else {"c": 0.5, "b": 0.5}
+        if len(history) < 2 or history[-1] != history[-2]:
+            return {"a": 0.5, "b": 0.25, "c": 0.25}
+        return {history[-1]: 0.625, "a" if history[-1] != "a" else "b": 0.375}
 
 
-class SilentModel(ChainModel):
-    """Test double with nothing to say after b (the activity then stays)."""
+def _brute_force(model, mv: MovementModel, history, places, horizon: int):
+    """Every path of activities at steps m..m+horizon+1 enumerated, with each object's first
+    departure and destination along it: the forecast by definition (movements at u belong to the
+    activity at u-1, read at the object's place until it first leaves)."""
+    m = len(places) - 1
+    nj = len(mv.objects_)
+    departure = np.zeros((horizon + 1, nj))
+    destination = np.zeros((horizon + 1, nj, len(mv.locations_)))
+    activity = [dict() for _ in range(horizon + 1)]
+    sources = np.array([mv.location_index(x) for x in places[m]])
 
-    def predict_proba(self, history):
-        return {"a": 0.5, "b": 0.5} if history[-1] == "a" else {}
+    def walk(path, weight):
+        full = tuple(history) + path
+        if len(path) == horizon + 2 - (len(history) - m):
+            survive = np.ones(nj)
+            for k in range(horizon + 1):
+                u = m + 1 + k
+                act = full[u - 1]
+                run = 0
+                while u - 2 - run >= 0 and full[u - 2 - run] == act:
+                    run += 1
+                h = mv.hazards(act, run, sources, ends=full[u] != act, next_activity=full[u])
+                leave = weight * survive * h
+                departure[k] += leave
+                for j in range(nj):
+                    idx, p = mv.destination(act, j, int(sources[j]))
+                    destination[k, j, idx] += leave[j] * p
+                survive = survive * (1 - h)
+            for k in range(horizon + 1):
+                activity[k][full[m + k]] = activity[k].get(full[m + k], 0.0) + weight
+            return
+        for a, p in model.predict_proba(full).items():
+            if p > 0:
+                walk(path + (a,), weight * p)
+
+    walk((), 1.0)
+    return departure, destination, activity
 
 
-@compiled_only
-@pytest.mark.parametrize("model", [ChainModel, TieModel, SilentModel])
-def test_compiled_toy_forecasts_are_the_reference(model):
-    """Toy homes (models with their own predict_proba: the compiled pass asks them per new state)
-    on both paths, with and without pruning (with a floor of 0.5 only the most probable
-    extension survives, and ties go to the larger name)."""
-    for max_paths, floor in ((1000, 0.0), (2, 0.0), (1000, 0.5)):
-        out = {}
-        for compiled in (False, True):
-            with forecaster_path(compiled):
-                mv = MovementModel(hazard_shrinkage=1e-9, destination_shrinkage=1e-9).fit(TOY_DAYS, OBJECTS)
-                f = Forecaster(model().fit([]), mv, min_path_probability=floor, max_paths=max_paths)
-                out[compiled] = f.forecast_many([(("a",) * n, [("shelf", "shelf")] * (n + 1)) for n in range(1, 5)], 3)
-        assert_same_forecasts(out[False], out[True])
+@pytest.mark.parametrize("known", [0, 1])
+@pytest.mark.parametrize("run_next", [False, True])
+def test_forecast_is_every_path_enumerated_without_pruning(known, run_next):
+    """With no pruning the forward pass holds every path with its exact probability, and the
+    forecast's departures, destinations and activities are the sums over them."""
+    days = TOY_DAYS + (toy_day("train/002", "abca", ["shelf", "table", "table", "shelf"], ["shelf", "shelf", "sink", "sink"]),
+                       toy_day("train/003", "bbcc", ["table", "shelf", "shelf", "shelf"], ["sink", "sink", "sink", "shelf"]))
+    mv = MovementModel(hazard_shrinkage=0.5, destination_shrinkage=0.5, run_end=True, run_next=run_next).fit(days, OBJECTS)
+    model = TreeModel().fit([])
+    f = Forecaster(model, mv, min_path_probability=0.0, max_paths=100_000)
+    history = ("a", "a", "b", "b")[: 3 + known]
+    places = [("shelf", "shelf"), ("shelf", "sink"), ("table", "sink"), ("table", "sink")][:4]
+    fc = f.forecast(history, places, horizon=2)
+    departure, destination, activity = _brute_force(model, mv, history, places, 2)
+    np.testing.assert_allclose(fc.departure, departure, atol=1e-12)
+    np.testing.assert_allclose(fc.destination, destination, atol=1e-12)
+    for got, want in zip(fc.activity, activity):
+        assert got == pytest.approx(want, abs=1e-12)
+    every: dict[tuple[str, ...], float] = {(): 1.0}
+    for _ in range(3):
+        every = {path + (a,): w * p for path, w in every.items() for a, p in model.predict_proba(history + path).items()}
+    paths = f.paths(history, 3)
+    assert {path: p for p, path in paths} == pytest.approx(every, abs=1e-15)
 
 
-@compiled_only
-def test_compiled_first_locations_are_numpys():
-    """Running sums over steps and the first largest target (NaN first), as np.cumsum and np.argmax."""
-    rng = np.random.default_rng(3)
-    destination = rng.choice([0.0, 0.25, 0.5, 1e-300, 0.1, 0.2], size=(40, 7, 5, 4))  # many ties
-    destination[3, 2, 1, 2] = np.nan
-    targets = rng.integers(0, 9, size=(5, 4))
-    for horizons in (0, 1, 3, 7, 9):
-        with forecaster_path(False):
-            ref = first_locations(destination, targets, horizons)
-        fast = first_locations(destination, targets, horizons)
-        assert same_bits(ref[0], fast[0]) and same_bits(ref[1], fast[1])
-
-
-@compiled_only
-def test_the_compiled_forecaster_refuses_bad_inputs():
-    """Every index the compiled loops read is checked first: a bad input raises, never reads
-    out of bounds."""
-    native = forecast_module._native
-    nj, nq = 2, 1
-    hazard = np.full(1 * 1 * 1 * 1 * 2, 0.5)
-    empty = np.zeros(0)
-    model = (hazard, np.full(nj, 0.1), np.zeros(0, dtype=np.int64), empty, empty, np.zeros((nq, nj), dtype=np.int64),
-             np.ones((nq, nj), dtype=bool), np.zeros((nq, nj), dtype=bool))
-    one = np.zeros(1, dtype=np.int64)
-    nodes = (one, one, one, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), one, one, np.ones(1), one)
-    args = [(1, 1, 1, 1, 2, nj, nq, 2), 2.0, model, nodes, np.ones((1, nj)), np.empty((1, nj)), np.zeros((1, nj)),
-            np.zeros((nq, 2, nj)), 0]
-    native.level(*args)  # well formed
-    bad_cells = model[:5] + (np.full((nq, nj), 2, dtype=np.int64),) + model[6:]
-    bad_parent = nodes[:6] + (np.array([1]),) + nodes[7:]
-    bad_activity = nodes[:1] + (np.array([1]),) + nodes[2:]
-    for k, value in ((2, bad_cells), (3, bad_parent), (3, bad_activity), (8, 2), (7, np.zeros((nq, 1, nj)))):
-        with pytest.raises(ValueError):
-            native.level(*[value if i == k else a for i, a in enumerate(args)])
-    with pytest.raises(ValueError, match="float64"):
-        native.level(*[nodes[:7] + (np.ones(1, dtype=np.float32),) + nodes[8:] if i == 3 else a for i, a in enumerate(args)])
-    index = np.full(1 * nj * 3, -1, dtype=np.int64)  # no destination row filled in
-    with pytest.raises(ValueError, match="not filled"):
-        native.destinations((nq, 2, nj, 1, 3), np.ones((1, nj)), one, one, np.zeros((nq, nj), dtype=np.int64), index,
-                            np.zeros((0, 1)), np.zeros((nq, 2, nj, 1)), 0)
-    paths = native.Paths(native.ROUTINE, 2, False, {}, [], "<day>")
-    with pytest.raises(ValueError, match="root"):
-        paths.beams(np.array([5], dtype=np.int64), 1, 0.001, 4, lambda *a: 0.5, lambda *a: ({}, 0.0), lambda *a: {})
-    with pytest.raises(ValueError):
-        native.Paths(native.ROUTINE, 0, False, {}, [], "<day>")
-    with pytest.raises(ZeroDivisionError):  # an error in the model's own code comes through
-        roots = np.frombuffer(paths.roots([("a", "b")]), dtype=np.int64)
-        paths.beams(roots, 1, 0.001, 4, lambda *a: 1 / 0, lambda *a: ({}, 0.0), lambda *a: {})
+def test_pruned_paths_are_the_most_probable_ties_broken_by_name():
+    """max_paths cuts among equally probable paths by name, whatever the last bits of the sums."""
+    f = Forecaster(TreeModel().fit([]), MovementModel().fit(TOY_DAYS, OBJECTS), min_path_probability=0.0, max_paths=4)
+    paths = f.paths(("c", "a"), 2)  # after (c, a): a 0.5, b 0.25, c 0.25 -> aa .3125, ab .1875 and 7 of .0625
+    assert [path for _, path in paths] == [("a", "a"), ("a", "b"), ("b", "a"), ("c", "a")]
+    assert sum(p for p, _ in paths) == pytest.approx(1.0)

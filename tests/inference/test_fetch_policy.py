@@ -6,8 +6,8 @@ import pytest
 
 from globe import assembly
 from globe.config import PolicyConfig
-from globe.reasoning.fetch_policy import FetchCandidate, FetchPolicy, expected_value
-from tests.models.test_forecast import toy_forecaster
+from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, expected_value
+from tests.inference.test_forecast import toy_forecaster
 
 
 def cand(obj: str, p: float) -> FetchCandidate:

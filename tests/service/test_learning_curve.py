@@ -9,10 +9,10 @@ import pytest
 
 from globe.assembly import fit_household
 from globe.errors import DataError
-from globe.evaluation.learning_curve import CurvePoint, curve_point, learning_curve, mean_rows, table_rows
 from globe.evaluation.metrics import f1
 from globe.evaluation.protocol import evaluate_days
 from globe.reasoning.choice import ObjectChooser
+from globe.service.learning_curve import CurvePoint, curve_point, learning_curve, mean_rows, table_rows
 
 
 def _point(household: str, k: int, activity: float | None, fetch_precision: float) -> CurvePoint:

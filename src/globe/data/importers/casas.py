@@ -1,0 +1,161 @@
+"""Importer of the CASAS event format (WSU's smart-home testbeds: Aruba, Milan, Cairo, ...).
+
+One event a line, fields separated by spaces or tabs::
+
+    2010-11-04 00:03:50.209589 M004 ON Bed_to_Toilet begin
+    2010-11-04 00:03:57.399391 M005 OFF
+    2010-11-04 00:04:00.000000 T002 21.5
+    2010-11-04 00:05:01.000000 M004 OFF Bed_to_Toilet end
+
+``date time sensor value``, then optionally ``activity begin`` or ``activity end`` (on any
+event line). Values are ON/OFF, OPEN/CLOSE, ABSENT/PRESENT (item sensors) or numbers
+(temperature, light level, analog sensors); anything else is an error. Events must be in time
+order; an activity may not begin twice before it ends, end without beginning, or be left open
+at the end of the file.
+
+CASAS names a sensor's type by the letters of its id. Without a mapping, only item sensors
+(``I...``, placed on things a person takes: a medicine box, a pot) become objects, named by
+their id in lower case, in one room; motion (M, MA), door (D), temperature (T), light (L, LS),
+analog (AD) and unknown sensors stay out. An object sensor is *on* from ON/OPEN/ABSENT to the
+next OFF/CLOSE/PRESENT and fires at every event; a numeric sensor cannot be an object.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from datetime import datetime
+from pathlib import Path
+
+from globe.data.csv_logs import _label
+from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
+from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
+from globe.data.importers.text import parse_date_time, read_lines, show
+from globe.errors import DataError
+
+log = logging.getLogger(__name__)
+
+FIELDS = ("date", "time", "sensor", "value", "activity", "begin/end")
+ACTIVE = frozenset({"ON", "OPEN", "ABSENT"})  # an item sensor reads ABSENT while its thing is taken
+INACTIVE = frozenset({"OFF", "CLOSE", "CLOSED", "PRESENT"})
+KINDS = {"M": "motion", "MA": "motion", "D": "door", "T": "temperature", "L": "light switch",
+         "LS": "light level", "I": "item", "AD": "analog"}
+DEFAULT_RULE = ("CASAS item sensors (I...) are objects, named by their id in lower case; motion (M, MA), door (D), "
+                "temperature (T), light (L, LS), analog (AD) and unknown sensors are not")
+PROGRESS_EVERY = 500_000
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_SENSOR = re.compile(r"[\w.-]+")
+_LETTERS = re.compile(r"[A-Za-z]+")
+
+
+def sensor_kind(key: str) -> str:
+    """A CASAS sensor's type from the letters its id begins with ('' when unknown)."""
+    match = _LETTERS.match(key)
+    return KINDS.get(match.group(0).upper(), "") if match else ""
+
+
+def default_rule(sensor: Sensor) -> tuple[bool, str]:
+    """Item sensors are objects; everything else is left out, with the reason for the report."""
+    if sensor.kind == "item":
+        return True, "CASAS item sensor (I...): on a thing a person takes"
+    if sensor.kind:
+        return False, f"CASAS {sensor.kind} sensor: not a thing a robot can fetch (map it with --objects to include it)"
+    return False, "unknown CASAS sensor type (map it with --objects to include it)"
+
+
+def read_casas(path: Path, selection: ObjectSelection) -> SensorLog:
+    """Every event and annotation of a CASAS log, checked line by line."""
+    source = str(path)
+    sensor_log = SensorLog("casas", (source,), annotation_field="activity")
+    open_since: dict[str, datetime] = {}  # object sensor -> when it went on
+    begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
+    previous: tuple[datetime, int] | None = None
+    lines = read_lines(path)
+    for count, (line, text) in enumerate(lines, start=1):
+        fields = text.split()
+        if len(fields) < 4:
+            raise DataError(f"missing field (a CASAS event is 'date time sensor value [activity begin|end]', "
+                            f"found {len(fields)} fields)", source=source, line=line, field=FIELDS[len(fields)])
+        if len(fields) == 5:
+            raise DataError(f"{show(fields[4])} after the value must be followed by 'begin' or 'end'", source=source,
+                            line=line, field="begin/end")
+        if len(fields) > 6:
+            raise DataError(f"{len(fields)} fields; a CASAS event has 4, or 6 with 'activity begin|end'", source=source,
+                            line=line, field="begin/end")
+        moment = parse_date_time(fields[0], fields[1], source=source, line=line)
+        if previous is not None and moment < previous[0]:
+            raise DataError(f"{moment} is before the previous event's {previous[0]} (line {previous[1]}): events must "
+                            "be in time order", source=source, line=line, field="time")
+        previous = (moment, line)
+        sensor_log.saw(moment)
+        key, value = fields[2], fields[3].upper()
+        if not _SENSOR.fullmatch(key):
+            raise DataError(f"{show(key)} is not a sensor id (letters, digits, '_', '-', '.')", source=source,
+                            line=line, field="sensor")
+        binary = value in ACTIVE or value in INACTIVE
+        if not binary and not _NUMBER.fullmatch(value):
+            raise DataError(f"{show(fields[3])} is not ON, OFF, OPEN, CLOSE, ABSENT, PRESENT or a number",
+                            source=source, line=line, field="value")
+        sensor_log.events[key] += 1
+        choice = selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
+        if choice.object is not None:
+            if not binary:
+                raise DataError(f"{show(fields[3])} is a reading, not a use: sensor {key!r} (object {choice.object!r}) "
+                                "must be ON/OFF, OPEN/CLOSE or ABSENT/PRESENT", source=source, line=line, field="value")
+            _activation(sensor_log, open_since, key, moment, value in ACTIVE)
+        if len(fields) == 6:
+            _annotation(sensor_log, begun, fields[4], fields[5], moment, source, line)
+        if count % PROGRESS_EVERY == 0:
+            log.info("%s: %d of %d lines read", source, count, len(lines))
+    if begun:
+        activity, (start, line) = next(iter(begun.items()))
+        raise DataError(f"{activity!r} begins here (at {start}) but never ends (no '{activity} end' before the end of "
+                        "the file)", source=source, line=line, field="activity")
+    for key, start in open_since.items():
+        assert sensor_log.last is not None
+        sensor_log.activations.setdefault(key, []).append(Activation(start, sensor_log.last))
+        sensor_log.notes.append(f"sensor {key} is still on at the end of the log (since {start}): counted as on until "
+                                "the log ends")
+    log.info("%s: %d events, %d sensors, %d annotations", source, len(lines), len(sensor_log.events),
+             len(sensor_log.annotations))
+    return sensor_log
+
+
+def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,
+                active: bool) -> None:
+    """An event of an object sensor: it fires now, and is on from an ON until the next OFF."""
+    if active:
+        open_since.setdefault(key, moment)
+        return
+    start = open_since.pop(key, moment)
+    sensor_log.activations.setdefault(key, []).append(Activation(start, moment))
+
+
+def _annotation(sensor_log: SensorLog, begun: dict[str, tuple[datetime, int]], activity: str, marker: str,
+                moment: datetime, source: str, line: int) -> None:
+    _label(activity, source, line, "activity", "activity")
+    if marker.lower() == "begin":
+        if activity in begun:
+            raise DataError(f"{activity!r} begins again before it ended (it began at line {begun[activity][1]})",
+                            source=source, line=line, field="activity")
+        begun[activity] = (moment, line)
+    elif marker.lower() == "end":
+        if activity not in begun:
+            raise DataError(f"{activity!r} ends but never began (no open '{activity} begin')", source=source, line=line,
+                            field="activity")
+        start, first = begun.pop(activity)
+        sensor_log.annotations.append(Annotation(activity, start, moment, source, first, activity))
+    else:
+        raise DataError(f"{show(marker)} is not 'begin' or 'end'", source=source, line=line, field="begin/end")
+
+
+def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = None, objects: Path | None = None
+                 ) -> ImportResult:
+    """Import a CASAS log into the household folder ``dest`` (see :mod:`globe.data.importers.grid`
+    for the grid's rules). ``objects`` is a mapping file; without it, item sensors are objects."""
+    options = options if options is not None else GridOptions()
+    options.check()
+    mapping = read_mapping(objects) if objects is not None else None
+    selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
+    sensor_log = read_casas(log_file, selection)
+    return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest)

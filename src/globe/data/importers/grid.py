@@ -1,0 +1,411 @@
+"""Put a smart home's timestamped record on GLOBE's step grid and write it as a household folder.
+
+Every importer reads its format into one :class:`SensorLog` (annotated activity intervals, and
+when each object sensor fired or was on) and hands it here, so that the rules below hold for
+every format and are written once:
+
+- A day of date D has one row at each minute ``day_start + k * step`` up to ``day_end``
+  (06:00, 06:10, ..., 24:00 by default, as HOMER+); the row at minute m stands for the step
+  ``[m, m + step)``. Event times never add rows.
+- A row's activity is the annotation covering the step's *start* (the current convention of the
+  CSV logs); a step no annotation covers is ``idle``. Annotations may not overlap, unless
+  ``overlaps="latest"``: then the one that began last wins while it lasts (ties: the later line).
+- An object is used in a step when one of its sensors fires, or is on, at any time inside the
+  step; its cell is then its room's ``in_use`` place, otherwise its home place.
+- A day with no annotation at all is left out, and so is a day the log does not cover from its
+  first step to its last (the log's first and last days, usually). Both are listed in the report.
+- The last ``test_days`` kept days (default: the last 20 %, at least one when two or more days are
+  kept) are test days; the rest are training days.
+
+The folder is written through :mod:`globe.data.csv_logs` (the writer of the shipped files) into a
+temporary sibling and renamed into place, with ``import.json``: which sensor became which object
+column, which annotation which activity, which days were dropped and why.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import date, datetime, time, timedelta
+from pathlib import Path
+from typing import Any, Literal, Sequence
+
+from globe.data.csv_logs import DAY_MINUTES, write_day, write_nodes
+from globe.data.importers.objects import HomeMap, ObjectSelection, ObjectSpec, build_map
+from globe.data.records import Day
+from globe.errors import ConfigError, DataError
+
+log = logging.getLogger(__name__)
+
+DEFAULT_STEP_MINUTES = 10
+DEFAULT_DAY_START = 360  # 06:00, HOMER+'s first row
+DEFAULT_DAY_END = 1440  # 24:00, HOMER+'s last row
+DEFAULT_TEST_FRACTION = 0.2
+IDLE = "idle"
+REPORT_FILE = "import.json"
+Overlaps = Literal["error", "latest"]
+
+
+@dataclass(frozen=True, slots=True)
+class GridOptions:
+    """How a log is cut into days and steps, and which days are test days."""
+
+    step_minutes: int = DEFAULT_STEP_MINUTES
+    day_start_minute: int = DEFAULT_DAY_START
+    day_end_minute: int = DEFAULT_DAY_END
+    test_days: int | None = None  # None: the last test_fraction of the kept days
+    test_fraction: float = DEFAULT_TEST_FRACTION
+    overlaps: Overlaps = "error"
+
+    def check(self) -> None:
+        """Called where an import starts (not in the constructor, so options stay plain values)."""
+        start, end, step = self.day_start_minute, self.day_end_minute, self.step_minutes
+        if not 0 <= start < end <= DAY_MINUTES:
+            raise ConfigError(f"the day must start before it ends, within 00:00..24:00 (got {_clock(start)} to "
+                              f"{_clock(end)})")
+        if step < 1 or (end - start) % step:
+            raise ConfigError(f"a step of {step} minutes does not divide the day {_clock(start)}..{_clock(end)} "
+                              f"({end - start} minutes); use e.g. 1, 2, 5 or 10")
+        if self.test_days is not None and self.test_days < 0:
+            raise ConfigError(f"test days must be 0 or more (got {self.test_days})")
+        if not 0.0 <= self.test_fraction < 1.0:
+            raise ConfigError(f"the test fraction must be in [0, 1) (got {self.test_fraction})")
+        if self.overlaps not in ("error", "latest"):
+            raise ConfigError(f"overlaps must be 'error' or 'latest' (got {self.overlaps!r})")
+
+    @property
+    def steps(self) -> int:
+        return (self.day_end_minute - self.day_start_minute) // self.step_minutes + 1
+
+
+@dataclass(frozen=True, slots=True)
+class Annotation:
+    """One annotated activity, ``[start, end)``, with the line that began it."""
+
+    activity: str
+    start: datetime
+    end: datetime
+    source: str
+    line: int
+    origin: str  # what the log wrote for it, for the report ('7', 'Sleeping', 'input_select.activity: cooking')
+
+
+@dataclass(frozen=True, slots=True)
+class Activation:
+    """A sensor fired (``start == end``) or was on from ``start`` to ``end``, both included."""
+
+    start: datetime
+    end: datetime
+
+
+@dataclass
+class SensorLog:
+    """What a format's reader found, in local wall-clock time (naive datetimes)."""
+
+    format: str
+    sources: tuple[str, ...]
+    annotations: list[Annotation] = field(default_factory=list)
+    activations: dict[str, list[Activation]] = field(default_factory=dict)  # object sensors only
+    events: Counter[str] = field(default_factory=Counter)  # records per sensor, every sensor
+    first: datetime | None = None  # the log's span: its earliest and latest timestamps
+    last: datetime | None = None
+    notes: list[str] = field(default_factory=list)  # what else the report must say
+    annotation_field: str = "start"  # the field an overlap error names (CASAS: 'activity')
+
+    def saw(self, moment: datetime) -> None:
+        if self.first is None or moment < self.first:
+            self.first = moment
+        if self.last is None or moment > self.last:
+            self.last = moment
+
+
+@dataclass(frozen=True, slots=True)
+class ImportResult:
+    """What an import wrote, for the command line to print."""
+
+    dest: Path
+    train_days: int
+    test_days: int
+    objects: tuple[str, ...]
+    activities: tuple[str, ...]
+    dropped_days: int
+    report: Path
+    notes: tuple[str, ...]
+
+
+def _clock(minute: int) -> str:
+    return f"{minute // 60:02d}:{minute % 60:02d}"
+
+
+def _ceil_steps(delta: timedelta, step: timedelta) -> int:
+    return -(-delta // step)
+
+
+def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *,
+                   error_field: str = "start") -> list[Annotation]:
+    """The annotations by start (ties: file order). Overlapping ones are an error unless
+    ``overlaps="latest"``; an interval ending before it begins is always one."""
+    for ann in annotations:
+        if ann.end < ann.start:
+            raise DataError(f"{ann.activity!r} ends at {ann.end} before it begins at {ann.start}", source=ann.source,
+                            line=ann.line, field="end")
+    ordered = sorted(annotations, key=lambda a: (a.start, a.line))
+    if overlaps == "error":
+        longest: Annotation | None = None
+        for ann in ordered:
+            if longest is not None and ann.start < longest.end:
+                raise DataError(f"{ann.activity!r} begins at {ann.start} while {longest.activity!r} (line "
+                                f"{longest.line}) lasts until {longest.end}: annotations may not overlap (one person, "
+                                "one activity; --overlaps latest lets the later one win while it lasts)",
+                                source=ann.source, line=ann.line, field=error_field)
+            if longest is None or ann.end > longest.end:
+                longest = ann
+    return ordered
+
+
+def _day_dates(first: datetime, last: datetime) -> list[date]:
+    count = (last.date() - first.date()).days + 1
+    return [first.date() + timedelta(days=i) for i in range(count)]
+
+
+def _touched_dates(start: datetime, end: datetime, offset: timedelta, window: timedelta) -> list[date]:
+    """Dates D whose window ``[D + offset, D + offset + window)`` may meet ``[start, end]``."""
+    low = (start - offset - window).date()
+    high = (end - offset).date()
+    return [low + timedelta(days=i) for i in range((high - low).days + 1)]
+
+
+@dataclass
+class _Grid:
+    """The kept days' rows while they are filled in."""
+
+    options: GridOptions
+    bases: dict[date, datetime]  # kept date -> its first step's start
+    activities: dict[date, list[str]]
+    used: dict[str, dict[date, set[int]]]
+
+    @property
+    def step(self) -> timedelta:
+        return timedelta(minutes=self.options.step_minutes)
+
+    @property
+    def window(self) -> timedelta:
+        return self.step * self.options.steps
+
+    @property
+    def offset(self) -> timedelta:
+        return timedelta(minutes=self.options.day_start_minute)
+
+
+def _meets(ann: Annotation, base: datetime, window: timedelta) -> bool:
+    """Whether an annotation meets the day window ``[base, base + window)`` (one of no length:
+    whether its instant lies in it)."""
+    if ann.start == ann.end:
+        return base <= ann.start < base + window
+    return ann.start < base + window and ann.end > base
+
+
+def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: GridOptions
+                 ) -> tuple[dict[date, datetime], list[dict[str, str]]]:
+    """The kept days (date -> first step's start) and the dropped ones with why."""
+    assert sensor_log.first is not None and sensor_log.last is not None
+    offset = timedelta(minutes=options.day_start_minute)
+    last_row = timedelta(minutes=options.day_end_minute)
+    window = timedelta(minutes=options.step_minutes * options.steps)
+    annotated: set[date] = set()
+    for ann in ordered:
+        for day in _touched_dates(ann.start, ann.end, offset, window):
+            base = datetime.combine(day, time()) + offset
+            if _meets(ann, base, window):
+                annotated.add(day)
+    kept: dict[date, datetime] = {}
+    dropped: list[dict[str, str]] = []
+    for day in _day_dates(sensor_log.first, sensor_log.last):
+        midnight = datetime.combine(day, time())
+        if sensor_log.first > midnight + offset:
+            why = (f"partial: the log starts at {sensor_log.first:%Y-%m-%d %H:%M:%S}, after this day's first row "
+                   f"({_clock(options.day_start_minute)})")
+        elif sensor_log.last < midnight + last_row:
+            why = (f"partial: the log ends at {sensor_log.last:%Y-%m-%d %H:%M:%S}, before this day's last row "
+                   f"({_clock(options.day_end_minute)})")
+        elif day not in annotated:
+            why = "no annotation"
+        else:
+            kept[day] = midnight + offset
+            continue
+        dropped.append({"date": day.isoformat(), "why": why})
+    return kept, dropped
+
+
+@dataclass
+class _LabelStats:
+    annotations: int = 0
+    origins: set[str] = field(default_factory=set)
+    on_no_row: int = 0  # annotations inside kept days that cover no step's start
+
+
+def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, _LabelStats]:
+    """Each kept row's activity: the annotation covering its start; later starts overwrite
+    earlier ones, which is the ``latest`` rule (without overlaps, nothing is overwritten)."""
+    per_label: dict[str, _LabelStats] = {}
+    steps = grid.options.steps
+    for ann in ordered:
+        stats = per_label.setdefault(ann.activity, _LabelStats())
+        stats.annotations += 1
+        stats.origins.add(ann.origin)
+        touched = placed = False
+        for day in _touched_dates(ann.start, ann.end, grid.offset, grid.window):
+            base = grid.bases.get(day)
+            if base is None or not _meets(ann, base, grid.window):
+                continue
+            touched = True
+            first = max(0, _ceil_steps(ann.start - base, grid.step))
+            stop = min(steps, _ceil_steps(ann.end - base, grid.step))
+            row = grid.activities[day]
+            for k in range(first, stop):
+                row[k] = ann.activity
+                placed = True
+        if touched and not placed:
+            stats.on_no_row += 1
+    return per_label
+
+
+def _place_uses(grid: _Grid, objects: Sequence[ObjectSpec], activations: dict[str, list[Activation]]) -> None:
+    """Mark the steps in which a sensor of each object fired or was on."""
+    steps = grid.options.steps
+    for spec in objects:
+        marks = grid.used.setdefault(spec.object, {})
+        for key in spec.sensors:
+            for act in activations.get(key, ()):
+                for day in _touched_dates(act.start, act.end, grid.offset, grid.window):
+                    base = grid.bases.get(day)
+                    if base is None or act.start >= base + grid.window or act.end < base:
+                        continue
+                    first = max(0, (act.start - base) // grid.step)
+                    last = min(steps - 1, (act.end - base) // grid.step)
+                    marks.setdefault(day, set()).update(range(first, last + 1))
+
+
+def _test_count(kept: int, options: GridOptions) -> int:
+    if options.test_days is not None:
+        if kept and options.test_days >= kept:
+            raise ConfigError(f"{options.test_days} test days would leave no training day ({kept} days kept)")
+        return options.test_days
+    share = int(kept * options.test_fraction)
+    return share if kept < 2 or options.test_fraction == 0 else max(1, share)
+
+
+def _prepare_dest(dest: Path) -> Path:
+    """A fresh temporary folder beside ``dest``; ``dest`` itself must be new or empty, so that
+    days of an earlier import never mix with these."""
+    dest = Path(dest)
+    if dest.exists() and (not dest.is_dir() or any(dest.iterdir())):
+        raise DataError("already exists and is not an empty folder; import into a new folder", source=str(dest))
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dest.parent / f".{dest.name}.importing-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir()
+    return tmp
+
+
+def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: GridOptions, dest: Path,
+                 settings: dict[str, Any] | None = None) -> ImportResult:
+    """Put ``sensor_log`` on the grid and write the household folder ``dest`` with its report.
+    ``settings`` are the format's own options, recorded in the report."""
+    options.check()
+    if sensor_log.first is None or sensor_log.last is None:
+        raise DataError("no records", source=sensor_log.sources[0])
+    objects = selection.objects()
+    home = build_map(objects)
+    ordered = check_overlaps(sensor_log.annotations, options.overlaps, error_field=sensor_log.annotation_field)
+    kept, dropped = _choose_days(sensor_log, ordered, options)
+    log.info("%s: %d days with annotations kept, %d dropped", sensor_log.format, len(kept), len(dropped))
+    if not kept:
+        reasons = Counter(d["why"].split(":")[0] for d in dropped)
+        counts = ", ".join(f"{n} {why}" for why, n in reasons.items())
+        raise DataError(f"no day to import: none of the {len(dropped)} days is both annotated and covered by the log "
+                        f"from its first row ({_clock(options.day_start_minute)}) to its last "
+                        f"({_clock(options.day_end_minute)}): {counts}", source=", ".join(sensor_log.sources))
+    grid = _Grid(options, kept, {day: [IDLE] * options.steps for day in kept}, {})
+    per_label = _place_annotations(grid, ordered)
+    _place_uses(grid, objects, sensor_log.activations)
+    n_test = _test_count(len(kept), options)
+    dates = sorted(kept)
+    splits = {"train": dates[:len(dates) - n_test], "test": dates[len(dates) - n_test:]}
+    columns = tuple(spec.object for spec in objects)
+    tmp = _prepare_dest(dest)
+    try:
+        write_nodes(tmp / "nodes.csv", home.nodes)
+        for split, days in splits.items():
+            (tmp / split).mkdir()
+            for day in days:
+                write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
+        report = _report(sensor_log, selection, objects, home, options, settings or {}, grid, per_label, splits,
+                         dropped)
+        (tmp / REPORT_FILE).write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+        if Path(dest).exists():
+            Path(dest).rmdir()
+        tmp.rename(dest)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    log.info("%s: wrote %d train and %d test days to %s", sensor_log.format, len(splits["train"]), len(splits["test"]),
+             dest)
+    labels = tuple(sorted({a for row in grid.activities.values() for a in row}))
+    return ImportResult(Path(dest), len(splits["train"]), len(splits["test"]), columns, labels, len(dropped),
+                        Path(dest) / REPORT_FILE, tuple(sensor_log.notes))
+
+
+def _day(grid: _Grid, day: date, columns: tuple[str, ...], home: HomeMap, split: str) -> Day:
+    options = grid.options
+    minutes = tuple(options.day_start_minute + k * options.step_minutes for k in range(options.steps))
+    marks = [grid.used.get(obj, {}).get(day, set()) for obj in columns]
+    at_home = tuple(home.home_of[obj] for obj in columns)
+    in_use = tuple(home.in_use_of[obj] for obj in columns)
+    locations = tuple(tuple(in_use[i] if k in marks[i] else at_home[i] for i in range(len(columns)))
+                      for k in range(options.steps))
+    return Day(f"{split}/{day.isoformat()}", minutes, tuple(grid.activities[day]), locations)
+
+
+def _report(sensor_log: SensorLog, selection: ObjectSelection, objects: Sequence[ObjectSpec], home: HomeMap,
+            options: GridOptions, settings: dict[str, Any], grid: _Grid, per_label: dict[str, _LabelStats],
+            splits: dict[str, list[date]], dropped: list[dict[str, str]]) -> dict[str, Any]:
+    rows = Counter(a for row in grid.activities.values() for a in row)
+    activities = []
+    for label in sorted(set(per_label) | set(rows)):
+        stats = per_label.get(label, _LabelStats())
+        activities.append({"activity": label, "from": sorted(stats.origins) or ["unannotated time"],
+                           "annotations": stats.annotations, "rows": rows.get(label, 0),
+                           "annotations_on_no_row": stats.on_no_row})
+    object_rows = []
+    for spec in objects:
+        used = sum(len(steps) for steps in grid.used.get(spec.object, {}).values())
+        object_rows.append({"object": spec.object, "sensors": list(spec.sensors),
+                            "events": sum(sensor_log.events[k] for k in spec.sensors), "rows_in_use": used,
+                            "home": home.home_of[spec.object], "in_use": home.in_use_of[spec.object], "why": spec.why})
+    left_out = [{"sensor": key, "events": sensor_log.events[key], "why": choice.why}
+                for key, choice in selection.choices.items() if choice.object is None]
+    return {
+        "format": sensor_log.format,
+        "sources": list(sensor_log.sources),
+        "grid": {"step_minutes": options.step_minutes, "day_start": _clock(options.day_start_minute),
+                 "day_end": _clock(options.day_end_minute), "rows_per_day": options.steps,
+                 "activity_rule": "the annotation covering the step's start; idle where none does",
+                 "use_rule": "a sensor of the object fires or is on at any time inside the step",
+                 "overlaps": options.overlaps},
+        "settings": settings,
+        "log_span": [f"{sensor_log.first:%Y-%m-%d %H:%M:%S}", f"{sensor_log.last:%Y-%m-%d %H:%M:%S}"],
+        "objects": object_rows,
+        "sensors_left_out": left_out,
+        "objects_rule": (f"the mapping {selection.mapping.source}" if selection.mapping is not None
+                         else selection.default_help),
+        "activities": activities,
+        "days": {split: [d.isoformat() for d in days] for split, days in splits.items()},
+        "dropped_days": dropped,
+        "notes": list(sensor_log.notes),
+    }

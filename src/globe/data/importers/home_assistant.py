@@ -1,0 +1,182 @@
+"""Importer of a Home Assistant recorder history export (the History panel's "Download data").
+
+A CSV with the columns ``entity_id,state,last_changed``, one state change a row, grouped by
+entity and in time order within each::
+
+    entity_id,state,last_changed
+    input_select.activity,sleeping,2024-03-01T05:00:00.000Z
+    input_select.activity,breakfast,2024-03-01T06:31:12.410Z
+    binary_sensor.fridge_door,off,2024-03-01T05:00:00.000Z
+    binary_sensor.fridge_door,on,2024-03-01T06:40:03.120Z
+
+The activity is the state of one entity the user names (``activity_entity``, e.g. an
+``input_select`` the household sets, or a template sensor): each state holds from its row until
+the entity's next row, the last one until the end of the export; ``unknown`` and ``unavailable``
+are no activity (``idle`` on the grid). Objects are only the entities the user maps
+(``--objects``): an export says nothing about what an entity is on, so without a mapping there are
+no object columns. A mapped entity is in use while ``on`` or ``open`` and fires whenever its state
+changes; ``off`` and ``closed`` are not in use, ``unavailable`` and ``unknown`` are not either and
+are counted in the report; any other state is an error. Other entities are left out.
+
+Timestamps with a UTC offset (HA writes UTC) are put on the home's clock with ``timezone`` (an
+IANA name such as ``Europe/Amsterdam``), which is then required: the day starts at 06:00 where
+the person lives. When the clocks go back, an hour happens twice on the home's clock; a row in
+its second pass is held at its entity's previous local time (and counted in the report), so that
+intervals never end before they begin. Timestamps without an offset are the home's clock already.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from datetime import datetime, tzinfo
+from pathlib import Path
+from typing import Callable
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+
+from globe.data.csv_logs import _check_header, _clean, _csv_rows, _label, _ragged
+from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
+from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
+from globe.data.importers.text import parse_iso_8601, read_text, show
+from globe.errors import ConfigError, DataError
+
+log = logging.getLogger(__name__)
+
+COLUMNS = ("entity_id", "state", "last_changed")
+ON_STATES = frozenset({"on", "open"})
+OFF_STATES = frozenset({"off", "closed"})
+NO_DATA = frozenset({"unknown", "unavailable"})
+DEFAULT_RULE = "no objects without a mapping: a Home Assistant export does not say what an entity is on"
+_ENTITY = re.compile(r"[a-z0-9_]+\.[a-z0-9_]+")
+
+
+def default_rule(sensor: Sensor) -> tuple[bool, str]:
+    return False, "not mapped (map binary sensors on cupboards, the fridge or appliances with --objects)"
+
+
+def _zone(timezone: str) -> tzinfo:
+    try:
+        return ZoneInfo(timezone)
+    except (ZoneInfoNotFoundError, ValueError) as err:
+        raise ConfigError(f"unknown time zone {timezone!r}: give an IANA name such as Europe/Amsterdam (on a system "
+                          "without zone data, pip install tzdata)") from err
+
+
+def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_entity: str,
+                        timezone: str | None = None) -> SensorLog:
+    """The activity entity's states as annotations and the mapped entities' on-intervals."""
+    source = str(path)
+    rows = _csv_rows(read_text(Path(path)), source)
+    header = [_clean(h) for h in rows[0][1]]
+    _check_header(source, header, COLUMNS)
+    column = {name: header.index(name) for name in COLUMNS}
+    sensor_log = SensorLog("home-assistant", (source,))
+    extra = [h for h in header if h not in COLUMNS]
+    if extra:
+        sensor_log.notes.append(f"columns not used: {', '.join(extra)}")
+    zone = _zone(timezone) if timezone is not None else None
+    local: Callable[[datetime], datetime] = (lambda t: t) if zone is None else (
+        lambda t: t.astimezone(zone).replace(tzinfo=None) if t.tzinfo is not None else t)
+    aware: bool | None = None
+    last_row: dict[str, tuple[datetime, int]] = {}
+    states: list[tuple[datetime, str, int]] = []  # the activity entity's rows
+    on_since: dict[str, datetime] = {}
+    no_data: dict[str, int] = {}
+    last_local: dict[str, datetime] = {}
+    repeated = 0  # rows in the hour a clock change repeats, held at the entity's previous local time
+    for line, row in rows[1:]:
+        if len(row) != len(header):
+            raise _ragged(source, line, row, header)
+        entity = _clean(row[column["entity_id"]])
+        state = _clean(row[column["state"]])
+        if not _ENTITY.fullmatch(entity):
+            raise DataError(f"{show(entity)} is not an entity id (domain.name, lower case)", source=source, line=line,
+                            field="entity_id")
+        moment = parse_iso_8601(_clean(row[column["last_changed"]]), source=source, line=line, field="last_changed")
+        if aware is None:
+            aware = moment.tzinfo is not None
+            if aware and zone is None:
+                raise DataError("timestamps carry a UTC offset: give the home's time zone (--timezone, e.g. "
+                                "Europe/Amsterdam) so that its days start at its own 06:00", source=source, line=line,
+                                field="last_changed")
+        elif aware != (moment.tzinfo is not None):
+            raise DataError("a timestamp without a UTC offset among timestamps with one (or the other way round)",
+                            source=source, line=line, field="last_changed")
+        before = last_row.get(entity)
+        if before is not None and moment < before[0]:
+            raise DataError(f"{moment} is before this entity's previous row ({before[0]}, line {before[1]}): an "
+                            "entity's rows must be in time order", source=source, line=line, field="last_changed")
+        last_row[entity] = (moment, line)
+        moment = local(moment)
+        if entity in last_local and moment < last_local[entity]:
+            moment = last_local[entity]
+            repeated += 1
+        last_local[entity] = moment
+        sensor_log.saw(moment)
+        sensor_log.events[entity] += 1
+        if entity == activity_entity:
+            states.append((moment, state, line))
+            continue
+        if selection.choose(Sensor(entity, entity.split(".", 1)[1], entity.split(".", 1)[0], ""), source=source,
+                            line=line).object is None:
+            continue
+        key = state.lower()
+        if key not in ON_STATES and key not in OFF_STATES and key not in NO_DATA:
+            raise DataError(f"{show(state)} is not a state of a mapped binary sensor (on, off, open, closed, "
+                            "unavailable, unknown)", source=source, line=line, field="state")
+        if key in NO_DATA:
+            no_data[entity] = no_data.get(entity, 0) + 1
+        if key in ON_STATES:
+            on_since.setdefault(entity, moment)
+        elif entity in on_since:
+            sensor_log.activations.setdefault(entity, []).append(Activation(on_since.pop(entity), moment))
+    if not states:
+        shown = ", ".join(sorted(e for e in sensor_log.events if e.startswith(("input_select.", "sensor.")))[:5])
+        raise DataError(f"the activity entity {activity_entity!r} is not in the export"
+                        + (f" (entities such as {shown})" if shown else ""), source=source)
+    _finish(sensor_log, states, on_since, no_data, activity_entity, source)
+    if repeated:
+        sensor_log.notes.append(f"rows in an hour that a clock change repeats: {repeated}; each is held at its "
+                                "entity's previous local time, so that the home's clock never runs backwards")
+    return sensor_log
+
+
+def _finish(sensor_log: SensorLog, states: list[tuple[datetime, str, int]], on_since: dict[str, datetime],
+            no_data: dict[str, int], activity_entity: str, source: str) -> None:
+    """States to annotations (each until the next; the last until the export ends; a repeated
+    state extends the one before), and the notes."""
+    assert sensor_log.last is not None
+    kept: list[Annotation] = []
+    for (start, state, line), (end, _, _) in zip(states, states[1:] + [(sensor_log.last, "", 0)]):
+        if state.lower() in NO_DATA or not state:
+            continue
+        activity = _label(state, source, line, "state", "activity")
+        if kept and kept[-1].activity == activity and kept[-1].end == start:
+            previous = kept.pop()
+            start, line = previous.start, previous.line
+        kept.append(Annotation(activity, start, end, source, line, f"{activity_entity}: {state}"))
+    sensor_log.annotations.extend(kept)
+    sensor_log.notes.append(f"the last state of {activity_entity} holds until the export ends ({sensor_log.last})")
+    for entity, start in on_since.items():
+        sensor_log.activations.setdefault(entity, []).append(Activation(start, sensor_log.last))
+        sensor_log.notes.append(f"{entity} is still on at the end of the export (since {start}): counted as on until "
+                                "the export ends")
+    for entity, count in no_data.items():
+        times = "time" if count == 1 else "times"
+        sensor_log.notes.append(f"{entity} was unavailable or unknown {count} {times} (counted as not in use)")
+
+
+def import_home_assistant(*, history: Path, dest: Path, activity_entity: str, options: GridOptions | None = None,
+                          objects: Path | None = None, timezone: str | None = None) -> ImportResult:
+    """Import a Home Assistant history CSV into the household folder ``dest``; the activity is
+    ``activity_entity``'s state, the objects the entities ``objects`` maps."""
+    options = options if options is not None else GridOptions()
+    options.check()
+    mapping = read_mapping(objects) if objects is not None else None
+    if mapping is not None and activity_entity in mapping.rows:
+        raise DataError(f"{activity_entity!r} is the activity entity; it cannot also be an object",
+                        source=mapping.source, line=mapping.rows[activity_entity].line, field="sensor")
+    selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
+    sensor_log = read_home_assistant(history, selection, activity_entity=activity_entity, timezone=timezone)
+    settings = {"activity_entity": activity_entity, "timezone": timezone}
+    return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest, settings=settings)

@@ -1,0 +1,134 @@
+"""Reading a smart-home log strictly: its lines with their numbers, and the timestamps it uses.
+
+Research logs are plain text with one record a line; a user's export may be anything. A file that
+is empty, binary or not UTF-8 stops the import with its line, before any record is read, so that
+a wrong file is never half-read. Timestamps are checked against the exact shapes each format
+writes (``2010-11-04 00:03:50.209589``, ``25-Feb-2008 00:20:14``, ISO 8601 with an offset), not
+passed to a lenient parser that would accept ``2010-11-4`` or a bare date.
+"""
+
+from __future__ import annotations
+
+import re
+from datetime import datetime
+from pathlib import Path
+
+from globe.errors import DataError
+
+_ISO_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
+_CLOCK = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,6}))?")
+_MONTHS = {name: i for i, name in enumerate(
+    ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec"), start=1)}
+_DMY_DATE = re.compile(r"(\d{1,2})-([A-Za-z]{3})-(\d{4})")
+_ISO_8601 = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{1,9})?)?(?:Z|[+-]\d{2}:?\d{2})?")
+
+
+def show(text: str, limit: int = 48) -> str:
+    """A value for a message: repr, cut when long."""
+    return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+def read_text(path: Path) -> str:
+    """A log's text: UTF-8 (a byte-order mark is dropped), not empty, with no NUL byte (a binary
+    file, or a log cut off mid-write, shows them)."""
+    source = str(path)
+    if Path(path).is_dir():
+        raise DataError("is a folder, not a log file", source=source)
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError as err:
+        raise DataError("file not found", source=source) from err
+    except OSError as err:
+        raise DataError(f"cannot read file: {err.strerror or err}", source=source) from err
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        line = data.count(b"\n", 0, nul) + 1
+        raise DataError(f"binary data (a NUL byte at byte {nul}): not a text log", source=source, line=line)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        raise DataError(f"not UTF-8 text (byte {err.start}: {err.reason}); save the file as UTF-8",
+                        source=source, line=line) from err
+    if not text.strip():
+        raise DataError("empty file (no records)", source=source, line=1)
+    return text
+
+
+def read_lines(path: Path) -> list[tuple[int, str]]:
+    """The non-blank lines of a text log, each with its 1-based line number (``\\r`` dropped).
+
+    Lines are split on ``\\n`` only, so numbers match what an editor shows even when a line
+    holds a form feed or a Unicode line separator.
+    """
+    lines = enumerate(read_text(path).split("\n"), start=1)
+    return [(number, line.rstrip("\r")) for number, line in lines if line.strip()]
+
+
+def _clock(text: str, source: str, line: int, field: str) -> tuple[int, int, int, int]:
+    match = _CLOCK.fullmatch(text)
+    if match is None:
+        raise DataError(f"{show(text)} is not a time of day (HH:MM:SS, optionally .ffffff)",
+                        source=source, line=line, field=field)
+    hour, minute, second, fraction = match.groups()
+    micro = int((fraction or "0").ljust(6, "0"))
+    return int(hour), int(minute), int(second), micro
+
+
+def _build(parts: tuple[int, int, int, int, int, int, int], text: str, source: str, line: int, field: str) -> datetime:
+    try:
+        return datetime(*parts)
+    except ValueError as err:  # month 13, 25:00, 30 February
+        raise DataError(f"{show(text)} is not a valid date and time ({err})", source=source, line=line,
+                        field=field) from None
+
+
+def parse_date_time(date: str, clock: str, *, source: str, line: int, date_field: str = "date",
+                    time_field: str = "time") -> datetime:
+    """``2010-11-04`` and ``00:03:50[.209589]`` (CASAS, Ordóñez) as a naive local datetime."""
+    match = _ISO_DATE.fullmatch(date)
+    if match is None:
+        raise DataError(f"{show(date)} is not a date (YYYY-MM-DD)", source=source, line=line, field=date_field)
+    year, month, day = (int(g) for g in match.groups())
+    return _build((year, month, day, *_clock(clock, source, line, time_field)), f"{date} {clock}", source, line,
+                  date_field)
+
+
+def parse_day_month_year(date: str, clock: str, *, source: str, line: int, field: str) -> datetime:
+    """``25-Feb-2008`` and ``00:20:14`` (van Kasteren's logs); month names are English."""
+    match = _DMY_DATE.fullmatch(date)
+    month = _MONTHS.get(match.group(2).lower()) if match is not None else None
+    if match is None or month is None:
+        raise DataError(f"{show(date)} is not a date (DD-Mon-YYYY, e.g. 25-Feb-2008)", source=source, line=line,
+                        field=field)
+    return _build((int(match.group(3)), month, int(match.group(1)), *_clock(clock, source, line, field)),
+                  f"{date} {clock}", source, line, field)
+
+
+def parse_iso_8601(text: str, *, source: str, line: int, field: str) -> datetime:
+    """A full ISO 8601 timestamp (Home Assistant's ``2024-03-01T06:12:09.123+00:00`` or ``...Z``);
+    naive when it carries no offset. Nanoseconds are cut to microseconds."""
+    if _ISO_8601.fullmatch(text) is None:
+        raise DataError(f"{show(text)} is not an ISO 8601 timestamp (e.g. 2024-03-01T06:12:09+00:00)",
+                        source=source, line=line, field=field)
+    trimmed = re.sub(r"(\.\d{6})\d+", r"\1", text)
+    try:
+        return datetime.fromisoformat(trimmed)
+    except ValueError as err:
+        raise DataError(f"{show(text)} is not a valid date and time ({err})", source=source, line=line,
+                        field=field) from None
+
+
+def parse_clock(text: str) -> int:
+    """``HH:MM`` (an option's value) as minutes after midnight; ``24:00`` is 1440. ValueError if not."""
+    match = re.fullmatch(r"(\d{1,2}):(\d{2})", text.strip())
+    minutes = int(match.group(1)) * 60 + int(match.group(2)) if match is not None else -1
+    if match is None or int(match.group(2)) > 59 or not 0 <= minutes <= 1440:
+        raise ValueError(f"{show(text)} is not a time of day HH:MM between 00:00 and 24:00")
+    return minutes
+
+
+def slug(text: str) -> str:
+    """A sensor or place name as a class name: lower case, runs of other characters as ``_``
+    (``Hall-Toilet door`` -> ``hall_toilet_door``)."""
+    return re.sub(r"[^0-9a-z]+", "_", text.lower()).strip("_")

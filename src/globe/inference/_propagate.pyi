@@ -1,0 +1,6 @@
+from typing import Any
+
+def level(shape: tuple[int, ...], shrinkage: float, model: tuple[Any, ...], nodes: tuple[Any, ...], survive_up: Any,
+          survive: Any, per: Any, departure: Any, step: int) -> None: ...
+def destinations(shape: tuple[int, ...], per: Any, group_query: Any, group_act: Any, src: Any, index: Any, values: Any,
+                 destination: Any, step: int) -> None: ...

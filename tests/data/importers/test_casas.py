@@ -1,0 +1,209 @@
+"""The CASAS importer on small logs written here: a round trip computed by hand, and one test per
+kind of bad line naming its file, line and field."""
+
+import json
+import re
+
+import pytest
+
+from globe.data.csv_logs import load_household
+from globe.data.importers import GridOptions, import_casas
+from globe.errors import DataError
+
+# Four dates. 11-04 and 11-06 are kept; 11-05 has no annotation; 11-07 is partial (the log ends at
+# 00:30, before its last row at 24:00). 11-04 is covered from 05:50, before its first row at 06:00.
+LOG = """\
+2010-11-04 05:50:00.000000 M001 ON Sleeping begin
+2010-11-04 06:25:00.000000 M001 OFF Sleeping end
+2010-11-04 07:02:00.000000 I001 ABSENT Meal_Preparation begin
+2010-11-04 07:05:30.000000 I001 PRESENT
+2010-11-04 07:19:59.999999 I002 ABSENT
+2010-11-04 07:31:00\tI002\tPRESENT\tMeal_Preparation\tend
+2010-11-04 12:00:00.000000 T001 21.5
+2010-11-04 23:58:00.000000 D001 OPEN
+2010-11-05 00:05:00.000000 I001 ABSENT
+2010-11-05 00:06:00.000000 I001 PRESENT
+2010-11-05 03:00:00.000000 M002 ON
+2010-11-06 08:00:00.000000 I002 ABSENT Relax begin
+2010-11-06 08:00:00.000000 I002 PRESENT
+2010-11-06 09:00:00.000000 M001 ON Relax end
+2010-11-07 00:30:00.000000 M001 OFF
+"""
+
+
+def _write(tmp_path, text, name="data.txt"):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _import(tmp_path, text=LOG, **kwargs):
+    dest = tmp_path / "home"
+    result = import_casas(log_file=_write(tmp_path, text), dest=dest, **kwargs)
+    return result, load_household(tmp_path, "home")
+
+
+def _rows(day, minutes_of):
+    return {m: a for m, a in zip(day.minutes, day.activities) if m in minutes_of}
+
+
+def test_round_trip_at_ten_minutes_matches_the_grid_computed_by_hand(tmp_path):
+    result, home = _import(tmp_path)
+    assert home.objects == ("i001", "i002")  # item sensors only; M, T and D sensors stay out
+    assert [d.name for d in home.train] == ["train/2010-11-04"] and [d.name for d in home.test] == ["test/2010-11-06"]
+    day = home.train[0]
+    assert day.minutes == tuple(range(360, 1441, 10))  # 06:00 .. 24:00, 109 rows as HOMER+
+    # Sleeping [05:50, 06:25) covers the starts 06:00, 06:10, 06:20; Meal_Preparation [07:02, 07:31)
+    # covers 07:10, 07:20, 07:30 (not 07:00: the step's start is before the annotation).
+    expected = {m: "idle" for m in day.minutes} | {360: "Sleeping", 370: "Sleeping", 380: "Sleeping",
+                                                  430: "Meal_Preparation", 440: "Meal_Preparation",
+                                                  450: "Meal_Preparation"}
+    assert dict(zip(day.minutes, day.activities)) == expected
+    nodes = {n.cls: n for n in home.nodes if n.movable}
+    in_use = {n.node for n in home.nodes if n.cls == "in_use"}
+    assert len(in_use) == 1 and nodes["i001"].start_location == "room#1"
+    used = {obj: [m for m, row in zip(day.minutes, day.locations) if row[k] in in_use]
+            for k, obj in enumerate(home.objects)}
+    # i001: taken 07:02-07:05:30 (step 07:00) and 00:05-00:06 (the 24:00 row's step [00:00, 00:10)).
+    # i002: taken from 07:19:59.999999 (step 07:10) to 07:31 (step 07:30).
+    assert used == {"i001": [420, 1440], "i002": [430, 440, 450]}
+    test_day = home.test[0]
+    assert [m for m, a in zip(test_day.minutes, test_day.activities) if a == "Relax"] == [480, 490, 500, 510, 520, 530]
+    # a firing at 08:00 sharp (ABSENT and PRESENT at once) is a use in the step that starts then
+    assert [m for m, row in zip(test_day.minutes, test_day.locations) if row[1] in in_use] == [480]
+    assert result.train_days == 1 and result.test_days == 1 and result.dropped_days == 2
+
+
+def test_round_trip_at_five_minutes(tmp_path):
+    _, home = _import(tmp_path, options=GridOptions(step_minutes=5))
+    day = home.train[0]
+    assert day.minutes == tuple(range(360, 1441, 5))
+    sleeping = [m for m, a in zip(day.minutes, day.activities) if a == "Sleeping"]
+    meal = [m for m, a in zip(day.minutes, day.activities) if a == "Meal_Preparation"]
+    assert sleeping == [360, 365, 370, 375, 380]  # 06:25 is the end, not covered
+    assert meal == [425, 430, 435, 440, 445, 450]  # 07:05 .. 07:30
+    in_use = {n.node for n in home.nodes if n.cls == "in_use"}
+    used = {obj: [m for m, row in zip(day.minutes, day.locations) if row[k] in in_use]
+            for k, obj in enumerate(home.objects)}
+    # i001: 07:02 (step 07:00) to 07:05:30 (step 07:05); 00:05 is the end of the 24:00 row's step
+    # [00:00, 00:05), so that use is on no row. i002: 07:19:59.999999 (step 07:15) to 07:31 (07:30).
+    assert used == {"i001": [420, 425], "i002": [435, 440, 445, 450]}
+
+
+def test_report_says_what_became_of_every_sensor_annotation_and_day(tmp_path):
+    _import(tmp_path)
+    report = json.loads((tmp_path / "home" / "import.json").read_text(encoding="utf-8"))
+    assert [o["object"] for o in report["objects"]] == ["i001", "i002"]
+    assert report["objects"][0]["sensors"] == ["I001"] and report["objects"][0]["events"] == 4
+    assert report["objects"][0]["rows_in_use"] == 2  # 07:00 and 24:00 on the kept days
+    left = {s["sensor"]: s["why"] for s in report["sensors_left_out"]}
+    assert set(left) == {"M001", "M002", "T001", "D001"}
+    assert "motion" in left["M001"] and "door" in left["D001"] and "temperature" in left["T001"]
+    dropped = {d["date"]: d["why"] for d in report["dropped_days"]}
+    assert dropped["2010-11-05"] == "no annotation"
+    assert dropped["2010-11-07"].startswith("partial: the log ends at 2010-11-07 00:30:00")
+    assert report["days"] == {"train": ["2010-11-04"], "test": ["2010-11-06"]}
+    meal = next(a for a in report["activities"] if a["activity"] == "Meal_Preparation")
+    assert meal["rows"] == 3 and meal["annotations"] == 1
+    assert report["grid"]["step_minutes"] == 10 and report["grid"]["day_start"] == "06:00"
+
+
+def test_a_mapping_chooses_the_objects_and_their_rooms(tmp_path):
+    mapping = _write(tmp_path, "sensor,object,room\nD001,front_door,hall\nI002,pot,kitchen\n", "map.csv")
+    _, home = _import(tmp_path, objects=mapping)
+    assert home.objects == ("front_door", "pot")  # the mapping's order; I001 is not mapped, so left out
+    place = {n.cls: n.start_location for n in home.nodes if n.movable}
+    assert place == {"front_door": "hall#1", "pot": "kitchen#3"}
+    day = home.train[0]
+    # OPEN at 23:58 and never CLOSE: on until the log ends (11-07 00:30), so in use from the 23:50
+    # row of 11-04 through its 24:00 row ([00:00, 00:10) of 11-05), and all day on 11-06
+    assert [m for m, row in zip(day.minutes, day.locations) if row[0] == "in_use#2"] == [1430, 1440]
+    assert {row[0] for row in home.test[0].locations} == {"in_use#2"}
+
+
+def test_a_sensor_left_on_counts_until_the_log_ends_and_is_noted(tmp_path):
+    text = LOG.replace("2010-11-06 08:00:00.000000 I002 PRESENT\n", "")
+    result, home = _import(tmp_path, text=text)
+    test_day = home.test[0]
+    in_use = [m for m, row in zip(test_day.minutes, test_day.locations) if row[1].startswith("in_use#")]
+    assert in_use == list(range(480, 1441, 10))  # from 08:00 through the 24:00 row (the log ends 00:30)
+    assert any("I002 is still on at the end of the log" in note for note in result.notes)
+
+
+def _error(tmp_path, text, **kwargs):
+    with pytest.raises(DataError) as info:
+        log_file = _write(tmp_path, text) if isinstance(text, str) else text
+        import_casas(log_file=log_file, dest=tmp_path / "out", **kwargs)
+    assert not (tmp_path / "out").exists()  # nothing is written when a line is bad
+    return info.value
+
+
+GOOD = "2010-11-04 05:00:00.000000 M001 ON Sleeping begin\n"
+
+
+@pytest.mark.parametrize("line, field, message", [
+    ("2010-13-04 06:00:00 M001 ON", "date", "not a valid date"),
+    ("2010-11-4 06:00:00 M001 ON", "date", "is not a date"),
+    ("2010-11-04 6:00:00 M001 ON", "time", "not a time of day"),
+    ("2010-11-04 06:00 M001 ON", "time", "not a time of day"),
+    ("2010-11-04 06:00:00 M001", "value", "missing field"),
+    ("2010-11-04 06:00:00 M001 ONM026", "value", "is not ON, OFF"),
+    ("2010-11-04 06:00:00 M001 ON Sleeping", "begin/end", "must be followed by 'begin' or 'end'"),
+    ("2010-11-04 06:00:00 M001 ON Sleeping stop", "begin/end", "is not 'begin' or 'end'"),
+    ("2010-11-04 06:00:00 M001 ON Sleeping end extra", "begin/end", "7 fields"),
+    ("2010-11-04 06:00:00 M0/1 ON", "sensor", "is not a sensor id"),
+    ("2010-11-04 04:59:59.999999 M001 OFF", "time", "events must be in time order"),
+    ("2010-11-04 06:00:00 M001 OFF Relax end", "activity", "'Relax' ends but never began"),
+    ("2010-11-04 06:00:00 M001 OFF Sleeping begin", "activity", "begins again before it ended"),
+    ("2010-11-04 06:00:00 M001 OFF Relax begin\n2010-11-04 07:00:00 M001 OFF Relax end", "activity",
+     "'Relax' begins at 2010-11-04 06:00:00 while 'Sleeping' (line 1)"),
+    ("2010-11-04 06:00:00 I001 12.5", "value", "is a reading, not a use"),
+])
+def test_a_bad_line_names_file_line_and_field(tmp_path, line, field, message):
+    err = _error(tmp_path, GOOD + line + "\n2010-11-06 00:00:00 M001 OFF Sleeping end\n")
+    assert (err.source, err.line, err.field) == (str(tmp_path / "data.txt"), 2, field)
+    assert message in err.message
+    assert re.match(rf"{re.escape(str(tmp_path / 'data.txt'))}:2: column '{re.escape(field)}': ", str(err))
+
+
+def test_an_activity_left_open_names_the_line_that_began_it(tmp_path):
+    err = _error(tmp_path, "2010-11-04 05:00:00 M001 ON\n" + GOOD.replace("05:00:00.000000", "05:01:00"))
+    assert (err.line, err.field) == (2, "activity") and "never ends" in err.message
+
+
+def test_binary_garbage_empty_files_and_other_encodings_are_refused(tmp_path):
+    garbage = tmp_path / "garbage.txt"
+    garbage.write_bytes(GOOD.encode() + b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR")
+    err = _error(tmp_path, garbage)
+    assert err.line == 4 and "binary data" in err.message  # the PNG signature holds two line ends before its NUL
+    latin = tmp_path / "latin.txt"
+    latin.write_bytes(GOOD.encode() + "2010-11-04 06:00:00 M001 ON Caf\u00e9 begin\n".encode("latin-1"))
+    err = _error(tmp_path, latin)
+    assert err.line == 2 and "not UTF-8" in err.message
+    err = _error(tmp_path, "\n  \n")
+    assert err.line == 1 and "empty file" in err.message
+
+
+def test_overlapping_annotations_can_let_the_later_one_win(tmp_path):
+    # Sleeping [05:50, 06:55) holds a Toilet visit [06:12, 06:31): the visit covers 06:20 and 06:30.
+    text = ("2010-11-04 05:50:00 M001 ON Sleeping begin\n"
+            "2010-11-04 06:12:00 M002 ON Toilet begin\n"
+            "2010-11-04 06:31:00 M002 OFF Toilet end\n"
+            "2010-11-04 06:55:00 M001 OFF Sleeping end\n"
+            "2010-11-05 00:00:00 M001 ON\n")
+    err = _error(tmp_path, text)
+    assert (err.line, err.field) == (2, "activity") and "may not overlap" in err.message
+    _, home = _import(tmp_path, text=text, options=GridOptions(overlaps="latest"))
+    day = home.train[0]
+    assert day.activities[:7] == ("Sleeping", "Sleeping", "Toilet", "Toilet", "Sleeping", "Sleeping", "idle")
+
+
+def test_a_mapped_sensor_missing_from_the_log_is_an_error_in_the_mapping(tmp_path):
+    mapping = _write(tmp_path, "sensor,object\nI001,pot\nI01,kettle\n", "map.csv")
+    err = _error(tmp_path, LOG, objects=mapping)
+    assert (err.source, err.line, err.field) == (str(mapping), 3, "sensor") and "'I01' is not in the log" in err.message
+
+
+def test_a_log_with_no_complete_annotated_day_is_refused(tmp_path):
+    err = _error(tmp_path, "2010-11-04 05:00:00 M001 ON\n2010-11-05 01:00:00 M001 OFF\n")
+    assert "no day to import" in err.message and "1 no annotation" in err.message

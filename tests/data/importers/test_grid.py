@@ -1,0 +1,117 @@
+"""The rules every importer shares (days, steps, the split, the folder), on logs built in code."""
+
+import json
+from datetime import datetime, timedelta
+
+import pytest
+
+from globe.data.csv_logs import load_household
+from globe.data.importers import grid
+from globe.data.importers.grid import Activation, Annotation, GridOptions, SensorLog, write_import
+from globe.data.importers.objects import ObjectSelection, Sensor
+from globe.errors import ConfigError, DataError
+
+START = datetime(2024, 1, 1)
+
+
+def _log(days: int) -> tuple[SensorLog, ObjectSelection]:
+    """``days`` annotated days: 'cooking' 07:00-07:30 each day and a cupboard opened at 07:05; the
+    log runs from 00:00 on the first day to 00:30 after the last."""
+    sensor_log = SensorLog("test", ("made-up",))
+    selection = ObjectSelection(mapping=None, default=lambda s: (True, "test"), default_help="all")
+    selection.choose(Sensor("c1", "cupboard", "", "kitchen"), source="made-up", line=1)
+    for i in range(days):
+        morning = START + timedelta(days=i, hours=7)
+        sensor_log.annotations.append(Annotation("cooking", morning, morning + timedelta(minutes=30), "made-up", i + 1,
+                                                 "cooking"))
+        opened = morning + timedelta(minutes=5)
+        sensor_log.activations.setdefault("c1", []).append(Activation(opened, opened))
+        sensor_log.events["c1"] += 1
+    sensor_log.saw(START)
+    sensor_log.saw(START + timedelta(days=days, minutes=30))
+    return sensor_log, selection
+
+
+def _write(tmp_path, days, **options):
+    sensor_log, selection = _log(days)
+    return write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(**options),
+                        dest=tmp_path / "home")
+
+
+@pytest.mark.parametrize("step", [1, 2, 5, 10])
+def test_every_step_gives_a_grid_the_loader_reads_back_with_that_step(tmp_path, step):
+    _write(tmp_path, 1, step_minutes=step)
+    home = load_household(tmp_path, "home")  # the step is inferred from the rows, as for any household
+    day = home.train[0]
+    assert day.minutes == tuple(range(360, 1441, step)) and len(day) == 1080 // step + 1
+    cooking = [m for m, a in zip(day.minutes, day.activities) if a == "cooking"]
+    assert cooking == list(range(420, 450, step))  # [07:00, 07:30): starts 07:00 .. 07:30 - step
+    used = [m for m, row in zip(day.minutes, day.locations) if row[0].startswith("in_use#")]
+    assert used == [420 + (5 // step) * step]  # the step holding 07:05
+
+
+def test_day_bounds_are_options(tmp_path):
+    _write(tmp_path, 1, day_start_minute=7 * 60 + 15, day_end_minute=22 * 60, step_minutes=5)
+    day = load_household(tmp_path, "home").train[0]
+    assert day.minutes[0] == 435 and day.minutes[-1] == 1320 and len(day) == (1320 - 435) // 5 + 1
+    assert day.activities[:4] == ("cooking", "cooking", "cooking", "idle")  # 07:15, 07:20, 07:25 of [07:00, 07:30)
+    assert not any(row[0].startswith("in_use#") for row in day.locations)  # the cupboard's 07:05 is before the day
+
+
+@pytest.mark.parametrize("days, options, test_days", [
+    (1, {}, 0), (2, {}, 1), (4, {}, 1), (10, {}, 2), (11, {}, 2), (75, {}, 15),
+    (10, {"test_fraction": 0.0}, 0), (10, {"test_days": 3}, 3), (10, {"test_days": 0}, 0),
+])
+def test_the_last_days_are_test_days(tmp_path, days, options, test_days):
+    result = _write(tmp_path, days, **options)
+    assert (result.train_days, result.test_days) == (days - test_days, test_days)
+    home = load_household(tmp_path, "home")
+    names = [d.name.split("/")[1] for d in home.train + home.test]
+    assert names == [(START + timedelta(days=i)).date().isoformat() for i in range(days)]  # test days come last
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"step_minutes": 7}, "does not divide the day"),
+    ({"step_minutes": 0}, "does not divide the day"),
+    ({"day_start_minute": 600, "day_end_minute": 600}, "must start before it ends"),
+    ({"day_end_minute": 1450}, "must start before it ends"),
+    ({"test_fraction": 1.0}, "test fraction"),
+    ({"test_days": -1}, "0 or more"),
+    ({"test_days": 2}, "would leave no training day"),
+])
+def test_options_are_checked_when_the_import_starts(tmp_path, options, message):
+    with pytest.raises(ConfigError, match=message):
+        _write(tmp_path, 2, **options)
+    assert not (tmp_path / "home").exists()
+
+
+def test_the_destination_must_be_new_or_empty_and_a_failed_write_leaves_nothing(tmp_path, monkeypatch):
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "old.csv").write_text("x")
+    with pytest.raises(DataError, match="not an empty folder"):
+        _write(tmp_path, 2)
+    (tmp_path / "home" / "old.csv").unlink()
+
+    def broken(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(grid, "write_day", broken)
+    with pytest.raises(OSError, match="disk full"):
+        _write(tmp_path, 2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["home"] and not any((tmp_path / "home").iterdir())
+
+
+def test_days_outside_the_log_and_unannotated_days_are_dropped_and_listed(tmp_path):
+    sensor_log, selection = _log(3)
+    sensor_log.annotations.pop(1)  # the second day has no annotation left
+    sensor_log.first = START + timedelta(hours=6, minutes=1)  # the log starts after the first day's 06:00
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
+    assert (result.train_days, result.test_days, result.dropped_days) == (1, 0, 3)
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    assert report["dropped_days"] == [
+        {"date": "2024-01-01",
+         "why": "partial: the log starts at 2024-01-01 06:01:00, after this day's first row (06:00)"},
+        {"date": "2024-01-02", "why": "no annotation"},
+        {"date": "2024-01-04",
+         "why": "partial: the log ends at 2024-01-04 00:30:00, before this day's last row (24:00)"},
+    ]

@@ -1,0 +1,215 @@
+"""The van Kasteren / Ordóñez importer on small logs written here: both forms round-tripped by hand,
+and bad lines named by file, line and field."""
+
+import json
+
+import pytest
+
+from globe.data.csv_logs import load_household
+from globe.data.importers import import_kasteren
+from globe.errors import DataError
+
+# Ordóñez: a two-line header, tabs in some lines and spaces in others, sensors as Location Type Place.
+ORDONEZ_SENSORS = """\
+Start time          End time            Location  Type      Place
+----------          --------            --------  ----      -----
+2011-11-28 05:40:00\t\t2011-11-28 06:18:11\t\tBed\t\tPressure\tBedroom
+2011-11-28 06:21:00\t\t2011-11-28 06:21:30\t\tCupboard\tMagnetic\tKitchen
+2011-11-28 06:29:50\t\t2011-11-28 06:40:05\t\tToaster\t\tElectric\tKitchen
+2011-11-28 06:35:00\t\t2011-11-28 06:35:02\t\tMaindoor\tMagnetic\tEntrance
+2011-11-28 07:00:00\t\t2011-11-28 07:00:10\t\tBasin\t\tPIR\t\tBathroom
+2011-11-29 08:00:00    2011-11-29 08:09:59    Fridge    Magnetic    Kitchen
+2011-11-30 00:29:00    2011-11-30 00:30:00    Bed       Pressure    Bedroom
+"""
+ORDONEZ_ADLS = """\
+Start time          End time            Activity
+----------          --------            --------
+2011-11-28 05:40:00\t\t2011-11-28 06:18:00\t\tSleeping
+2011-11-28 06:19:00\t\t2011-11-28 06:45:00\t\tBreakfast
+2011-11-28 07:00:00\t\t2011-11-28 07:05:00\t\tGrooming
+2011-11-28 07:11:00\t\t2011-11-28 07:19:00\t\tToileting
+2011-11-29 07:55:00    2011-11-29 08:20:00    Spare_Time/TV
+2011-11-30 00:20:00    2011-11-30 00:30:00    Sleeping
+"""
+
+# van Kasteren: numeric ids, named by a sensor list and an activity list.
+KASTEREN_SENSE = """\
+Start time\tEnd time\tID\tVal
+25-Feb-2008 05:59:00\t25-Feb-2008 06:01:00\t14\t1
+25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05\t7\t1
+25-Feb-2008 06:16:00\t25-Feb-2008 06:33:00\t8\t1
+26-Feb-2008 00:10:00\t26-Feb-2008 00:10:01\t12\t1
+"""
+KASTEREN_ACT = """\
+Start time\tEnd time\tID
+25-Feb-2008 05:50:00\t25-Feb-2008 06:05:00\t4
+25-Feb-2008 06:14:00\t25-Feb-2008 06:40:00\t17
+"""
+SENSOR_LIST = "sensor,name,type,room\n7,Cups cupboard,reed,kitchen\n8,Fridge,reed,kitchen\n12,Frontdoor,reed,hall\n" \
+              "14,ToiletFlush,flush,toilet\n"
+ACTIVITY_LIST = "id,activity\n4,use toilet\n17,get drink\n"
+
+
+def _files(tmp_path, **texts):
+    paths = {}
+    for name, text in texts.items():
+        paths[name] = tmp_path / f"{name}.txt"
+        paths[name].write_text(text, encoding="utf-8")
+    return paths
+
+
+def _used(home, day):
+    in_use = {n.node for n in home.nodes if n.cls == "in_use"}
+    return {obj: [m for m, row in zip(day.minutes, day.locations) if row[k] in in_use]
+            for k, obj in enumerate(home.objects)}
+
+
+def _acts(day):
+    return {m: a for m, a in zip(day.minutes, day.activities) if a != "idle"}
+
+
+def test_ordonez_round_trip_computed_by_hand(tmp_path):
+    f = _files(tmp_path, sensors=ORDONEZ_SENSORS, adls=ORDONEZ_ADLS)
+    result = import_kasteren(sensors_file=f["sensors"], activities_file=f["adls"], dest=tmp_path / "home")
+    home = load_household(tmp_path, "home")
+    # Magnetic and Electric sensors that are not doors, by name; all in their place, the kitchen
+    assert home.objects == ("cupboard", "fridge", "toaster")
+    assert {n.cls: n.start_location for n in home.nodes if n.movable} == dict.fromkeys(home.objects, "kitchen#1")
+    assert [d.name for d in home.train] == ["train/2011-11-28"] and [d.name for d in home.test] == ["test/2011-11-29"]
+    day = home.train[0]
+    # Sleeping [05:40, 06:18) -> 06:00, 06:10; Breakfast [06:19, 06:45) -> 06:20 .. 06:40;
+    # Grooming [07:00, 07:05) -> 07:00; Toileting [07:11, 07:19) covers no step's start.
+    assert _acts(day) == {360: "Sleeping", 370: "Sleeping", 380: "Breakfast", 390: "Breakfast", 400: "Breakfast",
+                          420: "Grooming"}
+    # cupboard open 06:21:00-06:21:30 (step 06:20); toaster on 06:29:50-06:40:05 (06:20, 06:30, 06:40)
+    assert _used(home, day) == {"cupboard": [380], "fridge": [], "toaster": [380, 390, 400]}
+    test_day = home.test[0]
+    assert _acts(test_day) == {480: "Spare_Time/TV", 490: "Spare_Time/TV"}
+    assert _used(home, test_day) == {"cupboard": [], "fridge": [480], "toaster": []}
+    report = json.loads((tmp_path / "home" / "import.json").read_text(encoding="utf-8"))
+    left = {s["sensor"]: s["why"] for s in report["sensors_left_out"]}
+    assert set(left) == {"Bed Pressure Bedroom", "Maindoor Magnetic Entrance", "Basin PIR Bathroom"}
+    assert "a door" in left["Maindoor Magnetic Entrance"] and "'PIR'" in left["Basin PIR Bathroom"]
+    toileting = next(a for a in report["activities"] if a["activity"] == "Toileting")
+    assert toileting["annotations_on_no_row"] == 1 and toileting["rows"] == 0
+    assert report["dropped_days"] == [{"date": "2011-11-30", "why": "partial: the log ends at 2011-11-30 00:30:00, "
+                                                                     "before this day's last row (24:00)"}]
+    assert result.notes == (f"{f['sensors']}: skipped 2 header lines before the first record",
+                            f"{f['adls']}: skipped 2 header lines before the first record")
+
+
+def test_van_kasteren_round_trip_with_sensor_and_activity_lists(tmp_path):
+    f = _files(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, sensors=SENSOR_LIST, activities=ACTIVITY_LIST)
+    import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home",
+                    sensor_list=f["sensors"], activity_list=f["activities"])
+    home = load_household(tmp_path, "home")
+    assert home.objects == ("cups_cupboard", "fridge")  # the Frontdoor is a door; the flush is not a contact
+    assert len(home.train) == 1 and not home.test  # one kept day: no test day
+    day = home.train[0]
+    # use toilet [05:50, 06:05) -> 06:00; get drink [06:14, 06:40) -> 06:20, 06:30 (06:10 is before it)
+    assert _acts(day) == {360: "use toilet", 380: "get drink", 390: "get drink"}
+    # cups 06:15:00-06:15:05 -> 06:10; fridge 06:16-06:33 -> 06:10, 06:20, 06:30
+    assert _used(home, day) == {"cups_cupboard": [370], "fridge": [370, 380, 390]}
+    report = json.loads((tmp_path / "home" / "import.json").read_text(encoding="utf-8"))
+    drink = next(a for a in report["activities"] if a["activity"] == "get drink")
+    assert drink["from"] == ["17"]
+
+
+def test_without_types_no_sensor_is_an_object_and_the_report_says_how_to_map_them(tmp_path):
+    f = _files(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT)
+    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home")
+    assert result.objects == () and result.activities == ("17", "4", "idle")
+    home = load_household(tmp_path, "home")
+    assert home.objects == () and {n.category for n in home.nodes} == {"Home", "Rooms", "InUse"}
+    report = json.loads((tmp_path / "home" / "import.json").read_text(encoding="utf-8"))
+    assert all("no sensor type known" in s["why"] for s in report["sensors_left_out"])
+
+
+def test_a_mapping_names_van_kasteren_ids(tmp_path):
+    f = _files(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT)
+    mapping = tmp_path / "map.csv"
+    mapping.write_text("sensor,object,room,furniture\n8,fridge,kitchen,\n7,cups,kitchen,cupboard\n", encoding="utf-8")
+    import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home", objects=mapping)
+    home = load_household(tmp_path, "home")
+    assert home.objects == ("fridge", "cups")
+    place = {n.cls: n.start_location for n in home.nodes if n.movable}
+    assert place == {"fridge": "kitchen#1", "cups": "cupboard#3"}
+    assert next(n for n in home.nodes if n.node == "cupboard#3").start_location == "kitchen#1"
+
+
+def _error(tmp_path, **texts):
+    lists = {k: texts.pop(k) for k in ("sensors", "activities") if k in texts}
+    f = _files(tmp_path, **texts, **lists)
+    with pytest.raises(DataError) as info:
+        import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "out",
+                        sensor_list=f.get("sensors"), activity_list=f.get("activities"))
+    assert not (tmp_path / "out").exists()
+    return info.value, f
+
+
+@pytest.mark.parametrize("bad, field, message", [
+    ("25-Fex-2008 06:15:00\t25-Feb-2008 06:15:05\t7\t1", "start", "is not a date"),
+    ("25-Feb-2008 06:15\t25-Feb-2008 06:15:05\t7\t1", "start", "is not a time of day"),
+    ("25-Feb-2008 06:15:00\t31-Feb-2008 06:15:05\t7\t1", "end", "not a valid date"),
+    ("25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05\t99\t1", "sensor", "unknown sensor '99'"),
+    ("25-Feb-2008 06:15:00\t25-Feb-2008 06:14:59\t7\t1", "end", "before it starts"),
+    ("25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05\t7\t0", "value", "is not 1"),
+    ("25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05\tCups Reed Kitchen", "sensor", "one log, one form"),
+    ("25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05", "sensor", "nothing after the two times"),
+    ("25-Feb-2008 06:15:00", "start", "not a record"),
+    ("Start time\tEnd time\tID\tVal", "start", "'Start' is not a date"),  # a header only comes first
+])
+def test_a_bad_sensor_line_names_file_line_and_field(tmp_path, bad, field, message):
+    lines = KASTEREN_SENSE.splitlines()
+    lines.insert(3, bad)
+    err, f = _error(tmp_path, sense="\n".join(lines) + "\n", act=KASTEREN_ACT, sensors=SENSOR_LIST)
+    assert (err.source, err.line, err.field) == (str(f["sense"]), 4, field)
+    assert message in err.message
+
+
+@pytest.mark.parametrize("bad, field, message", [
+    ("25-Feb-2008 06:20:00\t25-Feb-2008 06:30:00\t5", "activity", "unknown activity id '5'"),
+    ("25-Feb-2008 06:20:00\t25-Feb-2008 06:10:00\t4", "end", "before it starts"),
+    ("25-Feb-2008 06:39:59\t25-Feb-2008 06:50:00\t4", "start", "may not overlap"),
+])
+def test_a_bad_activity_line_names_file_line_and_field(tmp_path, bad, field, message):
+    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT + bad + "\n", activities=ACTIVITY_LIST)
+    assert (err.source, err.line, err.field) == (str(f["act"]), 4, field)
+    assert message in err.message
+
+
+def test_an_ordonez_log_needs_no_sensor_list(tmp_path):
+    err, f = _error(tmp_path, sense=ORDONEZ_SENSORS, act=ORDONEZ_ADLS, sensors=SENSOR_LIST)
+    assert (err.source, err.line, err.field) == (str(f["sense"]), 3, "sensor")
+    assert "leave out --sensor-list" in err.message
+
+
+def test_sensor_and_activity_lists_are_checked(tmp_path):
+    twice = SENSOR_LIST + "7,Cups again,reed,kitchen\n"
+    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, sensors=twice)
+    assert (err.source, err.line, err.field) == (str(f["sensors"]), 6, "sensor") and "listed twice" in err.message
+    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, activities="id,label\n4,x\n")
+    assert (err.source, err.line, err.field) == (str(f["activities"]), 1, "activity")
+
+
+def test_empty_and_header_only_files_are_refused(tmp_path):
+    err, f = _error(tmp_path, sense="", act=KASTEREN_ACT)
+    assert (err.source, err.line) == (str(f["sense"]), 1) and "empty file" in err.message
+    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act="Start time\tEnd time\tID\n")
+    assert (err.source, err.line) == (str(f["act"]), 1) and "no records (only 1 header line)" in err.message
+
+
+def test_one_object_from_sensors_in_two_places_needs_its_room_in_the_mapping(tmp_path):
+    f = _files(tmp_path, sensors=ORDONEZ_SENSORS, adls=ORDONEZ_ADLS)
+    mapping = tmp_path / "map.csv"
+    mapping.write_text("sensor,object\nCupboard Magnetic Kitchen,storage\nBasin PIR Bathroom,storage\n",
+                       encoding="utf-8")
+    with pytest.raises(DataError) as info:
+        import_kasteren(sensors_file=f["sensors"], activities_file=f["adls"], dest=tmp_path / "home", objects=mapping)
+    assert (info.value.source, info.value.line) == (str(f["sensors"]), 7) and "different rooms" in info.value.message
+    mapping.write_text("sensor,object,room\nCupboard Magnetic Kitchen,storage,kitchen\n"
+                       "Basin PIR Bathroom,storage,kitchen\n", encoding="utf-8")
+    import_kasteren(sensors_file=f["sensors"], activities_file=f["adls"], dest=tmp_path / "home", objects=mapping)
+    day = load_household(tmp_path, "home").train[0]
+    # either sensor marks the use: the cupboard at 06:20, the basin at 07:00
+    assert [m for m, row in zip(day.minutes, day.locations) if row[0] == "in_use#2"] == [380, 420]
