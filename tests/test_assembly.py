@@ -41,12 +41,18 @@ ROUTINE_MODELS = {
     "routine_time_window": ("5", "activity", "time_window", 5),
     "routine_shrinkage": ("3.0", "activity", "shrinkage", 3.0),
 }
+CLOCK_MODELS = {
+    "activity_estimator": ("clock", "activity", "kind", "ClockModel"),
+    "clock_slot_minutes": ("30", "activity", "slot_minutes", 30),
+    "clock_shrinkage": ("2.5", "activity", "shrinkage", 2.5),
+}
 
 
 def test_every_field_is_covered():
     assert set(GATE) == set(GateConfig.model_fields)
-    assert set(NGRAM_MODELS) | set(ROUTINE_MODELS) == set(ModelConfig.model_fields)
-    for table, section in ((GATE, GateConfig()), (NGRAM_MODELS, ModelConfig()), (ROUTINE_MODELS, ModelConfig())):
+    assert set(NGRAM_MODELS) | set(ROUTINE_MODELS) | set(CLOCK_MODELS) == set(ModelConfig.model_fields)
+    for table, section in ((GATE, GateConfig()), (NGRAM_MODELS, ModelConfig()), (ROUTINE_MODELS, ModelConfig()),
+                           (CLOCK_MODELS, ModelConfig())):
         for field, (_, _, _, expected) in table.items():
             if field != "activity_estimator":
                 assert getattr(section, field) != expected, f"{field}: the test value must differ from the default"
@@ -62,8 +68,9 @@ def _built(tmp_path, section: str, table: dict, extra_env: dict) -> dict:
 
 @pytest.mark.llm
 @pytest.mark.slow
-@pytest.mark.parametrize("section, table", [("gate", GATE), ("models", NGRAM_MODELS), ("models", ROUTINE_MODELS)],
-                         ids=["gate", "ngram-models", "routine-models"])
+@pytest.mark.parametrize("section, table", [("gate", GATE), ("models", NGRAM_MODELS), ("models", ROUTINE_MODELS),
+                                            ("models", CLOCK_MODELS)],
+                         ids=["gate", "ngram-models", "routine-models", "clock-models"])
 def test_settings_reach_the_built_objects_through_globe_evaluate(tmp_path, section, table):
     built = _built(tmp_path, section, table, {"GLOBE_LLM__BACKEND": "embedded"})
     assert built["chooser"]["kind"] == "globe" and built["chooser"]["backend"] == "embedded"

@@ -21,6 +21,7 @@ from globe.inference.movements import MovementModel
 from globe.models.activity import ActivityModel
 from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
+from globe.models.clock import ClockModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
@@ -49,6 +50,9 @@ def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
         return RoutineModel(order=models.routine_order, time_weight=models.routine_time_weight,
                             time_window=models.routine_time_window, shrinkage=models.routine_shrinkage,
                             step_minutes=step_minutes)
+    if models.activity_estimator == "clock":
+        return ClockModel(slot_minutes=models.clock_slot_minutes, shrinkage=models.clock_shrinkage,
+                          step_minutes=step_minutes)
     return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
                          time_weight=models.time_weight, time_window=models.time_window)
 

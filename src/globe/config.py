@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from globe.errors import ConfigError
 
 Alignment = Literal["previous", "current", "hybrid"]
-ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine"]
+ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine", "clock"]
 ObjectEstimator = Literal["longest", "witten_bell"]
 
 
@@ -59,6 +59,10 @@ class ModelConfig(_Section):
     routine_time_weight: float = Field(1.0, ge=0.0, le=10.0, description="routine model: weight of P(start | step)")
     routine_time_window: int = Field(3, ge=1, le=200, description="routine model: steps pooled for the start prior")
     routine_shrinkage: float = Field(1.0, gt=0.0, le=1000.0, description="routine model: pseudo-count of the stay hazard")
+    clock_slot_minutes: int = Field(60, ge=1, le=1440, description="clock model: width of a time-of-day slot (minutes)")
+    clock_shrinkage: float = Field(
+        5.0, gt=0.0, le=1000.0, description="clock model: pseudo-count pulling a slot toward the time-free bigram"
+    )
     object_marginal: bool = Field(
         False, description="mix object predictions over the activity distribution instead of its argmax"
     )
@@ -66,9 +70,23 @@ class ModelConfig(_Section):
 
 class SelectionConfig(_Section):
     folds: int = Field(5, ge=2, le=65, description="cross-validation folds over training days")
+    criterion: Literal["log_loss", "f1"] = Field(
+        "log_loss", description="what chooses the routine family's activity model (routine, clock, persistence): held-out log loss (a proper scoring rule: a model sure "
+        "of what does not happen pays for it, as persistence does at every change) or weighted F1; both are reported"
+    )
+    ngram_criterion: Literal["log_loss", "f1"] = Field(
+        "f1", description="what chooses the smoothed n-gram's settings (row ngram_smoothed, compared with the paper's F1 "
+        "rows): weighted F1 by default; the routine family (the models for real homes) follows 'criterion'"
+    )
+    object_criterion: Literal["log_loss", "f1"] = Field(
+        "f1", description="what chooses the object model: weighted F1 of the object picked (the protocol scores a pick "
+        "among the predicted activity's objects, so its log loss mostly counts the activity's mistakes); both are reported"
+    )
     activity_orders: tuple[int, ...] = Field((2, 3, 4, 6), description="n-gram orders tried (witten_bell)")
     routine_orders: tuple[int, ...] = Field((2, 3, 4), description="run n-gram orders tried (routine)")
     time_weights: tuple[float, ...] = Field((0.0, 1.0, 2.0), description="time-of-day weights tried")
+    clock_slots: tuple[int, ...] = Field((30, 60, 120), description="clock model: slot widths tried (minutes)")
+    clock_shrinkages: tuple[float, ...] = Field((2.0, 10.0), description="clock model: shrinkage pseudo-counts tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
     run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
     gate_thresholds: tuple[float, ...] = Field((0.25, 0.5), description="gate thresholds d tried")

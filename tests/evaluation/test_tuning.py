@@ -22,11 +22,20 @@ def _patternless(household, seed: int):
     return replace(household, train=tuple(days), test=())
 
 
-def test_cv_picks_persistence_when_the_routine_has_no_pattern(households, seed):
+def test_on_runs_of_random_activities_f1_picks_persistence_and_log_loss_a_model_of_durations(households, seed):
+    """By F1 nothing beats "the activity stays"; by log loss (the default) persistence pays for
+    every change it calls impossible, and a model of how long runs last wins."""
     h = _patternless(households["C"], seed)
-    models, selection = tuned_models(h, GlobeConfig(), "routine", Memo())
+    by_f1 = GlobeConfig().model_copy(update={"selection": GlobeConfig().selection.model_copy(update={"criterion": "f1"})})
+    models, selection = tuned_models(h, by_f1, "routine", Memo())
     assert models.activity_estimator == "persistence", selection["activity"].scores[:3]
-    assert {p["activity_estimator"] for p, _ in selection["activity"].scores} == {"persistence", "longest", "routine"}
+    assert {p["activity_estimator"] for p, _ in selection["activity"].scores} == {"persistence", "longest", "routine",
+                                                                                 "clock"}
+    models, selection = tuned_models(h, GlobeConfig(), "routine", Memo())
+    losses = {p["activity_estimator"]: m["log_loss"] for (p, _), m in
+              zip(selection["activity"].scores, selection["activity"].metrics)}
+    assert models.activity_estimator != "persistence"
+    assert min(losses.values()) < losses["persistence"] / 2
 
 
 def test_cv_keeps_the_routine_model_on_a_real_routine(households):

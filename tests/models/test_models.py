@@ -9,6 +9,7 @@ import pytest
 from globe.data.records import Day
 from globe.errors import ConfigError, ModelFileError, NotFittedError
 from globe.models.activity import ActivityModel
+from globe.models.clock import ClockModel
 from globe.models.io import load_model, save_model
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
@@ -77,6 +78,8 @@ MODELS = [
                  lambda m: m.predict_proba(["sleep", "wake", "eat"]), id="activity-wb-time"),
     pytest.param(lambda: RoutineModel(order=2, time_weight=1.0), DAYS,
                  lambda m: m.predict_proba(["sleep", "wake", "eat"]), id="activity-routine"),
+    pytest.param(lambda: ClockModel(slot_minutes=20, shrinkage=2.0), DAYS,
+                 lambda m: m.predict_proba(["sleep", "wake", "eat"]), id="activity-clock"),
     pytest.param(lambda: ObjectModel(), RUNS, lambda m: m.predict_proba("eat", ("bowl",)), id="object-longest"),
     pytest.param(lambda: ObjectModel(estimator="witten_bell", run_start_token=True), RUNS,
                  lambda m: m.predict_proba("eat", ("bowl",)), id="object-wb"),

@@ -35,12 +35,18 @@ ROUTINE = {  # the routine model's fields
     "routine_time_window": ("5", ("models", "activity", "time_window"), 5),
     "routine_shrinkage": ("2.0", ("models", "activity", "shrinkage"), 2.0),
 }
+CLOCK = {  # the clock model's fields
+    "activity_estimator": ("clock", ("models", "activity", "kind"), "ClockModel"),
+    "clock_slot_minutes": ("30", ("models", "activity", "slot_minutes"), 30),
+    "clock_shrinkage": ("2.5", ("models", "activity", "shrinkage"), 2.5),
+}
 
 
 def test_every_gate_and_models_field_is_covered():
     assert set(GATE) == set(GateConfig.model_fields)
-    assert set(NGRAM) | set(ROUTINE) == set(ModelConfig.model_fields)
-    for table, section in ((GATE, GateConfig()), (NGRAM, ModelConfig()), (ROUTINE, ModelConfig())):
+    assert set(NGRAM) | set(ROUTINE) | set(CLOCK) == set(ModelConfig.model_fields)
+    for table, section in ((GATE, GateConfig()), (NGRAM, ModelConfig()), (ROUTINE, ModelConfig()),
+                           (CLOCK, ModelConfig())):
         for field, (_, _, expected) in table.items():
             if field != "activity_estimator" or table is NGRAM:
                 assert getattr(section, field) != expected, field  # a non-default value
@@ -50,7 +56,7 @@ def env_for(section: str, table: dict) -> dict[str, str]:
     return {f"GLOBE_{section.upper()}__{field.upper()}": value for field, (value, _, _) in table.items()}
 
 
-@pytest.mark.parametrize("models", [NGRAM, ROUTINE], ids=["ngram", "routine"])
+@pytest.mark.parametrize("models", [NGRAM, ROUTINE, CLOCK], ids=["ngram", "routine", "clock"])
 def test_environment_reaches_the_served_objects(make_server, households, tmp_path, models):
     env = {**REPLAY_ENV, "GLOBE_LLM__BACKEND": "embedded", "GLOBE_LLM__N_THREADS": "1",
            "GLOBE_LLM__CACHE_DIR": str(tmp_path / "llm-cache"), **env_for("gate", GATE), **env_for("models", models)}

@@ -139,6 +139,10 @@ def timing_rows(runs: Sequence[MethodRun]) -> list[dict]:
             for r in runs]
 
 
+def _maybe_round(x: float | None) -> float | None:
+    return None if x is None else round(x, 4)
+
+
 def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
     """Every candidate tried by cross-validation on training days, its score, and the choice."""
     rows, seen = [], set()
@@ -147,10 +151,13 @@ def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
             if id(sel) in seen:  # methods of one family share their search
                 continue
             seen.add(id(sel))
-            for params, score in sel.scores:
+            measured = sel.metrics or [{"f1": score} for _, score in sel.scores]
+            for (params, _), metrics in zip(sel.scores, measured):
                 rows.append({"method": run.method, "household": run.household, "part": part,
                              "params": ";".join(f"{k}={v}" for k, v in params.items()),
-                             "cv_weighted_f1": round(score, 4), "chosen": params == sel.best})
+                             "criterion": "log_loss" if sel.criterion == "log_loss" else "weighted_f1",
+                             "cv_log_loss": _maybe_round(metrics.get("log_loss")),
+                             "cv_weighted_f1": _maybe_round(metrics.get("f1")), "chosen": params == sel.best})
     return rows
 
 

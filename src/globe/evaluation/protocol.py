@@ -63,6 +63,7 @@ class ObjectRecord:
     true: str
     choice: ObjectChoice
     injected: bool = False
+    p_true: float | None = None  # the object model's probability of the true object (log loss), when it ranked
 
     @property
     def predicted(self) -> str:
@@ -173,8 +174,11 @@ def evaluate_days(
         for q in queries:
             dry.choose_given(q.activity, q.belief, q.context_for, ranking(q))
         backend.prefetch(recorder.questions)
-    obj_records = [ObjectRecord(household=household.name, day=q.day, step=q.step, true_activity=q.true_activity,
-                                predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
-                                choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranking(q)), injected=q.injected)
-                   for q in queries]
+    obj_records = []
+    for q in queries:
+        ranked = ranking(q)
+        obj_records.append(ObjectRecord(household=household.name, day=q.day, step=q.step, true_activity=q.true_activity,
+                                        predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
+                                        choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranked),
+                                        injected=q.injected, p_true=None if ranked is None else ranked[1].get(q.true, 0.0)))
     return Evaluation(act_records, obj_records, time.perf_counter() - started)

@@ -45,11 +45,14 @@ def grid(space: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
 
 @dataclass(frozen=True, slots=True)
 class Selection:
-    """The chosen candidate, every candidate's score, and the time the search took."""
+    """The chosen candidate, every candidate's score (higher is better: the criterion), what was
+    measured beside it (``metrics``: per candidate, e.g. log loss and F1), and the time it took."""
 
     best: dict[str, Any]
     scores: list[tuple[dict[str, Any], float]] = field(default_factory=list)
     seconds: float = 0.0
+    criterion: str = "f1"
+    metrics: list[dict[str, float]] = field(default_factory=list)
 
 
 def best_of(scored: Sequence[tuple[T, float]]) -> T:
@@ -65,6 +68,19 @@ def select(candidates: Sequence[dict[str, Any]], score: Callable[[dict[str, Any]
     started = time.perf_counter()
     scored = [(dict(c), score(c)) for c in candidates]
     return Selection(dict(best_of(scored)) if scored else {}, scored, time.perf_counter() - started)
+
+
+def select_by(candidates: Sequence[dict[str, Any]], measure: Callable[[dict[str, Any]], dict[str, float]],
+              criterion: str) -> Selection:
+    """:func:`select` where each candidate is measured several ways (``measure``: metric ->
+    value) and ``criterion`` chooses: ``log_loss`` (lower is better, scored as its negative) or
+    another metric (higher is better)."""
+    started = time.perf_counter()
+    measured = [(dict(c), measure(c)) for c in candidates]
+    sign = -1.0 if criterion == "log_loss" else 1.0
+    scored = [(c, sign * m[criterion]) for c, m in measured]
+    return Selection(dict(best_of(scored)) if scored else {}, scored, time.perf_counter() - started, criterion,
+                     [m for _, m in measured])
 
 
 # -- what results depend on ------------------------------------------------------------------

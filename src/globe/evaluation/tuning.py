@@ -16,7 +16,7 @@ from typing import Any, Sequence
 from globe import assembly
 from globe.config import GateConfig, GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
-from globe.evaluation.metrics import f1
+from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.protocol import ActivityPredictor, evaluate_days
 from globe.evaluation.selection import (
     DataKey,
@@ -29,7 +29,7 @@ from globe.evaluation.selection import (
     folds,
     frozen_params,
     grid,
-    select,
+    select_by,
 )
 from globe.models.base import ActivityModelBase
 from globe.models.objects import ObjectModel
@@ -97,27 +97,45 @@ class ScanMemo:
         return self.model.top(distribution)
 
 
-def activity_f1(model: ScanMemo, days: Sequence[Sequence[str]]) -> float:
-    """Weighted F1 of the next activity at steps 1..T-1 of held-out days (0 with nothing to score)."""
-    true, pred = [], []
+def activity_scores(model: ScanMemo, days: Sequence[Sequence[str]]) -> dict[str, float]:
+    """Log loss and weighted F1 of the next activity at steps 1..T-1 of held-out days (a fold
+    with nothing to score: F1 0, log loss that of a probability of 0)."""
+    true, pred, p_true = [], [], []
     for day in days:
         for t, dist in enumerate(model.scan_proba(day)):
             if t:
                 true.append(day[t])
                 pred.append(model.top(dist) or "<none>")
-    return f1(true, pred) or 0.0
+                p_true.append(dist.get(day[t], 0.0))
+    return {"log_loss": log_loss(p_true) or log_loss([0.0]) or 0.0, "f1": f1(true, pred) or 0.0}
+
+
+def activity_f1(model: ScanMemo, days: Sequence[Sequence[str]]) -> float:
+    """Weighted F1 of the next activity at steps 1..T-1 of held-out days (0 with nothing to score)."""
+    return activity_scores(model, days)["f1"]
+
+
+def object_scores(household: Household, days: Sequence[Day], activity: ActivityPredictor, chooser: ObjectChooser,
+                  alignment: str, rankings: dict) -> dict[str, float]:
+    """Log loss (of the object model's probability of the object that moved) and weighted F1 of
+    the object at every movement of held-out days, under the full protocol."""
+    ev = evaluate_days(household, days, activity, chooser, alignment=alignment, rankings=rankings)  # type: ignore[arg-type]
+    p_true = [r.p_true for r in ev.objects if r.p_true is not None]
+    return {"log_loss": log_loss(p_true) or 0.0, "f1": f1([r.true for r in ev.objects], [r.predicted for r in ev.objects]) or 0.0}
 
 
 def object_f1(household: Household, days: Sequence[Day], activity: ActivityPredictor, chooser: ObjectChooser,
               alignment: str, rankings: dict) -> float:
     """Weighted F1 of the object at every movement of held-out days, under the full protocol."""
-    ev = evaluate_days(household, days, activity, chooser, alignment=alignment, rankings=rankings)  # type: ignore[arg-type]
-    return f1([r.true for r in ev.objects], [r.predicted for r in ev.objects]) or 0.0
+    return object_scores(household, days, activity, chooser, alignment, rankings)["f1"]
 
 
-def mean_over_folds(household: Household, k: int, score_fold: Any) -> float:
-    """The mean of ``score_fold(fold, held-out days)`` over the ``k`` folds."""
+def mean_over_folds(household: Household, k: int, score_fold: Any) -> Any:
+    """The mean of ``score_fold(fold, held-out days)`` over the ``k`` folds (a number, or each
+    metric of a dict of them)."""
     scores = [score_fold(fold, fold_days(household, fold)[1]) for fold in data_folds(household, k)]
+    if isinstance(scores[0], dict):
+        return {name: sum(s[name] for s in scores) / len(scores) for name in scores[0]}
     return sum(scores) / len(scores)
 
 
@@ -138,6 +156,8 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     if family == "routine":
         space = grid({"activity_estimator": ["routine"], "routine_order": sel.routine_orders,
                       "routine_time_weight": sel.time_weights})
+        space += grid({"activity_estimator": ["clock"], "clock_slot_minutes": sel.clock_slots,
+                       "clock_shrinkage": sel.clock_shrinkages})
         base: dict[str, Any] = {"object_marginal": True}
     elif family == "witten_bell":
         space = grid({"activity_estimator": ["witten_bell"], "activity_max_order": sel.activity_orders,
@@ -149,26 +169,27 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     # routine is "the activity stays the same" gets persistence, not a model that overfits.
     simpler: list[dict[str, Any]] = [{"activity_estimator": "persistence"}, {"activity_estimator": "longest"}]
 
-    def activity_score(params: dict[str, Any]) -> float:
+    def activity_measure(params: dict[str, Any]) -> dict[str, float]:
         models = cfg.models.model_copy(update=base | params)
-        return mean_over_folds(h, sel.folds, lambda fold, days: activity_f1(
+        return mean_over_folds(h, sel.folds, lambda fold, days: activity_scores(
             fitted_activity(h, fold, models, alignment, memo, step), [d.activities for d in days]))
 
-    act = select(simpler + space, activity_score)
+    act = select_by(simpler + space, activity_measure, sel.criterion if family == "routine" else sel.ngram_criterion)
     models = cfg.models.model_copy(update=base | act.best)
 
-    def object_score(params: dict[str, Any]) -> float:
+    def object_measure(params: dict[str, Any]) -> dict[str, float]:
         candidate = models.model_copy(update=params)
 
-        def score_fold(fold: Fold, days: Sequence[Day]) -> float:
+        def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
             activity = fitted_activity(h, fold, candidate, alignment, memo, step)
             objects = fitted_objects(h, fold, candidate, alignment, memo)
             chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=candidate.object_marginal)
-            return object_f1(h, days, activity, chooser, alignment, _rankings(memo, fold, candidate, alignment))
+            return object_scores(h, days, activity, chooser, alignment, _rankings(memo, fold, candidate, alignment))
 
         return mean_over_folds(h, sel.folds, score_fold)
 
-    obj = select(grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token}), object_score)
+    obj = select_by(grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token}),
+                    object_measure, sel.object_criterion)
     out = (models.model_copy(update=obj.best), {"activity": act, "objects": obj})
     memo.put(key, out)
     return out

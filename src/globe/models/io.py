@@ -24,6 +24,7 @@ from typing import Any
 from globe.errors import GlobeError, ModelFileError
 from globe.models.activity import ActivityModel
 from globe.models.baselines import PersistenceModel
+from globe.models.clock import ClockModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 
@@ -34,7 +35,7 @@ BUNDLE_VERSION = 1
 MODEL_FILE = "model.json"
 LEGACY_FILES = ("activity.json", "objects.json")
 MAX_MODEL_BYTES = 256 << 20
-_KINDS = {cls.kind: cls for cls in (ActivityModel, ObjectModel, PersistenceModel, RoutineModel)}
+_KINDS = {cls.kind: cls for cls in (ActivityModel, ClockModel, ObjectModel, PersistenceModel, RoutineModel)}
 _ACTIVITY_KINDS = frozenset(k for k in _KINDS if k != "object")
 
 

@@ -1,0 +1,124 @@
+"""Simulated homes that behave like real ones, written from code (no third-party data).
+
+``clock_home``: one adult whose day follows the clock with jitter: asleep until about 07:00,
+washing, breakfast, out at work on weekdays, meals around 12:30 and 19:00, television in the
+evening, bed near 23:00; long stretches of ``idle`` and ``relax`` as annotated homes have, and
+short uses of objects (a kettle, the fridge, a cupboard) at meals, shorter than a 10-minute step.
+``random_home``: the same labels with runs of random length in random order, unrelated to the
+clock, so nothing beats "the activity stays the same" by much.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+
+from globe.data.records import Day, Household, Node
+
+START, END = 360, 1440  # the grid: 06:00 to 24:00
+
+OBJECTS = ("kettle", "fridge", "cupboard", "microwave")
+HOME_PLACES = {"kettle": "counter#3", "fridge": "kitchen#2", "cupboard": "kitchen#2", "microwave": "counter#3"}
+IN_USE = "in_use#4"
+
+
+def _nodes() -> tuple[Node, ...]:
+    nodes = [Node("home#1", "home", "Home", False, "home#1"), Node("kitchen#2", "kitchen", "Rooms", False, "home#1"),
+             Node("counter#3", "counter", "Furniture", False, "kitchen#2"),
+             Node("in_use#4", "in_use", "InUse", False, "kitchen#2")]
+    nodes += [Node(f"{o}#{10 + i}", o, "placable_objects", True, HOME_PLACES[o]) for i, o in enumerate(OBJECTS)]
+    return tuple(nodes)
+
+
+@dataclass(frozen=True)
+class _Block:
+    activity: str
+    start: float  # minute of the day
+    uses: tuple[tuple[str, float], ...] = ()  # (object, minutes after the block starts)
+
+
+def _clock_blocks(rng: random.Random, weekday: int) -> list[_Block]:
+    """One day's schedule: (activity, start minute) with jitter; weekends sleep in and stay home."""
+    j = lambda sd: rng.gauss(0, sd)  # noqa: E731
+    workday = weekday < 5
+    wake = (420 if workday else 480) + j(20)
+    blocks = [_Block("sleeping", START), _Block("toileting", wake), _Block("grooming", wake + 8 + j(3)),
+              _Block("breakfast", wake + 25 + j(5), (("kettle", 1.0), ("fridge", 2.5), ("cupboard", 4.0)))]
+    if workday:
+        leave = wake + 70 + j(10)
+        blocks += [_Block("idle", blocks[-1].start + 20 + j(3)), _Block("leave_home", leave),
+                   _Block("relax", 1050 + j(30)), _Block("meal_preparation", 1110 + j(15),
+                                                         (("fridge", 2.0), ("cupboard", 6.0), ("microwave", 12.0))),
+                   _Block("dinner", 1140 + j(10))]
+    else:
+        blocks += [_Block("relax", blocks[-1].start + 25 + j(5)), _Block("idle", 660 + j(30)),
+                   _Block("meal_preparation", 740 + j(15), (("fridge", 1.5), ("microwave", 8.0))),
+                   _Block("lunch", 760 + j(10)), _Block("relax", 800 + j(20)), _Block("work", 900 + j(40)),
+                   _Block("meal_preparation", 1110 + j(15), (("fridge", 2.0), ("cupboard", 6.0))),
+                   _Block("dinner", 1140 + j(10))]
+    blocks += [_Block("washing_dishes", blocks[-1].start + 30 + j(5), (("cupboard", 3.0),)),
+               _Block("relax", blocks[-1].start + 45 + j(8)), _Block("idle", 1290 + j(20)),
+               _Block("sleeping", 1370 + j(20))]
+    if rng.random() < 0.3:  # a drink in the afternoon, some days
+        blocks.append(_Block("idle", 930 + j(30), (("kettle", 0.5), ("fridge", 1.0))))
+    return sorted(blocks, key=lambda b: b.start)
+
+
+def _unsettled(rng: random.Random, blocks: list[_Block], rate: float) -> list[_Block]:
+    """Real days between the scheduled activities: the person drifts between ``idle`` and
+    ``relax`` (and short chores) at random, about ``rate`` switches an hour while awake."""
+    out = list(blocks)
+    for here, after in zip(blocks, blocks[1:] + [_Block("sleeping", END)]):
+        if here.activity not in ("idle", "relax"):
+            continue
+        t = here.start
+        while True:
+            t += rng.expovariate(rate / 60)
+            if t >= after.start - 5:
+                break
+            out.append(_Block(rng.choice(("idle", "relax", "relax", "idle", "grooming", "toileting")), t))
+    return sorted(out, key=lambda b: b.start)
+
+
+def _random_blocks(rng: random.Random, labels: tuple[str, ...]) -> list[_Block]:
+    blocks, t = [], float(START)
+    while t < END:
+        blocks.append(_Block(rng.choice(labels), t, tuple((o, 1.0) for o in OBJECTS if rng.random() < 0.05)))
+        t += rng.choice((10, 20, 30, 60, 90, 120, 180))
+    return blocks
+
+
+def _day(name: str, blocks: list[_Block], step: int) -> Day:
+    """The blocks on the grid: each row takes the activity under way at its start; an object is in
+    use in a row when one of its uses (a minute long) falls inside it, and at home otherwise."""
+    minutes = tuple(range(START, END + 1, step))
+    starts = [b.start for b in blocks]
+    activities = []
+    for m in minutes:
+        under_way = [b for b, s in zip(blocks, starts) if s <= m]
+        activities.append(under_way[-1].activity if under_way else blocks[0].activity)
+    uses = [(o, b.start + after) for b in blocks for o, after in b.uses]
+    rows = []
+    for m in minutes:
+        rows.append(tuple(IN_USE if any(o == obj and m <= at < m + step for o, at in uses) else HOME_PLACES[obj]
+                          for obj in OBJECTS))
+    return Day(name, minutes, tuple(activities), tuple(rows))
+
+
+def _household(name: str, days: list[Day], test: int) -> Household:
+    return Household(name, _nodes(), OBJECTS, tuple(days[:-test]), tuple(days[-test:]))
+
+
+def clock_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0, drift: float = 0.0) -> Household:
+    """A home whose routine is a clock (see the module doc); day i is weekday i % 7; ``drift``
+    switches an hour between idle and relax make its quiet hours as unsettled as real ones."""
+    rng = random.Random(seed)
+    return _household("Clock", [_day(f"day{i:03d}", _unsettled(rng, _clock_blocks(rng, i % 7), drift), step)
+                                for i in range(days)], test)
+
+
+def random_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0) -> Household:
+    """A home with no routine (see the module doc)."""
+    rng = random.Random(seed)
+    labels = ("sleeping", "idle", "relax", "breakfast", "dinner", "grooming", "work", "leave_home")
+    return _household("Random", [_day(f"day{i:03d}", _random_blocks(rng, labels), step) for i in range(days)], test)
