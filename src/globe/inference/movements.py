@@ -16,6 +16,7 @@ shrunk towards P(target | object, source) and P(target | object). Training is co
 
 from __future__ import annotations
 
+import threading
 import weakref
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
@@ -327,18 +328,23 @@ class MovementModel(CountingModel):
         """The memo of destination rows (index by (activity, object, place) code, values) with every
         row filled that ``wanted`` reads: (activity codes of ``translate``, queries of ``src``)."""
         na = len(self.activities_)
-        if wanted:
-            codes = np.concatenate([query * na + translate[acts] for acts, query in wanted])
-            query, act = np.divmod(np.unique(codes), na)
-            self.destination_rows(act, src[query], gather=False)
-        rows = self.shared_places().rows
-        return rows.index, rows.values
+        places = self.shared_places()
+        with places.lock:  # households fitted on the same days share these rows across threads
+            if wanted:
+                codes = np.concatenate([query * na + translate[acts] for acts, query in wanted])
+                query, act = np.divmod(np.unique(codes), na)
+                self.destination_rows(act, src[query], gather=False)
+            return places.rows.index, places.rows.values
 
     def destination_rows(self, acts: np.ndarray, sources: np.ndarray, gather: bool = True) -> np.ndarray:
         """(groups x objects x targets): where each object goes from ``sources[g]`` when it moves
         during activity ``acts[g]`` (over the object's targets of :meth:`target_table`; memoised
         per activity, object and place; ``gather=False`` only fills the memo)."""
         places = self.shared_places()
+        with places.lock:
+            return self._destination_rows(places, acts, sources, gather)
+
+    def _destination_rows(self, places: "Places", acts: np.ndarray, sources: np.ndarray, gather: bool) -> np.ndarray:
         nj, nl = sources.shape[1], len(self.locations_)
         targets, _, position = self.target_table()
         codes = (acts[:, None] * nj + np.arange(nj)) * nl + sources
@@ -375,6 +381,7 @@ class Places:
     sources: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
     rows: _Rows = field(default_factory=lambda: _Rows(np.zeros(0, dtype=np.int64), np.zeros((0, 0))))
     targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    lock: threading.RLock = field(default_factory=threading.RLock)  # the service forecasts on several threads
 
 
 _SHARED_PLACES: "weakref.WeakValueDictionary[tuple, Places]" = weakref.WeakValueDictionary()
