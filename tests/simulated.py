@@ -66,7 +66,9 @@ def _clock_blocks(rng: random.Random, weekday: int) -> list[_Block]:
 
 def _unsettled(rng: random.Random, blocks: list[_Block], rate: float) -> list[_Block]:
     """Real days between the scheduled activities: the person drifts between ``idle`` and
-    ``relax`` (and short chores) at random, about ``rate`` switches an hour while awake."""
+    ``relax`` (and short chores) at random, about ``rate`` switches an hour while awake (none: 0)."""
+    if rate <= 0:
+        return list(blocks)
     out = list(blocks)
     for here, after in zip(blocks, blocks[1:] + [_Block("sleeping", END)]):
         if here.activity not in ("idle", "relax"):

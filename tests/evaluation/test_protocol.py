@@ -113,3 +113,37 @@ def test_rankings_shared_between_choosers_give_the_same_records(households, fitt
         assert [(r.day, r.step, r.predicted, r.confidence, r.asked) for r in a.objects] == \
                [(r.day, r.step, r.predicted, r.confidence, r.asked) for r in b.objects]
     assert any(r.asked for r in together[1].objects)  # the gate did ask, on shared rankings
+
+
+def test_llm_time_counts_the_batched_scoring_not_only_the_cache_reads():
+    """With a backend that answers ahead (prefetch), the LLM's time is the prefetch plus the reads."""
+    import time
+
+    from globe.reasoning.backends.base import Choice, LLMBackend
+    from globe.reasoning.gate import LLMOnlyChooser
+
+    class SlowAhead(LLMBackend):
+        name = "slow"
+
+        def __init__(self):
+            self.asked = 0
+
+        @property
+        def prefetches(self):
+            return True
+
+        def prefetch(self, questions):
+            time.sleep(0.2)
+
+        def choose(self, context, candidates):
+            self.asked += 1
+            return Choice(candidates[0], {c: 0.0 for c in candidates})
+
+    am = ActivityModel().fit([d.activities for d in TRAIN])
+    om = ObjectModel().fit([(r.activity, r.objects) for d in TRAIN for r in activity_runs(d, OBJECTS)])
+    ev = evaluate_days(HOME, HOME.test, am, LLMOnlyChooser(om, SlowAhead()))
+    assert ev.prefetch_s >= 0.2
+    assert sum(r.latency_s for r in ev.objects) < 0.2  # what the records alone would have said
+    from globe.evaluation.experiments import MethodRun
+
+    assert MethodRun("llm_only", HOME.name, ev, ev, 0.0).llm_s >= 0.2  # timing.csv's llm_s

@@ -113,6 +113,7 @@ def evaluate(
         stages.progress = show
         results = main_job.evaluate(cfg, hs, names, out_dir, main_job.backend_for(cfg, names), stages)
     print_table1(results)
+    print_activity_anticipation(out_dir)
     console.print(f"results in {out_dir} ({sum(s['seconds'] for s in stages.times):.1f} s)", markup=False)
 
 
@@ -133,6 +134,7 @@ def reproduce(
         results = main_job.reproduce(cfg, hs, out_dir, with_robustness=robustness, with_anticipation=anticipation,
                                      progress=show)
     print_table1(results.table1)
+    print_activity_anticipation(out_dir)
     if results.robustness is not None:
         print_robustness(results.robustness)
     if results.anticipation is not None and results.missing_labels is not None:
@@ -170,6 +172,33 @@ def robustness(
         _, res = main_job.robustness(cfg, hs, noise_dir, out_dir, main_job.backend_for(cfg), stages)
     print_robustness(res)
     console.print(f"results in {out_dir}", markup=False)
+
+
+def print_activity_anticipation(out_dir: Path) -> None:
+    """Accuracy of the activity ahead per home and method, and of the next different activity,
+    read back from the results folder."""
+    import csv
+
+    def rows(name: str) -> list[dict]:
+        path = out_dir / name
+        if not path.is_file():
+            return []
+        with path.open(newline="", encoding="utf-8") as fh:
+            return list(csv.DictReader(fh))
+
+    ahead, nxt = rows("activity_anticipation.csv"), rows("next_activity.csv")
+    every = list(dict.fromkeys(r["horizon_min"] for r in ahead))
+    horizons = list(dict.fromkeys([every[0], every[(len(every) - 1) // 2], every[-1]])) if every else []
+    table = Table(title="The activity ahead: accuracy at +minutes and of the next different activity")
+    table.add_column("home")
+    table.add_column("method", no_wrap=True)
+    for col in (*[f"+{h}" for h in horizons], "next"):
+        table.add_column(col, justify="right", no_wrap=True)
+    for r0 in dict.fromkeys((r["household"], r["method"]) for r in ahead):
+        get = {r["horizon_min"]: f"{float(r['accuracy']):.3f}" for r in ahead if (r["household"], r["method"]) == r0}
+        after = next((f"{float(r['accuracy']):.3f}" for r in nxt if (r["household"], r["method"]) == r0), "–")
+        table.add_row(*r0, *[get.get(h, "–") for h in horizons], after)
+    out.print(table)
 
 
 def print_anticipation(out_dir: Path) -> None:

@@ -100,6 +100,12 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
     for method in methods:
         with stages.stage(f"table1: {method}"):
             runs += run_methods(config, households, [method], backend, memo)
+    with stages.stage("activity anticipation"):
+        from globe.evaluation.activity_anticipation import run_activity_anticipation, write_activity_anticipation
+
+        scores = run_activity_anticipation(config, households, memo)
+        homes = ", ".join(h.name for h in households)
+        write_activity_anticipation(out_dir, scores, f"Test days of {homes}: the activity ahead")
     with stages.stage("table1: write results"):
         return write_table1_results(out_dir, runs, config)
 

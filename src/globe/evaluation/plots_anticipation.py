@@ -84,3 +84,27 @@ def lead_time_figure(rows: Sequence[dict]) -> Figure:
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def activity_horizon_figure(rows: Sequence[dict], title: str) -> Figure:
+    """Accuracy and log loss of the activity 10-60 minutes ahead per method, one column per
+    household (``rows``: ``activity_anticipation.csv``)."""
+    homes = list(dict.fromkeys(r["household"] for r in rows))
+    fig, axes = plt.subplots(2, max(len(homes), 1), figsize=(3.6 * max(len(homes), 1), 5.6), squeeze=False)
+    for col, hh in enumerate(homes):
+        mine = [r for r in rows if r["household"] == hh]
+        for i, method in enumerate(dict.fromkeys(r["method"] for r in mine)):
+            line = [r for r in mine if r["method"] == method]
+            x = [r["horizon_min"] for r in line]
+            axes[0][col].plot(x, [r["accuracy"] for r in line], marker="o", color=f"C{i}", label=method)
+            axes[1][col].plot(x, [r["log_loss"] for r in line], marker="o", color=f"C{i}", label=method)
+        axes[0][col].set_title(f"home {hh}", fontsize=9)
+        axes[0][col].set_ylim(0, 1)
+        axes[1][col].set_yscale("log")
+        axes[1][col].set_xlabel("minutes ahead")
+    axes[0][0].set_ylabel("accuracy")
+    axes[1][0].set_ylabel("log loss (nats, log scale)")
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

@@ -95,6 +95,7 @@ class Evaluation:
     activity: list[ActivityRecord]
     objects: list[ObjectRecord]
     inference_s: float
+    prefetch_s: float = 0.0  # the LLM's batched scoring of every question asked (then read from the cache)
 
 
 def _top(model: ActivityPredictor, distribution: dict[str, float]) -> str:
@@ -167,13 +168,16 @@ def evaluate_days(
         return memo[key]
 
     backend = getattr(chooser, "backend", None)
+    prefetch_s = 0.0
     if isinstance(backend, LLMBackend) and backend.prefetches:
         recorder = QuestionRecorder(backend)
         dry = copy.copy(chooser)
         dry.backend = recorder  # type: ignore[attr-defined]
         for q in queries:
             dry.choose_given(q.activity, q.belief, q.context_for, ranking(q))
+        prefetch_started = time.perf_counter()
         backend.prefetch(recorder.questions)
+        prefetch_s = time.perf_counter() - prefetch_started
     obj_records = []
     for q in queries:
         ranked = ranking(q)
@@ -181,4 +185,4 @@ def evaluate_days(
                                         predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
                                         choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranked),
                                         injected=q.injected, p_true=None if ranked is None else ranked[1].get(q.true, 0.0)))
-    return Evaluation(act_records, obj_records, time.perf_counter() - started)
+    return Evaluation(act_records, obj_records, time.perf_counter() - started, prefetch_s)

@@ -1,0 +1,178 @@
+"""Activity anticipation for any home, with or without objects: the activity 1..k steps ahead
+(weighted F1, accuracy, log loss) and the next *different* activity (accuracy at each change
+event, the event-based measure smart-home papers report), for an activity model beside two
+baselines that need no model: persistence ("nothing changes") and the time-of-day mode (what
+training days did most often at that step).
+
+The model sees the true activities up to the reference step r and nothing after; every r with
+r + k inside the day is scored. A change event is a step r whose activity differs from the one
+before; its truth is the first later activity that differs from a_r (events with none left in the
+day are not scored).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from globe import assembly
+from globe.config import GlobeConfig
+from globe.data.records import Day, Household
+from globe.evaluation import report
+from globe.evaluation.metrics import f1, log_loss
+from globe.evaluation.selection import Memo
+from globe.evaluation.tuning import tuned_models
+from globe.inference.horizon import activity_marginals, next_different
+from globe.models.base import ActivityModelBase
+from globe.models.state_space import state_space
+
+ANTICIPATION_COLUMNS = ("household", "method", "horizon_min", "references", "weighted_f1", "accuracy", "log_loss")
+NEXT_COLUMNS = ("household", "method", "events", "accuracy")
+
+
+@dataclass(frozen=True, slots=True)
+class HorizonScores:
+    """Scores of one method at one horizon (``steps`` ahead of the reference)."""
+
+    method: str
+    steps: int
+    references: int
+    weighted_f1: float
+    accuracy: float
+    log_loss: float
+
+
+@dataclass(frozen=True, slots=True)
+class AnticipationScores:
+    household: str
+    step_minutes: int
+    horizons: tuple[HorizonScores, ...]
+    next_activity: dict[str, tuple[int, float]]  # method -> (events, accuracy)
+
+    def rows(self) -> list[dict]:
+        """``activity_anticipation.csv`` rows (one per method and horizon)."""
+        return [{"household": self.household, "method": s.method, "horizon_min": s.steps * self.step_minutes,
+                 "references": s.references, "weighted_f1": round(s.weighted_f1, 4), "accuracy": round(s.accuracy, 4),
+                 "log_loss": round(s.log_loss, 4)} for s in self.horizons]
+
+    def next_rows(self) -> list[dict]:
+        """``next_activity.csv`` rows (one per method)."""
+        return [{"household": self.household, "method": m, "events": n, "accuracy": round(a, 4)}
+                for m, (n, a) in self.next_activity.items()]
+
+
+def time_of_day(train: Sequence[Day]) -> list[Counter[str]]:
+    """How often each activity was seen at each step of the training days."""
+    counts: list[Counter[str]] = []
+    for day in train:
+        for t, a in enumerate(day.activities):
+            if t == len(counts):
+                counts.append(Counter())
+            counts[t][a] += 1
+    return counts
+
+
+def _top(dist: dict[str, float]) -> str:
+    """The most probable label (ties: the first name), or '<none>' for an empty distribution."""
+    best = max(dist.values(), default=0.0)
+    return min((a for a, p in dist.items() if p == best), default="<none>") if best > 0 else "<none>"
+
+
+def score_anticipation(household: str, model: ActivityModelBase, train: Sequence[Day], test: Sequence[Day],
+                       steps: int, step_minutes: int, method: str = "model") -> AnticipationScores:
+    """Score ``model`` (fitted on ``train``), persistence and the time-of-day mode on ``test``
+    at 1..``steps`` steps ahead and at the next different activity."""
+    space = state_space(model)
+    refs = [(day, r) for day in test for r in range(len(day) - steps)]
+    roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
+    labels = space.labels
+    marginals = activity_marginals(space, roots, steps)
+    by_step = time_of_day(train)
+    methods = (method, "persistence", "time_of_day")
+    horizons = []
+    for j in range(1, steps + 1):
+        true, pred = [], {m: [] for m in methods}  # type: ignore[var-annotated]
+        p_true: dict[str, list[float]] = {m: [] for m in methods}
+        for q, (day, r) in enumerate(refs):
+            truth = day.activities[r + j]
+            true.append(truth)
+            row = marginals[q, j - 1]
+            total = row.sum()
+            mine = {labels[i]: float(p / total) for i, p in enumerate(row.tolist()) if p > 0} if total > 0 else {}
+            seen = by_step[r + j] if r + j < len(by_step) else Counter()
+            n = sum(seen.values())
+            tod = {a: c / n for a, c in seen.items()} if n else {}
+            for m, dist in zip(methods, (mine, {day.activities[r]: 1.0}, tod)):
+                pred[m].append(_top(dist))
+                p_true[m].append(dist.get(truth, 0.0))
+        for m in methods:
+            horizons.append(HorizonScores(m, j, len(refs), f1(true, pred[m]) or 0.0,
+                                          sum(a == b for a, b in zip(true, pred[m])) / max(len(true), 1),
+                                          log_loss(p_true[m]) or 0.0))
+    return AnticipationScores(household, step_minutes, tuple(horizons),
+                              _next_activity(space, test, by_step, method))
+
+
+def _next_activity(space, test: Sequence[Day], by_step: list[Counter[str]], method: str) -> dict[str, tuple[int, float]]:
+    """Accuracy of the next different activity at every change event of ``test``."""
+    events = []
+    for day in test:
+        acts = day.activities
+        for r in range(1, len(acts)):
+            if acts[r] != acts[r - 1]:
+                later = next((a for a in acts[r + 1:] if a != acts[r]), None)
+                if later is not None:
+                    events.append((day, r, later))
+    if not events:
+        return {m: (0, 0.0) for m in (method, "persistence", "time_of_day")}
+    roots = np.array([space.state(day.activities[: r + 1]) for day, r, _ in events], dtype=np.int64)
+    current = np.array([space.code(day.activities[r]) for day, r, _ in events], dtype=np.int64)
+    limits = np.array([len(day) - 1 - r for day, r, _ in events], dtype=np.int64)
+    probs = next_different(space, roots, current, limits)
+    labels = space.labels
+    hits = {method: 0, "persistence": 0, "time_of_day": 0}
+    for q, (day, r, truth) in enumerate(events):
+        row = probs[q]
+        mine = {labels[i]: float(p) for i, p in enumerate(row.tolist()) if p > 0}
+        hits[method] += _top(mine) == truth
+        here = day.activities[r]
+        modes = (_top(dict(by_step[t])) for t in range(r + 1, min(len(day), len(by_step))))
+        hits["time_of_day"] += next((a for a in modes if a != here), None) == truth
+        # persistence never expects a change: it has no next different activity (a miss)
+    return {m: (len(events), h / len(events)) for m, h in hits.items()}
+
+
+HORIZON_MINUTES = 60
+"""How far ahead the activity is scored (each step up to this many minutes)."""
+
+
+def run_activity_anticipation(config: GlobeConfig, households: Sequence[Household], memo: Memo) -> list[AnticipationScores]:
+    """Every household's test days, with the routine family's model chosen by cross-validation
+    on its training days (``memo``: the main job's searches)."""
+    out = []
+    for h in households:
+        if not h.test:
+            continue
+        models, _ = tuned_models(h, config, "routine", memo)
+        step = assembly.step_minutes(h, config)
+        model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
+        out.append(score_anticipation(h.name, model, h.train, h.test, max(1, HORIZON_MINUTES // step), step,
+                                      f"chosen ({models.activity_estimator})"))
+    return out
+
+
+def write_activity_anticipation(out_dir: Path, scores: Sequence[AnticipationScores], title: str) -> list[Path]:
+    """``activity_anticipation.csv`` and ``.png``, ``next_activity.csv``; returns the paths."""
+    from globe.evaluation.plots_anticipation import activity_horizon_figure, save_figure
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = [r for s in scores for r in s.rows()]
+    paths = [out_dir / "activity_anticipation.csv", out_dir / "next_activity.csv", out_dir / "activity_anticipation.png"]
+    report.write_csv(paths[0], rows, list(ANTICIPATION_COLUMNS))
+    report.write_csv(paths[1], [r for s in scores for r in s.next_rows()], list(NEXT_COLUMNS))
+    save_figure(activity_horizon_figure(rows, title), paths[2])
+    return paths

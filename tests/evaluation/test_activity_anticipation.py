@@ -1,0 +1,49 @@
+"""Activity anticipation scored for any home: the model beside persistence and the time-of-day
+mode, persistence scored by hand, and the files a results folder gets."""
+
+import csv
+
+from globe.config import GlobeConfig
+from globe.evaluation.activity_anticipation import (
+    run_activity_anticipation,
+    score_anticipation,
+    write_activity_anticipation,
+)
+from globe.evaluation.selection import Memo
+from globe.models.baselines import PersistenceModel
+from tests.simulated import clock_home
+
+
+def by_method(scores, minutes):
+    return {r["method"]: r for r in scores.rows() if r["horizon_min"] == minutes}
+
+
+def test_persistence_scores_are_the_share_of_steps_that_did_not_change():
+    home = clock_home(30, 4, 10, 3)
+    model = PersistenceModel().fit([d.activities for d in home.train])
+    scores = score_anticipation(home.name, model, home.train, home.test, 3, 10, "model")
+    for j in (1, 3):
+        refs = [(d, r) for d in home.test for r in range(len(d) - 3)]
+        same = sum(d.activities[r] == d.activities[r + j] for d, r in refs) / len(refs)
+        rows = by_method(scores, 10 * j)
+        assert rows["persistence"]["accuracy"] == round(same, 4)
+        assert rows["model"]["accuracy"] == rows["persistence"]["accuracy"]  # the same rule as a model
+    assert dict((m, a) for m, (_, a) in scores.next_activity.items())["persistence"] == 0.0
+
+
+def test_on_a_clock_home_the_chosen_model_beats_both_baselines_further_ahead(tmp_path):
+    home = clock_home(75, 10, 10, 4, 3.0)
+    [scores] = run_activity_anticipation(GlobeConfig(), [home], Memo())
+    for minutes in (30, 60):
+        rows = by_method(scores, minutes)
+        chosen = next(r for m, r in rows.items() if m.startswith("chosen"))
+        assert chosen["accuracy"] > rows["persistence"]["accuracy"] + 0.03
+        assert chosen["accuracy"] > rows["time_of_day"]["accuracy"] + 0.03
+        assert chosen["log_loss"] < rows["time_of_day"]["log_loss"] < rows["persistence"]["log_loss"]
+    accuracy = {m: a for m, (_, a) in scores.next_activity.items()}
+    assert max(accuracy, key=accuracy.get).startswith("chosen")
+    paths = write_activity_anticipation(tmp_path, [scores], "Test days of Clock: the activity ahead")
+    assert [p.name for p in paths] == ["activity_anticipation.csv", "next_activity.csv", "activity_anticipation.png"]
+    rows = list(csv.DictReader(paths[0].open()))
+    assert len(rows) == 3 * 6 and {r["horizon_min"] for r in rows} == {str(10 * j) for j in range(1, 7)}
+    assert paths[2].stat().st_size > 10_000
