@@ -1,11 +1,14 @@
 """Cross-validation on training days: folds, selection, and that simpler models can win."""
 
+import math
 import random
 from dataclasses import replace
 
 from globe.config import GlobeConfig
+from globe.evaluation.metrics import LOG_LOSS_FLOOR
 from globe.evaluation.selection import Memo
-from globe.evaluation.tuning import tuned_gate, tuned_models
+from globe.evaluation.tuning import ScanMemo, activity_scores, tuned_gate, tuned_models
+from globe.models.baselines import PersistenceModel
 from globe.reasoning.backends.base import Choice, LLMBackend
 
 
@@ -91,3 +94,9 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
     counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")
                                        and k.model != "sequences")]
     assert len(counted) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit
+
+
+def test_a_perfect_prediction_scores_a_log_loss_of_zero_and_an_empty_fold_the_floor():
+    model = ScanMemo(PersistenceModel().fit([("a", "a", "a")]))
+    assert activity_scores(model, [("a", "a", "a")])["log_loss"] == 0.0
+    assert activity_scores(model, [])["log_loss"] == -math.log(LOG_LOSS_FLOOR)

@@ -107,7 +107,8 @@ def activity_scores(model: ScanMemo, days: Sequence[Sequence[str]]) -> dict[str,
                 true.append(day[t])
                 pred.append(model.top(dist) or "<none>")
                 p_true.append(dist.get(day[t], 0.0))
-    return {"log_loss": log_loss(p_true) or log_loss([0.0]) or 0.0, "f1": f1(true, pred) or 0.0}
+    loss = log_loss(p_true if p_true else [0.0])
+    return {"log_loss": 0.0 if loss is None else loss, "f1": f1(true, pred) or 0.0}
 
 
 def activity_f1(model: ScanMemo, days: Sequence[Sequence[str]]) -> float:
