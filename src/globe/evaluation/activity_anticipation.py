@@ -28,7 +28,7 @@ from globe.evaluation.selection import Memo
 from globe.evaluation.tuning import tuned_models
 from globe.inference.horizon import activity_marginals, next_different
 from globe.models.base import ActivityModelBase
-from globe.models.state_space import state_space
+from globe.models.state_space import StateSpace, state_space
 
 ANTICIPATION_COLUMNS = ("household", "method", "horizon_min", "references", "weighted_f1", "accuracy", "log_loss")
 NEXT_COLUMNS = ("household", "method", "events", "accuracy")
@@ -117,7 +117,8 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
                               _next_activity(space, test, by_step, method))
 
 
-def _next_activity(space, test: Sequence[Day], by_step: list[Counter[str]], method: str) -> dict[str, tuple[int, float]]:
+def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[Counter[str]],
+                   method: str) -> dict[str, tuple[int, float]]:
     """Accuracy of the next different activity at every change event of ``test``."""
     events = []
     for day in test:
