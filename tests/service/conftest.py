@@ -8,7 +8,7 @@ import time
 import httpx
 import pytest
 
-from globe.service.client import GlobeClient, household_payload
+from globe.service.client import GlobeClient, ServiceError, household_payload
 from tests.service_process import Server
 
 # Replays of HOMER+ days run in the past, so the replay tests widen the clock-skew window.
@@ -38,6 +38,16 @@ def make_server(tmp_path):
 def server(make_server):
     """A service whose clock-skew window admits HOMER+ replays."""
     return make_server(REPLAY_ENV)
+
+
+def fails(call, status: int, field: str | None = None) -> ServiceError:
+    """The ServiceError ``call()`` raises, checked for its HTTP status (and the field it names)."""
+    with pytest.raises(ServiceError) as err:
+        call()
+    assert err.value.status == status, err.value
+    if field is not None:
+        assert err.value.field == field, err.value
+    return err.value
 
 
 def upload(client: GlobeClient, name: str, household, timezone: str | None = "UTC", days: bool = True) -> dict:

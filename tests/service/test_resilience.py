@@ -9,20 +9,11 @@ import sys
 import httpx
 import pytest
 
-from globe.service.client import GlobeClient, ServiceError
-from tests.service.conftest import at, upload
+from globe.service.client import GlobeClient
+from tests.service.conftest import at, fails, upload
 
 pytestmark = pytest.mark.service
 UTC = dt.timezone.utc
-
-
-def fails(call, status, field=None):
-    with pytest.raises(ServiceError) as err:
-        call()
-    assert err.value.status == status, err.value
-    if field is not None:
-        assert err.value.field == field, err.value
-    return err.value
 
 
 def test_time_policy(make_server, households):

@@ -12,20 +12,11 @@ from zoneinfo import ZoneInfo
 import httpx
 import pytest
 
-from globe.service.client import ServiceError, household_payload
-from tests.service.conftest import at, upload
+from globe.service.client import household_payload
+from tests.service.conftest import at, fails, upload
 
 pytestmark = pytest.mark.service
 UTC = dt.timezone.utc
-
-
-def fails(call, status, field=None):
-    with pytest.raises(ServiceError) as err:
-        call()
-    assert err.value.status == status, err.value
-    if field is not None:
-        assert err.value.field == field, err.value
-    return err.value
 
 
 def test_a_household_that_cannot_be_built_is_failed_yet_deletable_and_exportable(server, households):
