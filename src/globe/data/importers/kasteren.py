@@ -30,10 +30,17 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from globe.data.csv_logs import _check_header, _clean, _csv_rows, _label, _ragged
+from globe.data.csv_logs import _check_header, _clean, _csv_rows, _label
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
-from globe.data.importers.text import parse_date_time, parse_day_month_year, read_lines, read_text, show
+from globe.data.importers.text import (
+    parse_date_time,
+    parse_day_month_year,
+    read_lines,
+    read_text,
+    show,
+    table_cells,
+)
 from globe.errors import DataError
 
 log = logging.getLogger(__name__)
@@ -98,10 +105,7 @@ def read_sensor_list(path: Path) -> dict[str, Sensor]:
         raise DataError("unknown column (a sensor list has sensor, name, and optionally type, room)", source=source,
                         line=1, field=unknown[0])
     sensors: dict[str, Sensor] = {}
-    for line, row in rows[1:]:
-        if len(row) != len(header):
-            raise _ragged(source, line, row, header)
-        cell = {name: _clean(value) for name, value in zip(header, row)}
+    for line, cell in table_cells(rows, header, source):
         key = _label(cell["sensor"], source, line, "sensor", "sensor id")
         if key in sensors:
             raise DataError(f"sensor {show(key)} is listed twice", source=source, line=line, field="sensor")
@@ -117,10 +121,7 @@ def read_activity_list(path: Path) -> dict[str, str]:
     header = [_clean(h) for h in rows[0][1]]
     _check_header(source, header, ("id", "activity"))
     labels: dict[str, str] = {}
-    for line, row in rows[1:]:
-        if len(row) != len(header):
-            raise _ragged(source, line, row, header)
-        cell = {name: _clean(value) for name, value in zip(header, row)}
+    for line, cell in table_cells(rows, header, source):
         key = _label(cell["id"], source, line, "id", "activity id")
         if key in labels:
             raise DataError(f"activity id {show(key)} is listed twice", source=source, line=line, field="id")

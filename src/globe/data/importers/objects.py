@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from globe.data.csv_logs import FIXED_COLUMNS, _check_header, _clean, _csv_rows, _ragged
-from globe.data.importers.text import read_text, show, slug
+from globe.data.csv_logs import FIXED_COLUMNS, _check_header, _clean, _csv_rows
+from globe.data.importers.text import read_text, show, slug, table_cells
 from globe.data.records import Node
 from globe.errors import DataError
 
@@ -102,10 +102,7 @@ def read_mapping(path: Path) -> ObjectMapping:
                         source=source, line=1, field=unknown[0])
     mapping: dict[str, MappingRow] = {}
     homes: dict[str, tuple[str, str, int]] = {}
-    for line, row in rows[1:]:
-        if len(row) != len(header):
-            raise _ragged(source, line, row, header)
-        cell = {name: _clean(value) for name, value in zip(header, row)}
+    for line, cell in table_cells(rows, header, source):
         sensor = cell["sensor"]
         if not sensor:
             raise DataError("empty sensor", source=source, line=line, field="sensor")

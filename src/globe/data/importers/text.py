@@ -12,7 +12,9 @@ from __future__ import annotations
 import re
 from datetime import datetime
 from pathlib import Path
+from typing import Iterator, Sequence
 
+from globe.data.csv_logs import _clean, _ragged
 from globe.errors import DataError
 
 _ISO_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
@@ -132,3 +134,13 @@ def slug(text: str) -> str:
     """A sensor or place name as a class name: lower case, runs of other characters as ``_``
     (``Hall-Toilet door`` -> ``hall_toilet_door``)."""
     return re.sub(r"[^0-9a-z]+", "_", text.lower()).strip("_")
+
+
+def table_cells(rows: Sequence[tuple[int, list[str]]], header: list[str],
+                source: str) -> Iterator[tuple[int, dict[str, str]]]:
+    """The data lines of a mapping or listing CSV (``rows[0]`` is its header) as (line, {column:
+    cleaned value}); a line with another number of fields than the header is an error."""
+    for line, row in rows[1:]:
+        if len(row) != len(header):
+            raise _ragged(source, line, row, header)
+        yield line, {name: _clean(value) for name, value in zip(header, row)}
