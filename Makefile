@@ -16,7 +16,7 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml setup.py $(wildcard src/globe/*/*.c) tools/llama_wheel.py
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python tools/llama_wheel.py $(WHEELS)
-	$(VENV)/bin/python -m pip install --find-links $(WHEELS) -e ".[all,dev]"
+	$(VENV)/bin/python -m pip install --find-links $(WHEELS) -e ".[all,dev,docs]"
 	touch $(STAMP)
 
 reproduce: $(STAMP)
