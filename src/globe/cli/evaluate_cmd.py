@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 from contextlib import contextmanager
 from pathlib import Path
@@ -22,6 +23,7 @@ from globe.cli.common import (
     resolve,
 )
 from globe.evaluation.methods import METHODS
+from globe.evaluation.published import DataScope
 
 if TYPE_CHECKING:
     from globe.evaluation.results import Table1Results
@@ -35,13 +37,14 @@ def _num(x: float | None) -> str:
     return "–" if x is None else f"{x:.3f}"
 
 
-def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
-    """Compact terminal view of Table I: weighted F1 averaged over households, and per household."""
-    from globe.evaluation.published import TABLE1
+def table1_table(rows: list[dict], labels: dict[str, str], scope: DataScope) -> Table:
+    """Compact terminal view of Table I: weighted F1 averaged over households, and per household;
+    the paper's published rows beside HOMER+ only."""
+    from globe.evaluation.published import TABLE1, TABLE1_MEAN_ONLY
 
     weighted = [r for r in rows if r["average"] == "weighted"]
     households = [h for h in dict.fromkeys(r["household"] for r in weighted) if h != "mean"]
-    table = Table(title="Table I - HOMER+ test days, weighted F1 (mean of households)")
+    table = Table(title=f"Table I - {scope.title} test days, weighted F1 (mean of households)")
     for col in ["method", "activity", "object", "mean", *[f"{h}: act/obj" for h in households]]:
         table.add_column(col, justify="left" if col == "method" else "right")
     for method in dict.fromkeys(r["method"] for r in weighted):
@@ -49,12 +52,14 @@ def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
         m = get["mean"]
         table.add_row(labels.get(method, method), _num(m["activity_f1"]), _num(m["object_f1"]), _num(m["mean_f1"]),
                       *[f"{_num(get[h]['activity_f1'])} / {_num(get[h]['object_f1'])}" for h in households])
-    for method, (a, o, mean) in TABLE1.items():
-        table.add_row(f"[dim]{method} (published)[/dim]", f"{a:.2f}", f"{o:.2f}", f"{mean:.2f}", *["" for _ in households])
+    published = [(m, f"{a:.2f}", f"{o:.2f}", f"{mean:.2f}") for m, (a, o, mean) in TABLE1.items()]
+    published += [(m, "–", "–", f"{mean:.2f}") for m, mean in TABLE1_MEAN_ONLY.items()]
+    for method, *figures in published if scope.homer_plus else ():
+        table.add_row(f"[dim]{method} (published)[/dim]", *figures, *["" for _ in households])
     return table
 
 
-def timing_table(rows: list[dict]) -> Table:
+def timing_table(rows: list[dict], scope: DataScope) -> Table:
     from globe.evaluation.published import TABLE2
 
     table = Table(title="Table II - time for the whole test split (s)")
@@ -63,7 +68,7 @@ def timing_table(rows: list[dict]) -> Table:
     for r in rows:
         table.add_row(r["method"], r["household"], f"{r['train_s']:.3f}", f"{r['inference_s']:.3f}", str(r["llm_calls"]),
                       f"{r['llm_s']:.2f}", f"{r['selection_s']:.2f}" if r["selection_s"] else "")
-    for method, (tr, inf) in TABLE2.items():
+    for method, (tr, inf) in TABLE2.items() if scope.homer_plus else ():
         table.add_row(f"[dim]{method} (published)[/dim]", "", f"{tr:.2f}", f"{inf:.2f}", "", "", "")
     return table
 
@@ -78,8 +83,8 @@ def stage_display() -> Iterator[Callable[[str], None]]:
 
 
 def print_table1(results: Table1Results) -> None:
-    out.print(table1_table(results.rows, results.labels))
-    out.print(timing_table(results.timing))
+    out.print(table1_table(results.rows, results.labels, results.scope))
+    out.print(timing_table(results.timing, results.scope))
 
 
 def print_stages(stages: list[dict]) -> None:
@@ -201,6 +206,12 @@ def print_activity_anticipation(out_dir: Path) -> None:
     out.print(table)
 
 
+def _scope(out_dir: Path) -> DataScope | None:
+    """What a results folder is about (``data.json``, written with Table I), if it says."""
+    path = out_dir / "data.json"
+    return DataScope.from_dict(json.loads(path.read_text(encoding="utf-8"))) if path.is_file() else None
+
+
 def print_anticipation(out_dir: Path) -> None:
     """The mean rows of the anticipation tables, read back from the results folder."""
     import csv
@@ -211,7 +222,9 @@ def print_anticipation(out_dir: Path) -> None:
 
     look = rows("lookahead.csv")
     horizons = list(dict.fromkeys(r["horizon_min"] for r in look))
-    table = Table(title="Lookahead: relocation F1 (mean of households; SLaTe-PRO published 0.57, 0.60 with queries)")
+    scope = _scope(out_dir)
+    published = "; SLaTe-PRO published 0.57, 0.60 with queries" if scope and scope.homer_plus else ""
+    table = Table(title=f"Lookahead{' on ' + scope.title if scope else ''}: relocation F1 (mean of households{published})")
     table.add_column("method")
     for h in horizons:
         table.add_column(f"{h} min", justify="right")
