@@ -88,6 +88,9 @@ class SelectionConfig(_Section):
     clock_slots: tuple[int, ...] = Field((30, 60, 120), description="clock model: slot widths tried (minutes)")
     clock_shrinkages: tuple[float, ...] = Field((2.0, 10.0), description="clock model: shrinkage pseudo-counts tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
+    alignments: tuple[Alignment, ...] = Field(
+        ("previous", "current", "hybrid"), description="routine family: movement alignments tried after the models "
+        "(sequences.alignment first, winning ties; one value = no search)")
     run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
     gate_thresholds: tuple[float, ...] = Field((0.25, 0.5), description="gate thresholds d tried")
     combine_weights: tuple[float, ...] = Field((1.0, 4.0), description="weights of n-gram log p tried (combine)")
