@@ -55,3 +55,9 @@ def test_importing_globe_pulls_in_no_optional_extra():
 def test_a_lazy_name_is_kept_after_first_use():
     first = globe.RoutineModel
     assert "RoutineModel" in vars(globe) and globe.RoutineModel is first
+
+
+def test_every_lazy_name_is_listed_and_nothing_else_is_missing():
+    assert set(globe._LAZY) <= set(globe.__all__)
+    eager = set(globe.__all__) - set(globe._LAZY)
+    assert all(name in vars(globe) for name in eager)
