@@ -357,7 +357,7 @@ def config(results: Path | None = None) -> str:
         body = []
         for name, info in model.model_fields.items():
             allowed = _choices(info.annotation) or _bounds(info)
-            kind = f"`{_type_name(info.annotation)}`".replace("|", "\\|")
+            kind = "`" + _type_name(info.annotation).replace(" | ", " or ") + "`"
             body.append([f"`{name}`", kind, _default(info.default).replace("|", "\\|"),
                          allowed.replace("|", "\\|"), (info.description or "").replace("|", "\\|")])
         title = f"### `[{section}]`\n\nEnvironment: `GLOBE_{section.upper()}__<FIELD>`\n\n"
