@@ -218,3 +218,20 @@ def test_the_main_job_tables_are_whole_when_piped(tmp_path):
     res = globe("evaluate", "--households", "A,B,C", "--methods", "persistence,ngram", "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr
     assert "Persistence" in res.stdout and "n-gram Markov" in res.stdout and "…" not in res.stdout
+
+
+def test_docs_tables_writes_stale_tables_and_check_reports_them(tmp_path):
+    from pathlib import Path
+
+    reference = Path(__file__).resolve().parents[1] / "reference" / "homer_plus"
+    (tmp_path / "docs").mkdir()
+    page = tmp_path / "docs" / "results.md"
+    page.write_text("# R\n\n<!-- globe:table calibration -->\n| stale |\n<!-- /globe:table -->\n", encoding="utf-8")
+    args = ("docs", "tables", "--root", str(tmp_path), "--results", str(reference))
+    stale = globe(*args, "--check")
+    assert stale.returncode == 1 and "results.md: its tables differ" in stale.stderr
+    wrote = globe(*args)
+    assert wrote.returncode == 0 and "wrote" in wrote.stdout
+    assert "| Routine model (CV) |" in page.read_text(encoding="utf-8") and "| stale |" not in page.read_text(encoding="utf-8")
+    again = globe(*args, "--check")
+    assert again.returncode == 0 and "every table matches" in again.stdout

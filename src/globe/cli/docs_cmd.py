@@ -30,13 +30,13 @@ def tables(
     if check:
         stale = [page for page, _ in docs_tables.stale_pages(base, folder)]
         for page in stale:
-            console.print(f"{page}: its tables differ from {folder} (run 'globe docs tables')")
+            console.print(f"{page}: its tables differ from {folder} (run 'globe docs tables')", soft_wrap=True)
         if stale:
             raise typer.Exit(1)
-        out.print(f"every table matches {folder}", markup=False, highlight=False)
+        out.print(f"every table matches {folder}", markup=False, highlight=False, soft_wrap=True)
         return
     written = docs_tables.write_pages(base, folder)
     for page in written:
-        out.print(f"wrote {page}", markup=False, highlight=False)
+        out.print(f"wrote {page}", markup=False, highlight=False, soft_wrap=True)
     if not written:
-        out.print(f"every table already matches {folder}", markup=False, highlight=False)
+        out.print(f"every table already matches {folder}", markup=False, highlight=False, soft_wrap=True)
