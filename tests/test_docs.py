@@ -198,3 +198,15 @@ def test_the_site_lists_every_page_and_nothing_missing():
     on_disk = {p.name for p in (ROOT / "docs").glob("*.md")}
     assert on_disk <= listed, f"pages not in the navigation: {sorted(on_disk - listed)}"
     assert config.get("strict") is True
+
+
+def test_the_overview_figure_is_drawn_from_the_reference_results_and_stays_small(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "overview.png"
+    subprocess.run([sys.executable, str(ROOT / "tools" / "docs_figure.py"), str(REFERENCE), str(out)], check=True,
+                   timeout=120, capture_output=True)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    committed = ROOT / "docs" / "img" / "overview.png"
+    assert committed.stat().st_size < 150_000 and out.stat().st_size < 150_000
