@@ -19,6 +19,7 @@ from globe.cli.common import (
     console,
     households_from,
     out,
+    print_table,
     require_test_days,
     resolve,
 )
@@ -83,8 +84,8 @@ def stage_display() -> Iterator[Callable[[str], None]]:
 
 
 def print_table1(results: Table1Results) -> None:
-    out.print(table1_table(results.rows, results.labels, results.scope))
-    out.print(timing_table(results.timing, results.scope))
+    print_table(table1_table(results.rows, results.labels, results.scope))
+    print_table(timing_table(results.timing, results.scope))
 
 
 def print_stages(stages: list[dict]) -> None:
@@ -94,7 +95,7 @@ def print_stages(stages: list[dict]) -> None:
     for row in stages:
         table.add_row(row["stage"], f"{row['seconds']:.1f}")
     table.add_row("total", f"{sum(r['seconds'] for r in stages):.1f}")
-    out.print(table)
+    print_table(table)
 
 
 def evaluate(
@@ -155,7 +156,7 @@ def print_robustness(res: RobustnessResults) -> None:
     for r in res.robustness:
         table.add_row(r["dataset"], r["method"], _num(r["activity_f1"]), _num(r["object_f1"]),
                       _num(r["object_f1_routine"]), str(r["injected_events"]))
-    out.print(table)
+    print_table(table)
 
 
 def robustness(
@@ -203,7 +204,7 @@ def print_activity_anticipation(out_dir: Path) -> None:
         get = {r["horizon_min"]: f"{float(r['accuracy']):.3f}" for r in ahead if (r["household"], r["method"]) == r0}
         after = next((f"{float(r['accuracy']):.3f}" for r in nxt if (r["household"], r["method"]) == r0), "–")
         table.add_row(*r0, *[get.get(h, "–") for h in horizons], after)
-    out.print(table)
+    print_table(table)
 
 
 def _scope(out_dir: Path) -> DataScope | None:
@@ -231,7 +232,7 @@ def print_anticipation(out_dir: Path) -> None:
     for method in dict.fromkeys(r["method"] for r in look):
         get = {r["horizon_min"]: r for r in look if r["method"] == method}
         table.add_row(method, *[f"{float(get[h]['f1']):.3f}" for h in horizons])
-    out.print(table)
+    print_table(table)
     fetch = [r for r in rows("fetch_policy.csv") if r.get("configured") in ("True", "true", "1")]
     for r in fetch:
         out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, recall {float(r['recall']):.3f}, "
@@ -242,4 +243,4 @@ def print_anticipation(out_dir: Path) -> None:
         table.add_column(col, justify="right")
     for r in missing:
         table.add_row(r["labels_pct"], r["activity_f1"], r["object_f1"], r.get("lookahead_f1_mean") or "–")
-    out.print(table)
+    print_table(table)
