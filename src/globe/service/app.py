@@ -52,7 +52,15 @@ def create_app(config: GlobeConfig) -> FastAPI:
         threading.Thread(target=_watch, args=(store, stop), name="globe-watch", daemon=True).start()
         if service.preload:
             threading.Thread(target=registry.warm_up, args=(stop,), name="globe-warm-up", daemon=True).start()
+        bridge = None
+        if config.mqtt.enabled:
+            from globe.service.mqtt.bridge import MqttBridge  # paho-mqtt: only with [mqtt] enabled
+
+            bridge = app.state.mqtt = MqttBridge(registry, config)
+            bridge.start()
         yield
+        if bridge is not None:
+            bridge.stop()
         stop.set()
         registry.close()
         store.close()
