@@ -12,6 +12,10 @@ status (``GlobeError.http_status``).
 Each household's requests are serialised by its lock in the registry; an observation is
 validated completely, committed to SQLite, then applied, all under that lock, and only then
 acknowledged (:meth:`globe.service.registry.Registry.observe`).
+
+With ``[mqtt] enabled = true`` the lifespan also starts the link to Home Assistant
+(:mod:`globe.service.mqtt`), which publishes each new prediction and observes through the same
+registry.
 """
 
 from __future__ import annotations

@@ -251,6 +251,7 @@ class Registry:
             with self._lock:
                 self._creating.discard(name)
         self._touch(name)
+        self._notify(name)
         return assistant
 
     def served(self, name: str) -> Served:
@@ -382,9 +383,16 @@ class Registry:
 
     # -- a household's requests --------------------------------------------------------------------
     def subscribe(self, listener: Callable[[str], None]) -> None:
-        """Call ``listener(household)`` after each observation applied (the household's lock
-        released, so a listener may ask for the new prediction); what it raises is logged."""
+        """Call ``listener(household)`` after each observation applied and each household created
+        (its lock released, so a listener may ask for the new prediction); what it raises is logged."""
         self._listeners.append(listener)
+
+    def _notify(self, name: str) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener(name)
+            except Exception:  # noqa: BLE001 - a listener never fails what it is told about
+                log.exception("a listener of household %s failed", name)
 
     def observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
                 client_id: str | None) -> ObservationAck:
@@ -392,11 +400,7 @@ class Registry:
         when it is a retry's duplicate or held pending)."""
         ack = self._observe(name, time=time, activity=activity, locations=locations, client_id=client_id)
         if not ack.duplicate and not ack.pending:
-            for listener in list(self._listeners):
-                try:
-                    listener(name)
-                except Exception:  # noqa: BLE001 - a listener never fails the acknowledged observation
-                    log.exception("a listener of household %s's observations failed", name)
+            self._notify(name)
         return ack
 
     def _observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],

@@ -111,6 +111,9 @@ class MqttBridge:
     def start(self) -> None:
         """Connect in the background (never raises for a broker that is down: it is retried)."""
         self.registry.subscribe(self._observed)
+        missing = sorted(set(self.config.households) - set(self.registry.names()))
+        if missing:
+            log.warning("[mqtt.households] maps %s, not in the database (yet): observed once created", ", ".join(missing))
         for target, name in ((self._publish_loop, "globe-mqtt-publish"), (self._step_loop, "globe-mqtt-step")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
@@ -164,9 +167,11 @@ class MqttBridge:
 
     def _on_connect_fail(self, client: paho.Client, userdata: Any) -> None:
         err = sys.exc_info()[1]  # paho calls this while handling the connection's OSError
+        message = f"cannot connect to {self.host}:{self.port}: {err or 'connection failed'}"
         with self._lock:
-            self._last_error = f"cannot connect to {self.host}:{self.port}: {err or 'connection failed'}"
-        log.warning("MQTT: %s (retrying)", self._last_error)
+            repeated, self._last_error = message == self._last_error, message
+        if not repeated:  # once per cause, not at every retry of a broker that stays down
+            log.warning("MQTT: %s (retrying with backoff up to %d s)", message, self.config.reconnect_max_s)
 
     def _on_disconnect(self, client: paho.Client, userdata: Any, flags: Any, reason: Any, properties: Any) -> None:
         with self._lock:
