@@ -120,3 +120,31 @@ def test_mqtt_is_off_by_default_and_its_section_is_checked(tmp_path):
     with pytest.raises(ConfigError, match="port"):
         broker_address("mqtt://broker:99999")
     assert "secret" not in repr(MqttConfig(password="secret"))
+
+
+def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():
+    """docs/home-assistant.md: each yaml block parses, each toml block is a valid GLOBE
+    configuration, each bash line is a globe command, and the entity ids it names are those the
+    discovery makes (Home Assistant joins the device's and the entity's names)."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    import yaml
+
+    text = (Path(__file__).parents[2] / "docs" / "home-assistant.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```(\w*)\n(.*?)```", text, flags=re.S)
+    assert {lang for lang, _ in blocks} == {"yaml", "toml", "bash"}
+    for lang, body in blocks:
+        if lang == "yaml":
+            assert isinstance(yaml.safe_load(body), dict)
+        elif lang == "toml":
+            config = GlobeConfig.model_validate(tomllib.loads(body))
+            assert config.mqtt.enabled and config.mqtt.households
+        else:
+            assert all(line.startswith("globe ") for line in body.strip().splitlines())
+    payload = payloads.discovery_payload(MqttConfig(), "home")
+    slug = lambda s: re.sub(r"[^a-z0-9]+", "_", s.lower()).strip("_")  # noqa: E731
+    made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}" for c in payload["components"].values()}
+    named = set(re.findall(r"`((?:binary_)?sensor\.globe_home_\w+)`", text))
+    assert named == made
