@@ -148,3 +148,15 @@ def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():
     made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}" for c in payload["components"].values()}
     named = set(re.findall(r"`((?:binary_)?sensor\.globe_home_\w+)`", text))
     assert named == made
+
+
+def test_a_missing_broker_program_skips_here_and_fails_in_ci(monkeypatch, tmp_path):
+    from tests.service.mosquitto import system_binary
+
+    missing = str(tmp_path / "no-such-mosquitto")
+    monkeypatch.delenv("CI", raising=False)
+    with pytest.raises(pytest.skip.Exception, match="apt-get install mosquitto"):
+        system_binary(missing, "mosquitto")
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="apt-get install mosquitto"):
+        system_binary(missing, "mosquitto")
