@@ -28,7 +28,7 @@ NGRAM_MODELS = {
     "activity_estimator": ("witten_bell", "activity", "estimator", "witten_bell"),
     "activity_max_order": ("5", "activity", "max_order", 5),
     "time_weight": ("1.5", "activity", "time_weight", 1.5),
-    "time_window": ("4", "activity", "time_window", 4),
+    "time_window_minutes": ("40", "activity", "time_window", 4),  # HOMER+'s steps are 10 minutes
     "object_estimator": ("witten_bell", "objects", "estimator", "witten_bell"),
     "object_max_order": ("7", "objects", "max_order", 7),
     "run_start_token": ("true", "objects", "run_start_token", True),
@@ -38,7 +38,8 @@ ROUTINE_MODELS = {
     "activity_estimator": ("routine", "activity", "kind", "RoutineModel"),
     "routine_order": ("2", "activity", "order", 2),
     "routine_time_weight": ("0.5", "activity", "time_weight", 0.5),
-    "routine_time_window": ("5", "activity", "time_window", 5),
+    "routine_time_window_minutes": ("50", "activity", "time_window", 5),
+    "routine_duration_cap_minutes": ("200", "activity", "duration_cap", 20),
     "routine_shrinkage": ("3.0", "activity", "shrinkage", 3.0),
 }
 CLOCK_MODELS = {

@@ -49,9 +49,10 @@ def _default(cls: type, name: str):
 
 @pytest.mark.parametrize("cls_path, params, section", [
     ("globe.models.activity:ActivityModel", {"estimator": "activity_estimator", "max_order": "activity_max_order",
-                                             "time_weight": "time_weight", "time_window": "time_window"}, "models"),
+                                             "time_weight": "time_weight", "time_window": "time_window_minutes"}, "models"),
     ("globe.models.routine:RoutineModel", {"order": "routine_order", "time_weight": "routine_time_weight",
-                                           "time_window": "routine_time_window", "shrinkage": "routine_shrinkage"}, "models"),
+                                           "time_window": "routine_time_window_minutes", "shrinkage": "routine_shrinkage",
+                                           "duration_cap": "routine_duration_cap_minutes"}, "models"),
     ("globe.models.objects:ObjectModel", {"estimator": "object_estimator", "max_order": "object_max_order",
                                           "run_start_token": "run_start_token"}, "models"),
     ("globe.inference.emission:MovementEmission", {"smoothing": "emission_smoothing", "weight": "emission_weight",
@@ -59,7 +60,7 @@ def _default(cls: type, name: str):
                                                    "boundary": "emission_boundary", "switch": "emission_switch"}, "filter"),
     ("globe.inference.activity_filter:ActivityFilter", {"max_hypotheses": "max_hypotheses", "min_weight": "min_weight"},
      "filter"),
-    ("globe.inference.movements:MovementModel", {"hazard_shrinkage": "hazard_shrinkage", "duration_cap": "duration_cap",
+    ("globe.inference.movements:MovementModel", {"hazard_shrinkage": "hazard_shrinkage", "duration_cap": "duration_cap_minutes",
                                                  "destination_shrinkage": "destination_shrinkage"}, "lookahead"),
     ("globe.inference.forecast:Forecaster", {"min_path_probability": "min_path_probability", "max_paths": "max_paths"},
      "lookahead"),
@@ -74,10 +75,14 @@ def test_estimator_defaults_are_the_configuration_defaults(cls_path, params, sec
     configured one: every default equals its configuration field's."""
     import importlib
 
+    from globe.assembly import steps
     from globe.config import GlobeConfig
 
     module, name = cls_path.split(":")
     cls = getattr(importlib.import_module(module), name)
     configured = getattr(GlobeConfig(), section)
     for param, field in params.items():
-        assert _default(cls, param) == getattr(configured, field), f"{name}({param}=...) vs {section}.{field}"
+        value = getattr(configured, field)
+        if field.endswith("_minutes"):  # the estimators count steps: the default is 10 minutes' worth
+            value = steps(value, 10)
+        assert _default(cls, param) == value, f"{name}({param}=...) vs {section}.{field}"

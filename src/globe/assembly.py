@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 from globe.config import FilterConfig, GateConfig, GlobeConfig, LLMConfig, LookaheadConfig, ModelConfig, PolicyConfig
 from globe.data.csv_logs import household_step
 from globe.data.records import Day, Household
+from globe.errors import ConfigError
 from globe.inference.activity_filter import ActivityFilter
 from globe.inference.emission import MovementEmission
 from globe.inference.forecast import Forecaster
@@ -42,19 +43,37 @@ def step_minutes(household: Household, config: GlobeConfig) -> int:
     return config.data.step_minutes or household_step(household.train) or config.service.step_minutes
 
 
+def common_step(households: Sequence[Household], config: GlobeConfig) -> int:
+    """The one step of ``households``, whose results are tabled together by minutes ahead."""
+    found = {h.name: step_minutes(h, config) for h in households}
+    if len(set(found.values())) > 1:
+        raise ConfigError("households with different steps cannot be tabled together: "
+                          + ", ".join(f"{name} {step} min" for name, step in found.items())
+                          + "; evaluate them separately or set data.step_minutes (with data.resample = 'locf')")
+    return next(iter(found.values()), config.service.step_minutes)
+
+
+def steps(minutes: int, step_minutes: int) -> int:
+    """A duration configured in minutes as a number of steps (at least one): configuration speaks
+    minutes, the models count steps, so a 1-, 5- or 10-minute grid means the same routine."""
+    return max(1, round(minutes / step_minutes))
+
+
 def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
     """An unfitted next-activity model for the ``models`` section, over days of ``step_minutes``."""
     if models.activity_estimator == "persistence":
         return PersistenceModel()
     if models.activity_estimator == "routine":
         return RoutineModel(order=models.routine_order, time_weight=models.routine_time_weight,
-                            time_window=models.routine_time_window, shrinkage=models.routine_shrinkage,
+                            time_window=steps(models.routine_time_window_minutes, step_minutes),
+                            shrinkage=models.routine_shrinkage,
+                            duration_cap=steps(models.routine_duration_cap_minutes, step_minutes),
                             step_minutes=step_minutes)
     if models.activity_estimator == "clock":
         return ClockModel(slot_minutes=models.clock_slot_minutes, shrinkage=models.clock_shrinkage,
                           step_minutes=step_minutes)
     return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
-                         time_weight=models.time_weight, time_window=models.time_window)
+                         time_weight=models.time_weight, time_window=steps(models.time_window_minutes, step_minutes))
 
 
 def object_model(models: ModelConfig) -> ObjectModel:
@@ -197,12 +216,13 @@ class FittedForecaster:
     train_s: float  # both models' fitting (the activity model's included)
 
 
-def movement_model(lookahead: LookaheadConfig, run_end: bool = True, run_memory: bool = False,
+def movement_model(lookahead: LookaheadConfig, step_minutes: int, run_end: bool = True, run_memory: bool = False,
                    run_next: bool = False) -> MovementModel:
     """An unfitted movement-hazard and destination model for the ``lookahead`` section
     (``run_end``, ``run_memory``, ``run_next``: of ``lookahead.run_end`` / ``run_memory`` /
     ``run_next``, chosen by cross-validation)."""
-    return MovementModel(hazard_shrinkage=lookahead.hazard_shrinkage, duration_cap=lookahead.duration_cap,
+    return MovementModel(hazard_shrinkage=lookahead.hazard_shrinkage,
+                         duration_cap=steps(lookahead.duration_cap_minutes, step_minutes),
                          destination_shrinkage=lookahead.destination_shrinkage, run_end=run_end, run_memory=run_memory,
                          run_next=run_next)
 
@@ -216,7 +236,7 @@ def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | 
     la = config.lookahead
     t0 = time.perf_counter()
     activity = activity_model(models or config.models, step_minutes(household, config)).fit([d.activities for d in days])
-    movements = movement_model(la, run_end, run_memory, run_next).fit(days, household.objects)
+    movements = movement_model(la, step_minutes(household, config), run_end, run_memory, run_next).fit(days, household.objects)
     train_s = time.perf_counter() - t0
     return FittedForecaster(forecaster_over(activity, movements, la), train_s)
 

@@ -47,17 +47,23 @@ class ModelConfig(_Section):
     activity_estimator: ActivityEstimator = Field(
         "longest", description="'longest' = the paper's longest-context backoff; 'persistence' = the activity stays the same"
     )
-    activity_max_order: int = Field(109, ge=1, le=10_000, description="maximum n of the activity n-gram")
+    activity_max_order: int | None = Field(
+        None, ge=1, le=10_000, description="maximum n of the activity n-gram; None = the longest training day "
+        "(109 on HOMER+'s 10-minute days, the paper's n), whatever the step")
     object_estimator: ObjectEstimator = Field("longest", description="object n-gram estimator")
     object_max_order: int = Field(109, ge=1, le=10_000, description="maximum n of the object n-gram")
     run_start_token: bool = Field(
         False, description="condition the first object of a run on the run start (not in the paper)"
     )
     time_weight: float = Field(0.0, ge=0.0, le=10.0, description="exponent of the time-of-day expert P(a | step)")
-    time_window: int = Field(2, ge=1, le=200, description="steps pooled on each side for the time-of-day expert")
+    time_window_minutes: int = Field(
+        20, ge=1, le=1440, description="minutes pooled on each side for the time-of-day expert (at least one step)")
     routine_order: int = Field(3, ge=1, le=100, description="routine model: order of the n-gram over activity runs")
     routine_time_weight: float = Field(1.0, ge=0.0, le=10.0, description="routine model: weight of P(start | step)")
-    routine_time_window: int = Field(3, ge=1, le=200, description="routine model: steps pooled for the start prior")
+    routine_time_window_minutes: int = Field(
+        30, ge=1, le=1440, description="routine model: minutes pooled for the start prior (at least one step)")
+    routine_duration_cap_minutes: int = Field(
+        300, ge=1, le=1440, description="routine model: run durations longer than this share one stay hazard")
     routine_shrinkage: float = Field(1.0, gt=0.0, le=1000.0, description="routine model: pseudo-count of the stay hazard")
     clock_slot_minutes: int = Field(60, ge=1, le=1440, description="clock model: width of a time-of-day slot (minutes)")
     clock_shrinkage: float = Field(
@@ -219,7 +225,8 @@ class LookaheadConfig(_Section):
     hazard_shrinkage: float = Field(
         2.0, gt=0.0, le=1000.0, description="pseudo-count shrinking each movement-hazard level towards the coarser one"
     )
-    duration_cap: int = Field(8, ge=1, le=200, description="steps into an activity run told apart by the movement hazard")
+    duration_cap_minutes: int = Field(
+        80, ge=1, le=1440, description="minutes into an activity run told apart by the movement hazard")
     destination_shrinkage: float = Field(
         1.0, gt=0.0, le=1000.0, description="pseudo-count shrinking P(target | activity, object, source) to coarser levels"
     )

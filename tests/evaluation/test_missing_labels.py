@@ -61,7 +61,7 @@ def test_hidden_labels_change_the_activity_beliefs(households):
 def test_lookahead_through_the_filter_with_all_labels_is_the_plain_forecast(households):
     h, config = households["A"], GlobeConfig()
     setup = _setup(h, config, previous_share=0.5)
-    movements = assembly.movement_model(config.lookahead).fit(h.train, h.objects)
+    movements = assembly.movement_model(config.lookahead, 10).fit(h.train, h.objects)
     fc = assembly.forecaster_over(setup.activity, movements, config.lookahead)  # the filter's own model
     day = h.test[0]
     plain = lk.forecast_days(fc, [day], 3, 30, 45)

@@ -22,7 +22,7 @@ NGRAM = {  # the n-gram activity model's fields (activity_estimator != routine)
     "activity_estimator": ("witten_bell", ("models", "activity", "estimator"), "witten_bell"),
     "activity_max_order": ("7", ("models", "activity", "max_order"), 7),
     "time_weight": ("1.5", ("models", "activity", "time_weight"), 1.5),
-    "time_window": ("4", ("models", "activity", "time_window"), 4),
+    "time_window_minutes": ("40", ("models", "activity", "time_window"), 4),  # 10-minute steps
     "object_estimator": ("witten_bell", ("models", "objects", "estimator"), "witten_bell"),
     "object_max_order": ("5", ("models", "objects", "max_order"), 5),
     "run_start_token": ("true", ("models", "objects", "run_start_token"), True),
@@ -32,7 +32,8 @@ ROUTINE = {  # the routine model's fields
     "activity_estimator": ("routine", ("models", "activity", "kind"), "RoutineModel"),
     "routine_order": ("4", ("models", "activity", "order"), 4),
     "routine_time_weight": ("0.5", ("models", "activity", "time_weight"), 0.5),
-    "routine_time_window": ("5", ("models", "activity", "time_window"), 5),
+    "routine_time_window_minutes": ("50", ("models", "activity", "time_window"), 5),
+    "routine_duration_cap_minutes": ("200", ("models", "activity", "duration_cap"), 20),
     "routine_shrinkage": ("2.0", ("models", "activity", "shrinkage"), 2.0),
 }
 CLOCK = {  # the clock model's fields

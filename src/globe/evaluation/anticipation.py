@@ -53,6 +53,7 @@ class AnticipationResult:
     lookahead: tuple[LookaheadResult, ...]
     fetch: tuple[FetchEvaluation, ...]
     config: GlobeConfig
+    step_minutes: int  # of every household (:func:`globe.assembly.common_step`)
 
 
 def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | Sequence[Household],
@@ -64,6 +65,7 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
     with its method's lookahead, whose forecaster it shares). The lookahead's cross-validated
     pairs come back into ``memo``, where the missing-label runs look for them."""
     homes = list(households.values()) if isinstance(households, Mapping) else list(households)
+    step = assembly.common_step(homes, config)
     memo = Memo() if memo is None else memo
     policy_method = config.policy.method
     tasks: list[tuple[Household, str | None]] = [(h, m) for h in homes for m in config.lookahead.methods]
@@ -89,7 +91,7 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
         fetch += [evaluation] if evaluation is not None else []
     order = {h.name: i for i, h in enumerate(homes)}
     fetch.sort(key=lambda e: order[e.household])
-    return AnticipationResult(tuple(look), tuple(fetch), config)
+    return AnticipationResult(tuple(look), tuple(fetch), config, step)
 
 
 def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult | None) -> FetchEvaluation:
@@ -105,7 +107,7 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult 
             run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
         forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory,
                                          run_next=run_next).forecaster
-    policy = assembly.fetch_policy(forecaster, config.policy, config.service.step_minutes)
+    policy = assembly.fetch_policy(forecaster, config.policy, assembly.step_minutes(h, config))
     return evaluate_fetch(policy, h, h.test, config.policy.curve_ratios)
 
 
@@ -118,7 +120,7 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope:
     """``lookahead.csv`` (+ selection, timing, plot), ``fetch_policy.csv`` (+ plot) and
     ``fetch_lead_times.csv`` (+ plot). Returns the paths written."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    step = result.config.service.step_minutes
+    step = result.step_minutes
     rows = lookahead_rows(result.lookahead, step)
     paths = {name: out_dir / name for name in ("lookahead.csv", "lookahead_selection.csv", "lookahead_timing.csv",
                                                "lookahead.png", "fetch_policy.csv", "fetch_policy.png",

@@ -249,13 +249,13 @@ def _settings(config: GlobeConfig, run_ends: Sequence[bool] | None = None) -> li
 
 
 def movements_on(household: Household, la: LookaheadConfig, fold: Fold | None, setting: Setting,
-                 memo: Memo) -> MovementModel:
+                 memo: Memo, step_minutes: int) -> MovementModel:
     """The movement model of ``setting`` fitted on a fold's training part (or every training day),
     once: every activity model of a cross-validation shares the folds' movement models."""
     days = household.train if fold is None else fold_days(household, fold)[0]
     key = FitKey("MovementModel", DataKey.of(household), fold,
-                 (la.hazard_shrinkage, la.duration_cap, la.destination_shrinkage, setting))
-    return memo.get(key, lambda: assembly.movement_model(la, *setting).fit(days, household.objects))
+                 (la.hazard_shrinkage, la.duration_cap_minutes, la.destination_shrinkage, setting, step_minutes))
+    return memo.get(key, lambda: assembly.movement_model(la, step_minutes, *setting).fit(days, household.objects))
 
 
 def cv_key(household: Household, config: GlobeConfig, models: ModelConfig, setting: Setting) -> SearchKey:
@@ -279,7 +279,7 @@ def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, sett
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
         trees = None
         for setting in todo:
-            fc = assembly.forecaster_over(activity, movements_on(household, la, fold, setting, memo), la)
+            fc = assembly.forecaster_over(activity, movements_on(household, la, fold, setting, memo, assembly.step_minutes(household, config)), la)
             if trees is None:
                 trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs]), la.horizons - 1)
             run = LookaheadRun.empty(la.horizons)

@@ -372,7 +372,7 @@ def forecaster_of(setup: FilterSetup, config: GlobeConfig, memo: Memo) -> Foreca
     h, la = setup.household, config.lookahead
     setting = lk.setting_of(lookahead_choice(setup, config, memo))
     key = FitKey("Forecaster:filter", DataKey.of(h), None, (setup.models, la, setting), setup.alignment)
-    return memo.get(key, lambda: assembly.forecaster_over(setup.activity, lk.movements_on(h, la, None, setting, memo), la))
+    return memo.get(key, lambda: assembly.forecaster_over(setup.activity, lk.movements_on(h, la, None, setting, memo, assembly.step_minutes(h, config)), la))
 
 
 def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo, fraction: float = 1.0) -> tuple[float, ...]:
@@ -407,7 +407,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
         activity, emission = memo.get(FitKey("filter", fold.data, fold, (setup.models, config.filter, evidence)),
                                       _fold_filter, setup, config, train)
         fold_setup = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0, setup.alignment)
-        forecaster = assembly.forecaster_over(activity, lk.movements_on(h, la, fold, setting, memo), la)
+        forecaster = assembly.forecaster_over(activity, lk.movements_on(h, la, fold, setting, memo, assembly.step_minutes(h, config)), la)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in held_out}
         runs.append(filtered_lookahead(forecaster, fold_setup, config.filter, held_out, masks, la.horizons,
                                        la.first_reference, la.last_reference, stride=la.cv_stride))
@@ -468,7 +468,8 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
         progress(f"missing labels: {len(tasks)} households x label shares (in parallel)")
     results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], memo, lookahead=lookahead),
                          len(tasks), workers, [2.0 - fraction for _, fraction in tasks])  # fewer labels, more hypotheses
-    return MissingLabelResults(missing_label_rows(results, config.lookahead.horizons), selection_rows, results)
+    rows = missing_label_rows(results, config.lookahead.horizons, assembly.common_step(households, config))
+    return MissingLabelResults(rows, selection_rows, results)
 
 
 def _round(x: float | None) -> float | None:

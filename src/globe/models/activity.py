@@ -18,7 +18,8 @@ DAY_START = "<day>"
 
 
 class ActivityModel(ActivityModelBase):
-    """P(a_t | a_0 .. a_{t-1}) with a day-start token and backoff (maximum n = ``max_order``).
+    """P(a_t | a_0 .. a_{t-1}) with a day-start token and backoff (maximum n = ``max_order``;
+    None: the longest training day, whatever the step: 109 on HOMER+'s days, the paper's n).
 
     ``estimator="longest"`` (default) is the paper's rule: the longest context seen in training
     decides. ``"witten_bell"`` interpolates all context lengths. ``time_weight`` > 0 multiplies
@@ -27,9 +28,11 @@ class ActivityModel(ActivityModelBase):
 
     _parameter_constraints = {"estimator": ESTIMATORS, "max_order": int, "time_weight": float, "time_window": int}
     _prediction_params = frozenset(_parameter_constraints)  # the automaton holds every order
+    _optional_params = frozenset({"max_order"})
     kind = "activity"
 
-    def __init__(self, *, estimator: str = "longest", max_order: int = 109, time_weight: float = 0.0, time_window: int = 2) -> None:
+    def __init__(self, *, estimator: str = "longest", max_order: int | None = None, time_weight: float = 0.0,
+                 time_window: int = 2) -> None:
         self.estimator = estimator
         self.max_order = max_order
         self.time_weight = time_weight
@@ -44,6 +47,7 @@ class ActivityModel(ActivityModelBase):
             self.index_ = SuffixIndex(never_predicted=[DAY_START])
             self.frequency_: Counter[str] = Counter()
             self.by_step_: list[Counter[str]] = []
+            self.longest_day_ = 1
         at_step: Counter[tuple[int, str]] = Counter()  # (step, activity): counted at C speed, then spread
         added = []
         for day in days:
@@ -51,6 +55,7 @@ class ActivityModel(ActivityModelBase):
             self.training_data_.append(day)
             added.append((DAY_START, *day))
             self.frequency_.update(day)
+            self.longest_day_ = max(self.longest_day_, len(day))
             at_step.update(enumerate(day))
         self.index_.add_all(added)  # compacted: typed arrays, a tenth of the memory
         for (t, a), n in at_step.items():
@@ -70,7 +75,7 @@ class ActivityModel(ActivityModelBase):
 
     def next_distribution(self, state: tuple[int, int], step: int) -> dict[str, float]:
         matched_state, matched = state
-        max_context = self.max_order - 1
+        max_context = (self.max_order or self.longest_day_) - 1
         if self.estimator == "longest":
             dist = longest_distribution(self.index_, matched_state, matched, max_context)
         else:

@@ -20,6 +20,8 @@ class CountingModel:
     "reset, then one ``partial_fit``", so batch and incremental training cannot drift apart."""
 
     _parameter_constraints: ClassVar[dict[str, tuple[Any, ...] | type]] = {}
+    _optional_params: ClassVar[frozenset[str]] = frozenset()
+    """Parameters that may also be None (a value derived from the training data)."""
     _prediction_params: ClassVar[frozenset[str]] = frozenset()
     """Parameters read only when predicting: models that differ only in these count the same."""
     kind: ClassVar[str] = ""
@@ -56,6 +58,8 @@ class CountingModel:
     def _validate_params(self) -> None:
         for name, allowed in self._parameter_constraints.items():
             value = getattr(self, name)
+            if value is None and name in self._optional_params:
+                continue
             if isinstance(allowed, tuple):
                 if value not in allowed:
                     raise ConfigError(

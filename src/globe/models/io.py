@@ -83,6 +83,8 @@ def _check_params(cls: Any, params: dict[str, Any], source: str) -> None:
         where = f"{source}: malformed model file: params.{name}={value!r}"
         if allowed is None:
             raise ModelFileError(f"{where} is not a parameter of {cls.__name__}")
+        if value is None and name in cls._optional_params:
+            continue
         if isinstance(allowed, tuple):
             if not any(type(value) is type(a) and value == a for a in allowed):
                 raise ModelFileError(f"{where}; expected one of {', '.join(map(repr, allowed))}")

@@ -358,7 +358,8 @@ def build_assistant(household: Household, config: GlobeConfig, backend: LLMBacke
     emission = assembly.household_emission(fc).fit(household.train, household.objects, fitted.sequences.moves)
     policy = None
     if s.fetch_decision == "policy":
-        movements = assembly.movement_model(config.lookahead, run_end=True).fit(fitted.sequences.packed, household.objects)
+        movements = assembly.movement_model(config.lookahead, assembly.step_minutes(household, config),
+                                            run_end=True).fit(fitted.sequences.packed, household.objects)
         policy = assembly.fetch_policy(assembly.forecaster_over(activity, movements, config.lookahead), config.policy,
                                        s.step_minutes)
     return OnlineAssistant(household, activity, chooser, alignment=config.sequences.alignment,
