@@ -5,7 +5,10 @@ baselines that need no model: persistence ("nothing changes") and the time-of-da
 training days did most often at that step).
 
 The model sees the true activities up to the reference step r and nothing after; every r with
-r + k inside the day is scored. A change event is a step r whose activity differs from the one
+r + k inside the day is scored. Far ahead, what the person did at that hour on training days can
+say more than where the model's paths lead, so the model is also scored mixed with the time of
+day, ``(1 - w) P_model + w P_time``, with ``w`` chosen per horizon by log loss on held-out
+training days (:func:`blend_weights`; ``w = 0`` wins ties). A change event is a step r whose activity differs from the one
 before; its truth is the first later activity that differs from a_r (events with none left in the
 day are not scored).
 """
@@ -20,12 +23,12 @@ from typing import Sequence
 import numpy as np
 
 from globe import assembly
-from globe.config import GlobeConfig
+from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.evaluation import report
-from globe.evaluation.metrics import f1, log_loss
-from globe.evaluation.selection import Memo
-from globe.evaluation.tuning import tuned_models
+from globe.evaluation.metrics import LOG_LOSS_FLOOR, f1, log_loss
+from globe.evaluation.selection import Memo, best_of
+from globe.evaluation.tuning import data_folds, fold_days, tuned_models
 from globe.inference.horizon import activity_marginals, next_different
 from globe.models.base import ActivityModelBase
 from globe.models.state_space import StateSpace, state_space
@@ -83,16 +86,20 @@ def _top(dist: dict[str, float]) -> str:
 
 
 def score_anticipation(household: str, model: ActivityModelBase, train: Sequence[Day], test: Sequence[Day],
-                       steps: int, step_minutes: int, method: str = "model") -> AnticipationScores:
+                       steps: int, step_minutes: int, method: str = "model",
+                       blend: Sequence[float] | None = None) -> AnticipationScores:
     """Score ``model`` (fitted on ``train``), persistence and the time-of-day mode on ``test``
-    at 1..``steps`` steps ahead and at the next different activity."""
+    at 1..``steps`` steps ahead and at the next different activity; with ``blend`` (a weight of
+    the time of day per horizon), also the model mixed with it."""
     space = state_space(model)
     refs = [(day, r) for day in test for r in range(len(day) - steps)]
     roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
     labels = space.labels
     marginals = activity_marginals(space, roots, steps)
     by_step = time_of_day(train)
-    methods = (method, "persistence", "time_of_day")
+    methods: tuple[str, ...] = (method, "persistence", "time_of_day")
+    if blend is not None:
+        methods += (f"{method} + time of day",)
     horizons = []
     for j in range(1, steps + 1):
         true, pred = [], {m: [] for m in methods}  # type: ignore[var-annotated]
@@ -106,7 +113,11 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
             seen = by_step[r + j] if r + j < len(by_step) else Counter()
             n = sum(seen.values())
             tod = {a: c / n for a, c in seen.items()} if n else {}
-            for m, dist in zip(methods, (mine, {day.activities[r]: 1.0}, tod)):
+            dists = [mine, {day.activities[r]: 1.0}, tod]
+            if blend is not None:
+                w = blend[j - 1]
+                dists.append({a: (1 - w) * mine.get(a, 0.0) + w * tod.get(a, 0.0) for a in {*mine, *tod}})
+            for m, dist in zip(methods, dists):
                 pred[m].append(_top(dist))
                 p_true[m].append(dist.get(truth, 0.0))
         for m in methods:
@@ -149,6 +160,37 @@ def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[Counter
 
 HORIZON_MINUTES = 60
 """How far ahead the activity is scored (each step up to this many minutes)."""
+BLEND_WEIGHTS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.9)
+"""Weights of the time of day tried per horizon (the first wins ties: the model alone)."""
+
+
+def blend_weights(household: Household, models: ModelConfig, step_minutes: int, steps: int, k: int) -> tuple[float, ...]:
+    """Per horizon 1..``steps``, the weight of the time of day (:data:`BLEND_WEIGHTS`) whose mix
+    with the model has the lowest log loss on held-out blocks of training days."""
+    losses = np.zeros((steps, len(BLEND_WEIGHTS)))
+    weights = np.array(BLEND_WEIGHTS)
+    for fold in data_folds(household, k):
+        train, held_out = fold_days(household, fold)
+        refs = [(day, r) for day in held_out for r in range(len(day) - steps)]
+        if not refs:
+            continue
+        space = state_space(assembly.activity_model(models, step_minutes).fit([d.activities for d in train]))
+        roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
+        marginals = activity_marginals(space, roots, steps)
+        totals = marginals.sum(axis=2)
+        index = {a: i for i, a in enumerate(space.labels)}
+        by_step = time_of_day(train)
+        for j in range(1, steps + 1):
+            p_model, p_time = np.zeros(len(refs)), np.zeros(len(refs))
+            for q, (day, r) in enumerate(refs):
+                truth, total = day.activities[r + j], totals[q, j - 1]
+                if truth in index and total > 0:
+                    p_model[q] = marginals[q, j - 1, index[truth]] / total
+                seen = by_step[r + j] if r + j < len(by_step) else Counter()
+                p_time[q] = seen[truth] / sum(seen.values()) if seen else 0.0
+            mixed = np.outer(p_model, 1 - weights) + np.outer(p_time, weights)
+            losses[j - 1] -= np.log(np.maximum(mixed, LOG_LOSS_FLOOR)).sum(axis=0)
+    return tuple(float(best_of([(w, -losses[j, i]) for i, w in enumerate(BLEND_WEIGHTS)])) for j in range(steps))
 
 
 def run_activity_anticipation(config: GlobeConfig, households: Sequence[Household], memo: Memo) -> list[AnticipationScores]:
@@ -161,8 +203,10 @@ def run_activity_anticipation(config: GlobeConfig, households: Sequence[Househol
         models, _ = tuned_models(h, config, "routine", memo)
         step = assembly.step_minutes(h, config)
         model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
-        out.append(score_anticipation(h.name, model, h.train, h.test, max(1, HORIZON_MINUTES // step), step,
-                                      f"chosen ({models.activity_estimator})"))
+        steps = max(1, HORIZON_MINUTES // step)
+        blend = blend_weights(h, models, step, steps, config.selection.folds)
+        out.append(score_anticipation(h.name, model, h.train, h.test, steps, step,
+                                      f"chosen ({models.activity_estimator})", blend))
     return out
 
 
