@@ -116,7 +116,8 @@ def test_messages_are_plain_text(tmp_path):
     res = globe("data", "validate", "--data", str(tmp_path / "root:x:0 [bold]b[/bold]"))
     assert res.returncode == 1
     assert res.stderr.splitlines() == [
-        f"error: {tmp_path}/root:x:0 [bold]b[/bold]: data folder not found (from --data); pass --data DIR or set GLOBE_DATA"]
+        f"error: {tmp_path}/root:x:0 [bold]b[/bold]: data folder not found (from --data); "
+        "pass --data DIR or set GLOBE_DATA"]
 
 
 def test_predict_checks_the_household_and_the_objects(tmp_path):
@@ -126,7 +127,8 @@ def test_predict_checks_the_household_and_the_objects(tmp_path):
     assert wrong.returncode == 1
     assert wrong.stderr.strip() == f"error: {tmp_path}/model.json: trained for household 'HouseholdB', not 'HouseholdA'"
     unknown = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up", "--objects", "bowl,unicorn")
-    assert unknown.returncode == 1 and unknown.stderr.startswith("error: --objects: unknown object 'unicorn'; known: book, bowl")
+    assert unknown.returncode == 1
+    assert unknown.stderr.startswith("error: --objects: unknown object 'unicorn'; known: book, bowl")
     assert len(unknown.stderr.splitlines()) == 1
 
 
@@ -202,13 +204,14 @@ def test_tables_keep_full_method_names_in_a_file_or_a_pipe(monkeypatch, capsys):
     from globe.cli.common import print_table
     from globe.cli.evaluate_cmd import table1_table
     from globe.evaluation.methods import METHODS
+    from globe.evaluation.published import DataScope
 
     labels = {m.name: m.label for m in METHODS.values()}
     rows = [{"method": m, "household": h, "average": "weighted", "activity_f1": 0.8, "object_f1": 0.6, "mean_f1": 0.7}
             for m in METHODS for h in ("A", "B", "C", "mean")]
-    print_table(table1_table(rows, labels))
+    print_table(table1_table(rows, labels, DataScope("HOMER+", ("A", "B", "C"), True)))
     printed = capsys.readouterr().out
-    assert "…" not in printed
+    assert "…" not in printed and "STOT (published)" in printed
     for label in labels.values():
         assert label in printed, label
     assert max(len(line) for line in printed.splitlines()) > 80  # wider than rich's default for a pipe
@@ -232,6 +235,7 @@ def test_docs_tables_writes_stale_tables_and_check_reports_them(tmp_path):
     assert stale.returncode == 1 and "results.md: its tables differ" in stale.stderr
     wrote = globe(*args)
     assert wrote.returncode == 0 and "wrote" in wrote.stdout
-    assert "| Routine model (CV) |" in page.read_text(encoding="utf-8") and "| stale |" not in page.read_text(encoding="utf-8")
+    text = page.read_text(encoding="utf-8")
+    assert "| Routine model (CV) |" in text and "| stale |" not in text
     again = globe(*args, "--check")
     assert again.returncode == 0 and "every table matches" in again.stdout

@@ -41,7 +41,8 @@ def test_the_version_is_the_package_version():
 
 def test_the_package_is_typed():
     assert (ROOT / "src" / "globe" / "py.typed").is_file()
-    package_data = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["package-data"]
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    package_data = pyproject["tool"]["setuptools"]["package-data"]
     assert "py.typed" in package_data["globe"]
 
 

@@ -111,9 +111,11 @@ def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight
                             boundary=boundary, switch=switch)
 
 
-def activity_filter(activity: ActivityModelBase, emission: MovementEmission | None, filter_cfg: FilterConfig) -> ActivityFilter:
+def activity_filter(activity: ActivityModelBase, emission: MovementEmission | None,
+                    filter_cfg: FilterConfig) -> ActivityFilter:
     """The forward filter over the current activity, for days whose labels are partly missing."""
-    return ActivityFilter(activity, emission, max_hypotheses=filter_cfg.max_hypotheses, min_weight=filter_cfg.min_weight)
+    return ActivityFilter(activity, emission, max_hypotheses=filter_cfg.max_hypotheses,
+                          min_weight=filter_cfg.min_weight)
 
 
 def household_emission(filter_cfg: FilterConfig) -> MovementEmission:
@@ -143,7 +145,8 @@ def embedded_backend(llm: LLMConfig) -> "EmbeddedBackend":
     """The embedded llama.cpp backend with the ``llm`` settings (whatever ``llm.backend`` says)."""
     from globe.reasoning.backends.embedded import EmbeddedBackend
 
-    return EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx, cache=_answer_cache(llm))
+    return EmbeddedBackend(model_path=llm.model_path, n_threads=llm.n_threads, n_ctx=llm.n_ctx,
+                           cache=_answer_cache(llm))
 
 
 def service_llm_backend(config: GlobeConfig) -> LLMBackend | None:
@@ -174,7 +177,8 @@ def llm_backend(llm: LLMConfig) -> LLMBackend | None:
                          cache=_answer_cache(llm))
 
 
-def object_chooser(objects: NextObjectModel, gate: GateConfig, backend: LLMBackend | None, *, marginal: bool) -> ObjectChooser:
+def object_chooser(objects: NextObjectModel, gate: GateConfig, backend: LLMBackend | None, *,
+                   marginal: bool) -> ObjectChooser:
     """GLOBE's uncertainty gate over ``objects`` when there is a backend, else the plain n-gram."""
     if backend is None:
         return ObjectChooser(objects, marginal=marginal)
@@ -191,7 +195,8 @@ def noise_scorer(config: GlobeConfig) -> "Scorer":
     if config.llm.backend == "none":
         return UniformScorer()
     if config.llm.backend != "embedded":
-        raise ConfigError("the noise generator scores sentences: use llm.backend 'embedded' (or 'none' for uniform proposals)")
+        raise ConfigError("the noise generator scores sentences: use llm.backend 'embedded' "
+                          "(or 'none' for uniform proposals)")
     return LLMScorer(embedded_backend(config.llm))
 
 
@@ -235,8 +240,9 @@ def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | 
     days = tuple(household.train if days is None else days)
     la = config.lookahead
     t0 = time.perf_counter()
-    activity = activity_model(models or config.models, step_minutes(household, config)).fit([d.activities for d in days])
-    movements = movement_model(la, step_minutes(household, config), run_end, run_memory, run_next).fit(days, household.objects)
+    step = step_minutes(household, config)
+    activity = activity_model(models or config.models, step).fit([d.activities for d in days])
+    movements = movement_model(la, step, run_end, run_memory, run_next).fit(days, household.objects)
     train_s = time.perf_counter() - t0
     return FittedForecaster(forecaster_over(activity, movements, la), train_s)
 

@@ -8,8 +8,8 @@ The model sees the true activities up to the reference step r and nothing after;
 r + k inside the day is scored. Far ahead, what the person did at that hour on training days can
 say more than where the model's paths lead, so the model is also scored mixed with the time of
 day, ``(1 - w) P_model + w P_time``, with ``w`` chosen per horizon by log loss on held-out
-training days (:func:`blend_weights`; ``w = 0`` wins ties). A change event is a step r whose activity differs from the one
-before; its truth is the first later activity that differs from a_r (events with none left in the
+training days (:func:`blend_weights`; ``w = 0`` wins ties). A change event is a step r whose
+activity differs from the one before; its truth is the first later activity that differs from a_r (events with none left in the
 day are not scored).
 """
 
@@ -164,7 +164,8 @@ BLEND_WEIGHTS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.9)
 """Weights of the time of day tried per horizon (the first wins ties: the model alone)."""
 
 
-def blend_weights(household: Household, models: ModelConfig, step_minutes: int, steps: int, k: int) -> tuple[float, ...]:
+def blend_weights(household: Household, models: ModelConfig, step_minutes: int, steps: int,
+                  k: int) -> tuple[float, ...]:
     """Per horizon 1..``steps``, the weight of the time of day (:data:`BLEND_WEIGHTS`) whose mix
     with the model has the lowest log loss on held-out blocks of training days."""
     losses = np.zeros((steps, len(BLEND_WEIGHTS)))
@@ -193,7 +194,8 @@ def blend_weights(household: Household, models: ModelConfig, step_minutes: int, 
     return tuple(float(best_of([(w, -losses[j, i]) for i, w in enumerate(BLEND_WEIGHTS)])) for j in range(steps))
 
 
-def run_activity_anticipation(config: GlobeConfig, households: Sequence[Household], memo: Memo) -> list[AnticipationScores]:
+def run_activity_anticipation(config: GlobeConfig, households: Sequence[Household],
+                              memo: Memo) -> list[AnticipationScores]:
     """Every household's test days, with the routine family's model chosen by cross-validation
     on its training days (``memo``: the main job's searches)."""
     out = []
@@ -216,7 +218,7 @@ def write_activity_anticipation(out_dir: Path, scores: Sequence[AnticipationScor
 
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = [r for s in scores for r in s.rows()]
-    paths = [out_dir / "activity_anticipation.csv", out_dir / "next_activity.csv", out_dir / "activity_anticipation.png"]
+    paths = [out_dir / name for name in ("activity_anticipation.csv", "next_activity.csv", "activity_anticipation.png")]
     report.write_csv(paths[0], rows, list(ANTICIPATION_COLUMNS))
     report.write_csv(paths[1], [r for s in scores for r in s.next_rows()], list(NEXT_COLUMNS))
     save_figure(activity_horizon_figure(rows, title), paths[2])

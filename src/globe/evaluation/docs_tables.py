@@ -233,8 +233,8 @@ def missing_labels(results: Path) -> str:
     rows = [r for r in read_rows(results, "missing_labels.csv") if r["household"] == "mean"]
     body = [[f"{r['labels_pct']} %", _f(r["activity_f1"]), _f(r["activity_log_loss"]), _f(r["object_f1"]),
              _f(r.get("lookahead_f1_mean"))] for r in rows]
-    return markdown(["labels visible", "activity F1", "activity log loss", "object F1", "lookahead F1 (mean 10–60 min)"],
-                    body)
+    head = ["labels visible", "activity F1", "activity log loss", "object F1", "lookahead F1 (mean 10–60 min)"]
+    return markdown(head, body)
 
 
 def missing_labels_selection(results: Path) -> str:

@@ -67,8 +67,9 @@ def robustness_figure(rows: Sequence[dict], xlabel: str, published_clean: dict[s
     for k, method in enumerate(methods):
         get = {r["dataset"]: r for r in rows if r["method"] == method}
         xs = [i + (2 * k) * width - 0.4 + width / 2 for i in range(len(datasets))]
-        ax.bar(xs, [get[d]["object_f1"] for d in datasets], width, color=colors[k % len(colors)], label=f"{method}: all events")
-        ax.bar([x + width for x in xs], [get[d]["object_f1_routine"] for d in datasets], width, color=colors[k % len(colors)],
+        color = colors[k % len(colors)]
+        ax.bar(xs, [get[d]["object_f1"] for d in datasets], width, color=color, label=f"{method}: all events")
+        ax.bar([x + width for x in xs], [get[d]["object_f1_routine"] for d in datasets], width, color=color,
                alpha=0.45, hatch="//", label=f"{method}: routine events only")
     if published_clean:
         for name, value in published_clean.items():
@@ -84,7 +85,8 @@ def robustness_figure(rows: Sequence[dict], xlabel: str, published_clean: dict[s
     return fig
 
 
-def grouped_line_figure(rows: Sequence[dict], x: str, series: str, y: str, title: str, xlabel: str, ylabel: str) -> Figure:
+def grouped_line_figure(rows: Sequence[dict], x: str, series: str, y: str, title: str, xlabel: str,
+                        ylabel: str) -> Figure:
     """One line per ``series`` value, ``y`` against ``x``."""
     fig, ax = plt.subplots(figsize=(6, 4))
     for name in dict.fromkeys(r[series] for r in rows):
@@ -107,8 +109,10 @@ def consistency_figure(rows: Sequence[dict], method: str, definition: str) -> Fi
     fig, ax = plt.subplots(figsize=(7, 4))
     width = 0.8 / len(groups)
     for k, g in enumerate(groups):
-        vals = [next((r["object_f1"] or 0 for r in mine if r["dataset"] == d and r["consistency"] == g), 0) for d in datasets]
-        ax.bar([i + (k - 1) * width for i in range(len(datasets))], vals, width, label=f"{g}{'ly' if g == 'moderate' else ''} consistent")
+        vals = [next((r["object_f1"] or 0 for r in mine if r["dataset"] == d and r["consistency"] == g), 0)
+                for d in datasets]
+        ax.bar([i + (k - 1) * width for i in range(len(datasets))], vals, width,
+               label=f"{g}{'ly' if g == 'moderate' else ''} consistent")
     ax.set_xticks(range(len(datasets)), datasets)
     ax.set_ylabel("object F1 (weighted)")
     ax.set_ylim(0, 1)

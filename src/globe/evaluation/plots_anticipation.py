@@ -32,12 +32,14 @@ def lookahead_figure(rows: Sequence[dict], scope: DataScope) -> Figure:
     for i, method in enumerate(methods):
         color = f"C{i}"
         mean = [r for r in rows if r["method"] == method and r["household"] == "mean"]
-        ax.plot([r["horizon_min"] for r in mean], [r["f1"] for r in mean], marker="o", color=color, label=f"ours: {method}")
+        ax.plot([r["horizon_min"] for r in mean], [r["f1"] for r in mean], marker="o", color=color,
+                label=f"ours: {method}")
         for hh in dict.fromkeys(r["household"] for r in rows if r["method"] == method and r["household"] != "mean"):
             mine = [r for r in rows if r["method"] == method and r["household"] == hh]
             ax.plot([r["horizon_min"] for r in mine], [r["f1"] for r in mine], color=color, alpha=0.25, linewidth=0.8)
     for (label, value), style in zip(SLATE_PRO_OBJECT_F1.items() if scope.homer_plus else (), ("--", ":")):
-        ax.axhline(value, color="black", linestyle=style, linewidth=1, label=f"SLaTe-PRO, published: {label} ({value:.2f})")
+        ax.axhline(value, color="black", linestyle=style, linewidth=1,
+                   label=f"SLaTe-PRO, published: {label} ({value:.2f})")
     ax.set_xlabel("horizon (minutes ahead)")
     ax.set_ylabel(f"relocation F1 (mean of {', '.join(scope.households)}; thin: each home)")
     ax.set_ylim(0, 1)
@@ -59,7 +61,8 @@ def fetch_curve_figure(rows: Sequence[dict], target: tuple[float, float] = (0.40
         for r in mine:
             if r["configured"]:
                 ax.scatter([r["recall"]], [r["precision"]], s=90, facecolors="none", edgecolors=f"C{i}", zorder=3)
-    ax.axvspan(target[0], 1.0, ymin=target[1], ymax=1.0, color="green", alpha=0.08, label="target: P >= 0.80 at R >= 0.40")
+    ax.axvspan(target[0], 1.0, ymin=target[1], ymax=1.0, color="green", alpha=0.08,
+               label="target: P >= 0.80 at R >= 0.40")
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1)
     ax.set_xlabel("recall (uses fetched in advance)")
@@ -78,7 +81,8 @@ def lead_time_figure(rows: Sequence[dict]) -> Figure:
     width = 0.8 / max(len(households), 1)
     for i, hh in enumerate(households):
         counts = {r["lead_min"]: r["uses"] for r in rows if r["household"] == hh}
-        ax.bar([k + (i - (len(households) - 1) / 2) * width for k in range(len(leads))], [counts.get(x, 0) for x in leads],
+        offset = (i - (len(households) - 1) / 2) * width
+        ax.bar([k + offset for k in range(len(leads))], [counts.get(x, 0) for x in leads],
                width, label=f"household {hh}")
     ax.set_xticks(range(len(leads)), [str(x) for x in leads])
     ax.set_xlabel("lead time (minutes between the fetch and the use)")

@@ -67,7 +67,8 @@ def table1_markdown(rows: Sequence[dict], labels: dict[str, str], average: str, 
 def timing_markdown(rows: Sequence[dict], scope: DataScope) -> str:
     lines = ["Training and inference time for the whole test split (seconds, this machine); CV s = hyperparameter",
              "search on training days (not part of training)", "",
-             "| Method | Household | Train s | Inference s | LLM calls | LLM s | CV s |", "|---|---|---|---|---|---|---|"]
+             "| Method | Household | Train s | Inference s | LLM calls | LLM s | CV s |",
+             "|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['method']} | {r['household']} | {float(r['train_s']):.3f} | {float(r['inference_s']):.3f} "
                      f"| {r['llm_calls']} | {float(r['llm_s']):.2f} | {float(r['selection_s']):.2f} |")

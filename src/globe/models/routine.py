@@ -259,7 +259,8 @@ class RoutineStates(StateSpace):
         seen, stayed = model.seen_, model.stayed_
 
         def level(keys: list) -> tuple[np.ndarray, np.ndarray]:
-            return (np.array([stayed[key] for key in keys], dtype=float), np.array([seen[key] for key in keys], dtype=float))
+            return (np.array([stayed[key] for key in keys], dtype=float),
+                    np.array([seen[key] for key in keys], dtype=float))
 
         up, n = level([(a,) for a in labels])
         p1 = (up + 2.0 * 0.5) / (n + 2.0)  # the base level shrinks to 1/2 (Laplace)

@@ -154,7 +154,8 @@ class NumberedStates(StateSpace):
     per (key, step, last activity) and kept as a dense row."""
 
     def __init__(self, model: Any, classes: Sequence[str], root: Hashable,
-                 advance: Callable[[Any, int, str], Hashable], distribution: Callable[[Any, int], dict[str, float]]) -> None:
+                 advance: Callable[[Any, int, str], Hashable],
+                 distribution: Callable[[Any, int], dict[str, float]]) -> None:
         super().__init__(model, classes)
         self._advance, self._distribution = advance, distribution
         self._keys: list[Hashable] = []
