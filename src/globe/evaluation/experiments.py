@@ -11,7 +11,7 @@ from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import AVERAGES, Average, calibration, f1, log_loss
+from globe.evaluation.metrics import AVERAGES, Average, calibration, log_loss, records_f1
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.evaluation.selection import Memo
 from globe.reasoning.backends.base import LLMBackend
@@ -59,17 +59,16 @@ def run_methods(
             continue
         for h in households:
             prepared = method.prepare(h, config, backend, memo)
-            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment)
-            oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, oracle=True)
+            align = config.sequences.alignment
+            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=align)
+            oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=align, oracle=True)
             runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection,
                                   assembly.describe(prepared.activity, prepared.chooser)))
     return runs
 
 
 def _f1s(ev: Evaluation, average: Average) -> tuple[float | None, float | None]:
-    a = f1([r.true for r in ev.activity], [r.predicted for r in ev.activity], average)
-    o = f1([r.true for r in ev.objects], [r.predicted for r in ev.objects], average)
-    return a, o
+    return records_f1(ev.activity, average), records_f1(ev.objects, average)
 
 
 def table1_rows(runs: Sequence[MethodRun]) -> list[dict]:
@@ -114,7 +113,7 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
         rows.append({
             "method": run.method, "household": run.household,
             "activity_f1": _round(_f1s(ev, "weighted")[0]),
-            "activity_f1_change_steps": _round(f1([r.true for r in changes], [r.predicted for r in changes])),
+            "activity_f1_change_steps": _round(records_f1(changes)),
             "activity_log_loss": _round(log_loss([r.p_true for r in ev.activity])),
             "change_steps": len(changes),
             "object_f1": _round(_f1s(ev, "weighted")[1]),

@@ -19,21 +19,23 @@ def write_robustness_results(out_dir: Path, res: RobustnessResults, noise: Noise
     report.write_csv(out_dir / "consistency.csv", res.consistency)
     report.write_csv(out_dir / "ablation_train_level.csv", res.train_level)
     report.write_csv(out_dir / "ablation_threshold.csv", res.threshold)
-    robustness_figure(res.robustness, f"test data (noisy: {levels})", {"SLaTe-PRO": TABLE1["slate_pro"][1]}).savefig(out_dir / "robustness.png", dpi=130)
+    figure = robustness_figure(res.robustness, f"test data (noisy: {levels})", {"SLaTe-PRO": TABLE1["slate_pro"][1]})
+    figure.savefig(out_dir / "robustness.png", dpi=130)
     for method in dict.fromkeys(r["method"] for r in res.consistency):
         for definition in dict.fromkeys(r["definition"] for r in res.consistency):
             consistency_figure(res.consistency, method, definition).savefig(
                 out_dir / f"consistency_{method}_{definition}.png", dpi=130)
     if res.train_level:
-        grouped_line_figure([r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level], "train_level", "series",
-                            "object_f1", f"Training noise level (tested at {noise.test_level:g})", "training noise level",
+        series = [r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level]
+        grouped_line_figure(series, "train_level", "series", "object_f1",
+                            f"Training noise level (tested at {noise.test_level:g})", "training noise level",
                             "object F1 (weighted)").savefig(out_dir / "ablation_train_level.png", dpi=130)
     if res.threshold:
         grouped_line_figure(res.threshold, "threshold", "dataset", "object_f1", "Gate threshold d",
                             "threshold d", "object F1 (weighted)").savefig(out_dir / "ablation_threshold.png", dpi=130)
     md = "\n".join([f"# Robustness ({levels})", "", report.rows_markdown(res.robustness),
-                    f"Published SLaTe-PRO on clean HOMER+: object F1 {TABLE1['slate_pro'][1]:.2f} (its per-noise values are "
-                    "only shown graphically in the paper).", "",
+                    f"Published SLaTe-PRO on clean HOMER+: object F1 {TABLE1['slate_pro'][1]:.2f} "
+                    "(its per-noise values are only shown graphically in the paper).", "",
                     "# Behavioural consistency", "", report.rows_markdown(res.consistency),
                     "# Ablation: training noise level", "", report.rows_markdown(res.train_level),
                     "# Ablation: threshold d", "", report.rows_markdown(res.threshold)])
