@@ -44,7 +44,8 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _start_service(db: Path, log: Path, skew_days: int, backend: str, config: str | None) -> tuple[subprocess.Popen, str]:
+def _start_service(db: Path, log: Path, skew_days: int, backend: str,
+                   config: str | None) -> tuple[subprocess.Popen, str]:
     """``globe serve`` as its own process; returns it and its base URL once /health answers."""
     port = _free_port()
     env = dict(os.environ, GLOBE_SERVICE__MAX_CLOCK_SKEW=f"P{skew_days}D", GLOBE_SERVICE__TIMEZONE="UTC")
@@ -99,9 +100,10 @@ def main() -> None:
             with GlobeClient(url, token=token, timeout_s=120) as client:
                 for h in homes:
                     def report(p: CurvePoint) -> None:
-                        print(f"  {p.household} after {p.days_learned:2d} days: activity F1 {_fmt(p.activity_f1)}, object F1 "
-                              f"{_fmt(p.object_f1)}, fetch precision {p.fetch_precision:.3f}, recall {p.fetch_recall:.3f} "
-                              f"({p.observations} observations, {p.elapsed_s:.1f} s)", flush=True)
+                        print(f"  {p.household} after {p.days_learned:2d} days: activity F1 {_fmt(p.activity_f1)}, "
+                              f"object F1 {_fmt(p.object_f1)}, fetch precision {p.fetch_precision:.3f}, "
+                              f"recall {p.fetch_recall:.3f} ({p.observations} observations, {p.elapsed_s:.1f} s)",
+                              flush=True)
 
                     points += learning_curve(client, h, checkpoints, isolate_up_to=args.isolate_up_to, progress=report)
         finally:
@@ -123,8 +125,8 @@ def main() -> None:
     for r in rows:
         print(" ".join(f"{_fmt(r[c]):>15s}" for c in COLUMNS))
     observations = sum(p.observations for p in points)
-    print(f"\n{len(points)} points (a household per test day up to {args.isolate_up_to} days, LLM backend {args.backend}), "
-          f"{observations} observations posted: {elapsed:.1f} s "
+    print(f"\n{len(points)} points (a household per test day up to {args.isolate_up_to} days, "
+          f"LLM backend {args.backend}), {observations} observations posted: {elapsed:.1f} s "
           f"({1000 * elapsed / max(observations, 1):.2f} ms per observation, predictions included)")
     print(f"wrote {out / 'learning_curve.csv'} and {out / 'learning_curve.png'}")
 

@@ -35,7 +35,8 @@ def main() -> None:
         if method == "routine":
             ok = mean[0] >= 0.83 and mean[2] >= 0.70 and max(r[3] for r in rows) < 0.1
             verdict = "  targets (act >= 0.83, obj >= 0.70, train < 0.1 s): " + ("ok" if ok else "MISSED")
-        print(f"{method:15s} {'mean':4s} {mean[0]:7.3f} {mean[1]:9.3f} {mean[2]:7.3f} {mean[3]:8.4f} {mean[4]:6.2f}{verdict}")
+        print(f"{method:15s} {'mean':4s} {mean[0]:7.3f} {mean[1]:9.3f} {mean[2]:7.3f} {mean[3]:8.4f} "
+              f"{mean[4]:6.2f}{verdict}")
     print("published: GLOBE 0.80 / 0.65, SLaTe-PRO 0.78 / 0.69 (activity / object F1)")
 
 

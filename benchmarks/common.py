@@ -10,7 +10,8 @@ from globe.data.locate import resolve_data_root
 from globe.data.records import Household
 
 
-def setup(doc: str | None, extra: dict[str, dict] | None = None) -> tuple[GlobeConfig, list[Household], argparse.Namespace]:
+def setup(doc: str | None,
+          extra: dict[str, dict] | None = None) -> tuple[GlobeConfig, list[Household], argparse.Namespace]:
     """Parse ``--data`` (and ``extra`` options), load every configured household."""
     parser = argparse.ArgumentParser(description=doc)
     parser.add_argument("--data", default=None, help="HOMER+ folder (else $GLOBE_DATA, else ../shared/data/homer_plus)")

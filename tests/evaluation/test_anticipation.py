@@ -10,7 +10,8 @@ from globe.evaluation.lookahead import LOOKAHEAD_COLUMNS
 
 def test_results_folder(households, config, tmp_path):
     cfg = config.model_copy(update={
-        "lookahead": config.lookahead.model_copy(update={"methods": ("persistence",), "last_reference": 12, "cv_stride": 4}),
+        "lookahead": config.lookahead.model_copy(update={"methods": ("persistence",), "last_reference": 12,
+                                                         "cv_stride": 4}),
         "policy": config.policy.model_copy(update={"method": "persistence", "curve_ratios": (1.0, 3.0)}),
     })
     messages: list[str] = []
@@ -29,4 +30,5 @@ def test_results_folder(households, config, tmp_path):
     with (tmp_path / "lookahead_selection.csv").open() as fh:
         chosen = [r for r in csv.DictReader(fh) if r["chosen"] == "True"]
     assert [r["horizon_min"] for r in chosen] == ["10", "20", "30", "40", "50", "60"]  # one threshold per horizon
-    assert len({r["run_end"] for r in chosen}) == 1 and all(float(r["threshold"]) in cfg.lookahead.thresholds for r in chosen)
+    assert len({r["run_end"] for r in chosen}) == 1
+    assert all(float(r["threshold"]) in cfg.lookahead.thresholds for r in chosen)

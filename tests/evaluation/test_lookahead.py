@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from globe import assembly
 from globe.evaluation.lookahead import (
     HorizonPairs,
     LookaheadResult,
@@ -82,18 +81,17 @@ def test_reference_steps_keep_the_horizon_inside_the_day(households):
     assert list(reference_steps(day, 6, 1, 500))[-1] == len(day) - 7
 
 
-def test_pooled_scorer_agrees_with_hand_counting(households, config):
+def test_pooled_scorer_agrees_with_hand_counting(households, persistence_forecaster):
     """forecast_days' vectorised pairs give the same counts as relocation_counts on the same
     predictions, at every horizon."""
     h = households["A"]
-    fitted = assembly.forecaster(h, config, models=config.models.model_copy(update={"activity_estimator": "persistence"}))
     day = h.test[0]
     threshold = 0.3
-    run = forecast_days(fitted.forecaster, [day], 6, first=10, last=40)
+    run = forecast_days(persistence_forecaster, [day], 6, first=10, last=40)
     for s in range(6):
         total = RelocationCounts()
         for r in range(10, 41):
-            fc = fitted.forecaster.forecast(day.activities[:r], day.locations[: r + 1], 5)
+            fc = persistence_forecaster.forecast(day.activities[:r], day.locations[: r + 1], 5)
             where, p = fc.first_location(s)
             predicted = [w if q >= threshold and q > 0 else None for w, q in zip(where, p)]
             total = total + relocation_counts(true_first_locations(day.locations, r, s), predicted)

@@ -27,7 +27,8 @@ from globe.evaluation.selection import Memo, Selection
 def _setup(h, config: GlobeConfig, previous_share: float) -> FilterSetup:
     models = config.models.model_copy(update={"activity_estimator": "routine", "object_marginal": True})
     fitted = assembly.fit_household(h, config.model_copy(update={"models": models}))
-    emission = assembly.movement_emission(config.filter, previous_share=previous_share, weight=0.5).fit(h.train, h.objects)
+    emission = assembly.movement_emission(config.filter, previous_share=previous_share, weight=0.5)
+    emission.fit(h.train, h.objects)
     chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=True)
     return FilterSetup(h, models, fitted.activity, emission, chooser, Selection({}), 0.0)
 

@@ -33,11 +33,13 @@ def valid_day(draw) -> str:
     """A day by the rules: ASCII minutes every 10 within one day, labels, known locations."""
     n = draw(st.integers(1, 12))
     start = draw(st.integers(0, 1440 - STEP * (n - 1)))
-    label = st.text(st.characters(codec="utf-8", exclude_categories=("Cc", "Cs", "Zs", "Zl", "Zp")), min_size=1, max_size=8)
+    printable = st.characters(codec="utf-8", exclude_categories=("Cc", "Cs", "Zs", "Zl", "Zp"))
+    label = st.text(printable, min_size=1, max_size=8)
     rows = [["minute", "activity", *OBJECTS]]
     for t in range(n):
         rows.append([str(start + STEP * t), draw(st.sampled_from(["sleeping", "idle", "breakfast"]) | label),
-                     draw(st.sampled_from(["counter#3", "table#4", "kitchen#2"])), draw(st.sampled_from(LOCATIONS[:4]))])
+                     draw(st.sampled_from(["counter#3", "table#4", "kitchen#2"])),
+                     draw(st.sampled_from(LOCATIONS[:4]))])
     out = io.StringIO()
     csv.writer(out, lineterminator="\n").writerows(rows)
     return out.getvalue()

@@ -222,7 +222,8 @@ def test_packed_days_give_back_the_days_packed(seed):
         days.append(Day(f"train/{d:03d}", minutes, tuple(rng.choice(["eat", "sleep", "tv"]) for _ in range(steps)),
                         tuple(rows), f"upload-{d}"))
     packed = PackedDays(days)
-    assert len(packed) == len(days) and list(packed) == days and packed[-1] == days[-1] and packed[1:3] == tuple(days[1:3])
+    assert len(packed) == len(days) and list(packed) == days
+    assert packed[-1] == days[-1] and packed[1:3] == tuple(days[1:3])
     with pytest.raises(IndexError):
         packed[len(days)]
     assert list(PackedDays([])) == []
