@@ -18,12 +18,8 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
-import signal
-import socket
 import sqlite3
 import statistics
-import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -31,7 +27,7 @@ from pathlib import Path
 
 import httpx
 
-from common import setup
+from common import serve, setup, stop
 from globe.config import GlobeConfig
 from globe.service.auth import create_token
 from globe.service.client import GlobeClient, household_payload
@@ -41,12 +37,6 @@ from globe.service.upload import household_from, parse_nodes
 
 TARGET_MB, TARGET_CREATE_S, TARGET_STARTUP_S, BEFORE_OBS_MS = 4.0, 0.1, 2.0, 6.0
 BASE = dt.datetime.combine(dt.date.today() - dt.timedelta(days=200), dt.time())
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def cpu_s(pid: int) -> float:
@@ -72,31 +62,18 @@ def rss_mb(pid: int) -> float:
 
 class Service:
     def __init__(self, db: Path, env: dict[str, str]) -> None:
-        self.db, self.port = db, free_port()
+        self.db = db
         self.admin = create_token(db, admin=True)
         self.env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D", **env)
-
-    @property
-    def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}"
 
     def start(self) -> float:
         """Start; returns seconds until /health answers (process start and imports included)."""
         started = time.perf_counter()
-        argv = [sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port)]
-        self.proc = subprocess.Popen(argv, env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        while True:
-            try:
-                if httpx.get(self.url + "/health", timeout=1).status_code == 200:
-                    return time.perf_counter() - started
-            except httpx.HTTPError:
-                time.sleep(0.02)
-            if self.proc.poll() is not None:
-                raise SystemExit("the service exited")
+        self.proc, self.url = serve(self.db, self.env)
+        return time.perf_counter() - started
 
     def stop(self) -> None:
-        self.proc.send_signal(signal.SIGTERM)
-        self.proc.wait(timeout=30)
+        stop(self.proc)
 
 
 def memory_and_creation(homes, n: int, tmp: Path) -> None:

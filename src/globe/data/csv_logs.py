@@ -89,11 +89,6 @@ def _csv_rows(text: str, source: str) -> list[tuple[int, list[str]]]:
     return rows
 
 
-def _read_rows(path: Path) -> list[list[str]]:
-    """Kept for callers that want cells only (line numbers are lost)."""
-    return [row for _, row in _csv_rows(_read_text(path), str(path))]
-
-
 def _check_header(path: Path | str, header: list[str], required: Iterable[str]) -> None:
     for i, name in enumerate(header):
         if "\x00" in name:

@@ -284,14 +284,6 @@ class MovementModel(CountingModel):
         idx = np.array(sorted(prob), dtype=int)
         return idx, np.array([prob[i] / z for i in idx])
 
-    def destination_matrix(self, activity: str, sources: np.ndarray) -> np.ndarray:
-        """(objects x locations): each object's destination distribution from its place."""
-        out = np.zeros((len(self.objects_), len(self.locations_)))
-        for j, s in enumerate(sources):
-            idx, p = self.destination(activity, j, int(s))
-            out[j, idx] = p
-        return out
-
 
     # -- what a forecast reads, memoised per set of training places ------------------------------
     def sources(self, row: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -82,7 +82,7 @@ def propose(household: Household, noise_type: NoiseType, scorer: Scorer, *, seed
                 scores = model.object_scores(noise_type, activity)
                 obj = sample(candidates, [scores[o] for o in candidates], temperature, rng)
                 support = rules.support(before[obj], before)
-                dests = rules.destinations(noise_type, obj, support)
+                dests = rules.destinations(noise_type, support)
                 if not dests:
                     out.dropped["no destination"] += 1
                     continue
