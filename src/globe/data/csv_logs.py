@@ -108,6 +108,14 @@ def _check_header(path: Path | str, header: list[str], required: Iterable[str]) 
             raise DataError(f"missing column (header has {shown})", source=str(path), line=1, field=name)
 
 
+def csv_table(text: str, source: str, required: Iterable[str]) -> tuple[list[tuple[int, list[str]]], list[str]]:
+    """The (line, cells) of a CSV text and its cleaned header, which must have the ``required`` columns."""
+    rows = _csv_rows(text, source)
+    header = [_clean(h) for h in rows[0][1]]
+    _check_header(source, header, required)
+    return rows, header
+
+
 def _ragged(path: Path | str, lineno: int, row: list[str], header: list[str]) -> DataError:
     """A row with too few fields names the first column it lacks."""
     field = header[len(row)] if len(row) < len(header) else None
@@ -208,9 +216,7 @@ def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[
 
 def parse_nodes_text(text: str, source: str) -> tuple[Node, ...]:
     """The nodes of a ``nodes.csv`` text, checked by :func:`check_map`."""
-    rows = _csv_rows(text, source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, NODE_COLUMNS)
+    rows, header = csv_table(text, source, NODE_COLUMNS)
     col = {name: header.index(name) for name in NODE_COLUMNS}
     nodes: list[Node] = []
     lines: list[int] = []
@@ -262,9 +268,7 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
                    owners: dict[str, str] | None = None) -> tuple[Day, tuple[int, ...]]:
     """One day from its text, and the line of each row. ``owners`` maps each object column to its
     node label (an object cannot be inside itself or inside an object that is inside it)."""
-    rows = _csv_rows(text, source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, FIXED_COLUMNS + objects)
+    rows, header = csv_table(text, source, FIXED_COLUMNS + objects)
     extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects]
     if extra:
         raise DataError("not a movable node of this home (see nodes.csv)", source=source, line=1, field=extra[0])
@@ -496,8 +500,7 @@ def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
 
 
 __all__: list[str] = [
-    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "activity_label", "check_map", "parse_nodes_text", "read_nodes",
-    "parse_day_text", "read_day",
-    "household_step", "check_step", "day_files", "read_household_map", "load_household", "format_day", "write_day",
-    "format_nodes", "write_nodes",
+    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "csv_table", "activity_label", "check_map", "parse_nodes_text",
+    "read_nodes", "parse_day_text", "read_day", "household_step", "check_step", "day_files", "read_household_map",
+    "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
 ]
