@@ -9,11 +9,9 @@ from globe.evaluation.lookahead import LOOKAHEAD_COLUMNS
 
 
 def test_results_folder(households, config, tmp_path):
-    cfg = config.model_copy(update={
-        "lookahead": config.lookahead.model_copy(update={"methods": ("persistence",), "last_reference": 12,
-                                                         "cv_stride": 4}),
-        "policy": config.policy.model_copy(update={"method": "persistence", "curve_ratios": (1.0, 3.0)}),
-    })
+    cfg = config.with_overrides({"lookahead.methods": ("persistence",), "lookahead.last_reference": 12,
+                                 "lookahead.cv_stride": 4, "policy.method": "persistence",
+                                 "policy.curve_ratios": (1.0, 3.0)})
     messages: list[str] = []
     result = run_anticipation(cfg, {"A": households["A"]}, progress=messages.append)
     assert messages == ["lookahead and fetch policy: 1 households x methods (in parallel)"]

@@ -121,8 +121,8 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
         return {s: LookaheadRun(cfg.lookahead.horizons, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}
 
     monkeypatch.setattr(lk, "cv_runs", fake_runs)
-    cfg = config.model_copy(update={"lookahead": config.lookahead.model_copy(update={
-        "run_end": (False, True), "run_memory": (False, True), "thresholds": (0.5, 0.4, 0.3)})})
+    cfg = config.with_overrides({"lookahead.run_end": (False, True), "lookahead.run_memory": (False, True),
+                                 "lookahead.thresholds": (0.5, 0.4, 0.3)})
     chosen = lk.choose_settings(households["A"], cfg, cfg.models, Memo())
     # threshold 0.5 finds 1 of 2 changes, 0.4 and 0.3 both: 0.4 is listed first among the best
     assert chosen.best == {"run_end": False, "run_memory": False, "run_next": False, "thresholds": (0.4,) * 6}

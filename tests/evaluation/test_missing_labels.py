@@ -132,7 +132,7 @@ def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(mo
     assert ml.label_share_thresholds(setup, config, Memo(), 0.0) == (0.3,) + (0.2,) * 5
     assert seen == [(0.0, (True, False, True))]
     assert ml.label_share_thresholds(setup, config, Memo(), 1.0) == labelled["thresholds"]
-    off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
+    off = config.with_overrides({"filter.threshold_per_fraction": False})
     assert ml.label_share_thresholds(setup, off, Memo(), 0.25) == labelled["thresholds"]
     assert len(seen) == 1
 

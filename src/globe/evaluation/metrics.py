@@ -133,6 +133,11 @@ def log_loss(p_true: Sequence[float]) -> float | None:
     return statistics.fmean(-math.log(max(p, LOG_LOSS_FLOOR)) for p in p_true)
 
 
+def rounded(x: float | None) -> float | None:
+    """A figure of a results table: 4 decimals; absent stays absent."""
+    return None if x is None else round(x, 4)
+
+
 def mean_present(values: Iterable[float | None]) -> float | None:
     """The mean of the values that are present (None = nothing was scored there), or None."""
     present = [v for v in values if v is not None]
