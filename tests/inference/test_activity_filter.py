@@ -3,7 +3,6 @@ enumerated; and its invariants on HOMER+ (every label visible = the model's scan
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -19,6 +18,7 @@ from globe.models.baselines import PersistenceModel
 from globe.models.routine import RoutineModel
 from globe.models.state_space import NumberedStates
 from globe.models.vocabulary import Vocabulary
+from tests.helpers import enumerate_paths
 
 
 class ToyMarkov:
@@ -133,14 +133,11 @@ def test_routine_filter_is_every_history_enumerated():
     for t in range(len(test)):
         weights: dict[str, float] = {}
         ahead: dict[str, float] = {}
-        for history in itertools.product(model.classes_, repeat=t + 1):
+        for w, history in enumerate_paths(model, (), t + 1):
             if any(visible[s] and history[s] != test.activities[s] for s in range(t)):
                 continue
-            w = 1.0
-            for s, a in enumerate(history):
-                w *= model.predict_proba(history[:s]).get(a, 0.0)
-                if s > 0:
-                    w *= math.exp(emission.log_likelihood(history[s - 1], a, moved[s]))
+            for s in range(1, t + 1):
+                w *= math.exp(emission.log_likelihood(history[s - 1], history[s], moved[s]))
             weights[history[-1]] = weights.get(history[-1], 0.0) + w
             ahead_w = w / math.exp(emission.log_likelihood(history[-2], history[-1], moved[t])) if t > 0 else w
             ahead[history[-1]] = ahead.get(history[-1], 0.0) + ahead_w

@@ -13,6 +13,7 @@ from globe.data.records import Day
 from globe.inference.forecast import Forecaster
 from globe.inference.movements import MovementModel, durations, moved_in_run
 from globe.models.base import ActivityModelBase
+from tests.helpers import enumerate_paths
 
 OBJECTS = ("cup", "book")
 
@@ -370,31 +371,24 @@ def _brute_force(model, mv: MovementModel, history, places, horizon: int):
     activity = [dict() for _ in range(horizon + 1)]
     sources = np.array([mv.location_index(x) for x in places[m]])
 
-    def walk(path, weight):
+    for weight, path in enumerate_paths(model, history, horizon + 2 - (len(history) - m)):
         full = tuple(history) + path
-        if len(path) == horizon + 2 - (len(history) - m):
-            survive = np.ones(nj)
-            for k in range(horizon + 1):
-                u = m + 1 + k
-                act = full[u - 1]
-                run = 0
-                while u - 2 - run >= 0 and full[u - 2 - run] == act:
-                    run += 1
-                h = mv.hazards(act, run, sources, ends=full[u] != act, next_activity=full[u])
-                leave = weight * survive * h
-                departure[k] += leave
-                for j in range(nj):
-                    idx, p = mv.destination(act, j, int(sources[j]))
-                    destination[k, j, idx] += leave[j] * p
-                survive = survive * (1 - h)
-            for k in range(horizon + 1):
-                activity[k][full[m + k]] = activity[k].get(full[m + k], 0.0) + weight
-            return
-        for a, p in model.predict_proba(full).items():
-            if p > 0:
-                walk(path + (a,), weight * p)
-
-    walk((), 1.0)
+        survive = np.ones(nj)
+        for k in range(horizon + 1):
+            u = m + 1 + k
+            act = full[u - 1]
+            run = 0
+            while u - 2 - run >= 0 and full[u - 2 - run] == act:
+                run += 1
+            h = mv.hazards(act, run, sources, ends=full[u] != act, next_activity=full[u])
+            leave = weight * survive * h
+            departure[k] += leave
+            for j in range(nj):
+                idx, p = mv.destination(act, j, int(sources[j]))
+                destination[k, j, idx] += leave[j] * p
+            survive = survive * (1 - h)
+        for k in range(horizon + 1):
+            activity[k][full[m + k]] = activity[k].get(full[m + k], 0.0) + weight
     return departure, destination, activity
 
 
@@ -418,12 +412,8 @@ def test_forecast_is_every_path_enumerated_without_pruning(known, run_next):
     np.testing.assert_allclose(fc.destination, destination, atol=1e-12)
     for got, want in zip(fc.activity, activity):
         assert got == pytest.approx(want, abs=1e-12)
-    every: dict[tuple[str, ...], float] = {(): 1.0}
-    for _ in range(3):
-        every = {path + (a,): w * p for path, w in every.items()
-                 for a, p in model.predict_proba(history + path).items()}
-    paths = f.paths(history, 3)
-    assert {path: p for p, path in paths} == pytest.approx(every, abs=1e-15)
+    every = {path: p for p, path in enumerate_paths(model, history, 3)}
+    assert {path: p for p, path in f.paths(history, 3)} == pytest.approx(every, abs=1e-15)
 
 
 def test_pruned_paths_are_the_most_probable_ties_broken_by_name():
