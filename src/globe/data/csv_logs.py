@@ -50,23 +50,32 @@ def _short(text: str, limit: int = 64) -> str:
 # -- reading text -------------------------------------------------------------------------------
 
 
-def _read_text(path: Path) -> str:
-    """The file as text: UTF-8, with or without a byte-order mark (Excel writes one)."""
+def _read_bytes(path: Path, kind: str = "CSV file") -> bytes:
+    """The file's bytes; a folder, a missing or an unreadable file is a :class:`DataError`."""
     path = Path(path)
     if path.is_dir():
-        raise DataError("is a folder, not a CSV file", source=str(path))
+        raise DataError(f"is a folder, not a {kind}", source=str(path))
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except FileNotFoundError as err:
         raise DataError("file not found", source=str(path)) from err
     except OSError as err:
         raise DataError(f"cannot read file: {err.strerror or err}", source=str(path)) from err
+
+
+def _decode(data: bytes, source: str) -> str:
+    """UTF-8 text, with or without a byte-order mark (Excel writes one)."""
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
         raise DataError(f"not UTF-8 text (byte {err.start}: {err.reason}); save the file as UTF-8",
-                        source=str(path), line=line) from err
+                        source=source, line=line) from err
+
+
+def _read_text(path: Path) -> str:
+    """The file as text: UTF-8, with or without a byte-order mark."""
+    return _decode(_read_bytes(path), str(path))
 
 
 def _csv_rows(text: str, source: str) -> list[tuple[int, list[str]]]:
