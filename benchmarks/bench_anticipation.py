@@ -49,24 +49,27 @@ def main() -> None:
     for h in homes:
         models = method_models(cfg.policy.method, h, cfg, memo)
         best = min(assembly.forecaster(h, cfg, models=models).train_s for _ in range(5))
-        print(f"  household {h.name}: {best:.4f} s (target < 0.1 s: {'ok' if best < 0.1 else 'MISSED'}, ratio {best / 0.1:.2f})")
+        print(f"  household {h.name}: {best:.4f} s "
+              f"(target < 0.1 s: {'ok' if best < 0.1 else 'MISSED'}, ratio {best / 0.1:.2f})")
     ratio = cfg.policy.cost_useless / cfg.policy.cost_missed
     print(f"\nFetch policy (costs useless {cfg.policy.cost_useless}, missed {cfg.policy.cost_missed}; "
           f"lead {cfg.policy.min_lead_minutes}-{cfg.policy.lead_window_minutes} min)")
     for ev in result.fetch:
         rep = ev.report
-        print(f"  household {ev.household}: fetches {rep.fetches:4d}  precision {rep.precision:.3f}  recall {rep.recall:.3f}  "
-              f"median lead {rep.median_lead_min} min")
+        print(f"  household {ev.household}: fetches {rep.fetches:4d}  precision {rep.precision:.3f}  "
+              f"recall {rep.recall:.3f}  median lead {rep.median_lead_min} min")
     allrep = pooled([ev.report for ev in result.fetch])
     ok = allrep.precision >= 0.80 and allrep.recall >= 0.40 and (allrep.median_lead_min or 0) >= 10
-    print(f"  all: precision {allrep.precision:.3f} recall {allrep.recall:.3f} median lead {allrep.median_lead_min} min  "
+    print(f"  all: precision {allrep.precision:.3f} recall {allrep.recall:.3f} "
+          f"median lead {allrep.median_lead_min} min  "
           f"target (P >= 0.80 at R >= 0.40, lead >= 10 min): {'ok' if ok else 'MISSED'}")
     print("  curve over the cost ratio useless/missed (all households pooled):")
     for i, (r, thr, _) in enumerate(result.fetch[0].curve):
         rep = pooled([ev.curve[i][2] for ev in result.fetch])
         mark = " <- configured" if abs(r - ratio) < 1e-12 else ""
+        mean_lead = statistics.fmean(rep.lead_minutes or [0])
         print(f"    ratio {r:5.2f} (p > {thr:.2f}): precision {rep.precision:.3f} recall {rep.recall:.3f} "
-              f"median lead {rep.median_lead_min} min, leads mean {statistics.fmean(rep.lead_minutes or [0]):.1f}{mark}")
+              f"median lead {rep.median_lead_min} min, leads mean {mean_lead:.1f}{mark}")
     if args.out:
         for path in write_anticipation_results(Path(args.out), result, DataScope.of(homes)):
             print(f"wrote {path}")

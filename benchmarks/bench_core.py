@@ -21,7 +21,8 @@ from globe.reasoning.choice import ObjectChooser
 
 def main() -> None:
     cfg, homes, args = setup(__doc__, {"--repeats": {"type": int, "default": 7, "help": "runs per figure (median)"}})
-    print(f"{'household':9s} {'preprocess s':>12s} {'train s':>9s} {'inference s':>12s} {'paper train/ours':>17s} {'paper infer/ours':>17s}  target <= {TARGET_S} s")
+    print(f"{'household':9s} {'preprocess s':>12s} {'train s':>9s} {'inference s':>12s} {'paper train/ours':>17s} "
+          f"{'paper infer/ours':>17s}  target <= {TARGET_S} s")
     for h in homes:
         pre, train, infer = [], [], []
         for _ in range(args.repeats):
@@ -33,7 +34,8 @@ def main() -> None:
             infer.append(time.perf_counter() - t)
         p, tr, inf = (statistics.median(x) for x in (pre, train, infer))
         ok = "ok" if tr <= TARGET_S and inf <= TARGET_S else "MISSED"
-        print(f"{h.name:9s} {p:12.4f} {tr:9.4f} {inf:12.4f} {PAPER_TRAIN_S / tr:16.0f}x {PAPER_INFER_S / inf:16.0f}x  {ok}")
+        print(f"{h.name:9s} {p:12.4f} {tr:9.4f} {inf:12.4f} {PAPER_TRAIN_S / tr:16.0f}x "
+              f"{PAPER_INFER_S / inf:16.0f}x  {ok}")
 
 
 if __name__ == "__main__":

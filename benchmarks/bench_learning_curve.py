@@ -14,16 +14,12 @@ from __future__ import annotations
 import csv
 import os
 import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import httpx
-
-from common import setup
+from common import serve, setup, stop
 from globe.evaluation.plots_learning import learning_curve_figure
 from globe.service.auth import create_token
 from globe.service.client import GlobeClient
@@ -36,35 +32,6 @@ from globe.service.learning_curve import (
     required_clock_skew,
     table_rows,
 )
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _start_service(db: Path, log: Path, skew_days: int, backend: str, config: str | None) -> tuple[subprocess.Popen, str]:
-    """``globe serve`` as its own process; returns it and its base URL once /health answers."""
-    port = _free_port()
-    env = dict(os.environ, GLOBE_SERVICE__MAX_CLOCK_SKEW=f"P{skew_days}D", GLOBE_SERVICE__TIMEZONE="UTC")
-    cmd = [sys.executable, "-m", "globe", "serve", "--db", str(db), "--port", str(port), "--backend", backend]
-    if config:
-        cmd += ["--config", config]
-    with log.open("w") as fh:
-        proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.time() + 120
-    while time.time() < deadline:
-        if proc.poll() is not None:
-            raise SystemExit(f"globe serve exited:\n{log.read_text()[-3000:]}")
-        try:
-            if httpx.get(url + "/health", timeout=1).status_code == 200:
-                return proc, url
-        except httpx.HTTPError:
-            time.sleep(0.2)
-    proc.kill()
-    raise SystemExit("globe serve did not answer /health within 120 s")
 
 
 def _fmt(value: object) -> str:
@@ -94,22 +61,21 @@ def main() -> None:
     with tempfile.TemporaryDirectory(dir="/dev/shm" if os.path.isdir("/dev/shm") else None) as tmp:
         db = Path(tmp) / "globe.sqlite3"
         token = create_token(db, admin=True)
-        proc, url = _start_service(db, Path(tmp) / "server.log", skew_days, args.backend, args.config)
+        env = dict(os.environ, GLOBE_SERVICE__MAX_CLOCK_SKEW=f"P{skew_days}D", GLOBE_SERVICE__TIMEZONE="UTC")
+        options = ["--backend", args.backend] + (["--config", args.config] if args.config else [])
+        proc, url = serve(db, env, *options, log=Path(tmp) / "server.log")
         try:
             with GlobeClient(url, token=token, timeout_s=120) as client:
                 for h in homes:
                     def report(p: CurvePoint) -> None:
-                        print(f"  {p.household} after {p.days_learned:2d} days: activity F1 {_fmt(p.activity_f1)}, object F1 "
-                              f"{_fmt(p.object_f1)}, fetch precision {p.fetch_precision:.3f}, recall {p.fetch_recall:.3f} "
-                              f"({p.observations} observations, {p.elapsed_s:.1f} s)", flush=True)
+                        print(f"  {p.household} after {p.days_learned:2d} days: activity F1 {_fmt(p.activity_f1)}, "
+                              f"object F1 {_fmt(p.object_f1)}, fetch precision {p.fetch_precision:.3f}, "
+                              f"recall {p.fetch_recall:.3f} ({p.observations} observations, {p.elapsed_s:.1f} s)",
+                              flush=True)
 
                     points += learning_curve(client, h, checkpoints, isolate_up_to=args.isolate_up_to, progress=report)
         finally:
-            proc.terminate()
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+            stop(proc)
     elapsed = time.perf_counter() - started
     rows = table_rows(points)
     with (out / "learning_curve.csv").open("w", newline="", encoding="utf-8") as fh:
@@ -123,8 +89,8 @@ def main() -> None:
     for r in rows:
         print(" ".join(f"{_fmt(r[c]):>15s}" for c in COLUMNS))
     observations = sum(p.observations for p in points)
-    print(f"\n{len(points)} points (a household per test day up to {args.isolate_up_to} days, LLM backend {args.backend}), "
-          f"{observations} observations posted: {elapsed:.1f} s "
+    print(f"\n{len(points)} points (a household per test day up to {args.isolate_up_to} days, "
+          f"LLM backend {args.backend}), {observations} observations posted: {elapsed:.1f} s "
           f"({1000 * elapsed / max(observations, 1):.2f} ms per observation, predictions included)")
     print(f"wrote {out / 'learning_curve.csv'} and {out / 'learning_curve.png'}")
 

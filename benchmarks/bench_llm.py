@@ -81,7 +81,8 @@ def main() -> None:
         warm = EmbeddedBackend(n_threads=cfg.llm.n_threads)
         t = time.perf_counter()
         warm.load()
-        print(f"model load: {time.perf_counter() - t:.2f} s (once per process and shared by every backend; not counted below)")
+        print(f"model load: {time.perf_counter() - t:.2f} s "
+              "(once per process and shared by every backend; not counted below)")
         compare_scorers(warm, homes, cfg, args.questions)
         if args.scorer_only:
             return

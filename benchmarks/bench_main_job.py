@@ -53,11 +53,13 @@ def main() -> None:
         for name in cold:
             print(f"{name:44s} {cold[name]:8.1f} {cached.get(name, float('nan')):9.1f}")
         print(f"{'wall clock (incl. start-up)':44s} {cold_s:8.1f} {cached_s:9.1f}")
-        same = [t for t in TABLES if (root / "cold" / t).is_file() and filecmp.cmp(root / "cold" / t, root / "cached" / t, shallow=False)]
+        same = [t for t in TABLES
+                if (root / "cold" / t).is_file() and filecmp.cmp(root / "cold" / t, root / "cached" / t, shallow=False)]
         print(f"tables identical cold vs cached: {len(same)}/{len(TABLES)}"
               + ("" if len(same) == len(TABLES) else f" (differ or missing: {sorted(set(TABLES) - set(same))})"))
         print(f"cold {cold_s:.0f} s (target <= {COLD_TARGET_S:.0f}: {'ok' if cold_s <= COLD_TARGET_S else 'MISSED'}); "
-              f"cached {cached_s:.0f} s (target <= {CACHED_TARGET_S:.0f}: {'ok' if cached_s <= CACHED_TARGET_S else 'MISSED'})")
+              f"cached {cached_s:.0f} s "
+              f"(target <= {CACHED_TARGET_S:.0f}: {'ok' if cached_s <= CACHED_TARGET_S else 'MISSED'})")
 
 
 if __name__ == "__main__":

@@ -41,7 +41,8 @@ def main() -> None:
                 continue
             verdict = "ok" if hi - lo <= 0.05 else "MISSED"
             print(f"{name}: p=0 {lo:.3f} vs p=100 {hi:.3f} (gap {hi - lo:+.3f}; target gap <= 0.05): {verdict}")
-    print("chosen movement evidence: " + "; ".join(f"{r['household']} {r['params']}" for r in res.selection_rows if r["chosen"]))
+    chosen = [f"{r['household']} {r['params']}" for r in res.selection_rows if r["chosen"]]
+    print("chosen movement evidence: " + "; ".join(chosen))
     print(f"whole run (CV included): {total:.1f} s")
 
 

@@ -12,7 +12,7 @@ import statistics
 
 from common import setup
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import f1
+from globe.evaluation.metrics import records_f1
 from globe.evaluation.protocol import evaluate_days
 
 
@@ -27,9 +27,7 @@ def main() -> None:
             cv = sum(s.seconds for s in prepared.selection.values())
             ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser)
             ch = [r for r in ev.activity if r.is_change]
-            row = (f1([r.true for r in ev.activity], [r.predicted for r in ev.activity]),
-                   f1([r.true for r in ch], [r.predicted for r in ch]),
-                   f1([r.true for r in ev.objects], [r.predicted for r in ev.objects]), prepared.train_s, cv)
+            row = (records_f1(ev.activity), records_f1(ch), records_f1(ev.objects), prepared.train_s, cv)
             rows.append(row)
             print(f"{method:15s} {h.name:4s} {row[0]:7.3f} {row[1]:9.3f} {row[2]:7.3f} {row[3]:8.4f} {row[4]:6.2f}")
         mean = [statistics.fmean(r[i] for r in rows) for i in range(5)]
@@ -37,7 +35,8 @@ def main() -> None:
         if method == "routine":
             ok = mean[0] >= 0.83 and mean[2] >= 0.70 and max(r[3] for r in rows) < 0.1
             verdict = "  targets (act >= 0.83, obj >= 0.70, train < 0.1 s): " + ("ok" if ok else "MISSED")
-        print(f"{method:15s} {'mean':4s} {mean[0]:7.3f} {mean[1]:9.3f} {mean[2]:7.3f} {mean[3]:8.4f} {mean[4]:6.2f}{verdict}")
+        print(f"{method:15s} {'mean':4s} {mean[0]:7.3f} {mean[1]:9.3f} {mean[2]:7.3f} {mean[3]:8.4f} "
+              f"{mean[4]:6.2f}{verdict}")
     print("published: GLOBE 0.80 / 0.65, SLaTe-PRO 0.78 / 0.69 (activity / object F1)")
 
 

@@ -18,12 +18,8 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
-import signal
-import socket
 import sqlite3
 import statistics
-import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -31,7 +27,7 @@ from pathlib import Path
 
 import httpx
 
-from common import setup
+from common import serve, setup, stop
 from globe.config import GlobeConfig
 from globe.service.auth import create_token
 from globe.service.client import GlobeClient, household_payload
@@ -43,16 +39,18 @@ TARGET_MB, TARGET_CREATE_S, TARGET_STARTUP_S, BEFORE_OBS_MS = 4.0, 0.1, 2.0, 6.0
 BASE = dt.datetime.combine(dt.date.today() - dt.timedelta(days=200), dt.time())
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def cpu_s(pid: int) -> float:
     """CPU time (user + system) of a process so far: steadier than wall-clock on a busy machine."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def p95(values: list[float]) -> float:
+    return sorted(values)[int(0.95 * (len(values) - 1))]
+
+
+def verdict(value: float, target: float, unit: str) -> str:
+    return f"target <= {target} {unit}: {'met' if value <= target else 'NOT met'}"
 
 
 def rss_mb(pid: int) -> float:
@@ -64,42 +62,31 @@ def rss_mb(pid: int) -> float:
 
 class Service:
     def __init__(self, db: Path, env: dict[str, str]) -> None:
-        self.db, self.port = db, free_port()
+        self.db = db
         self.admin = create_token(db, admin=True)
         self.env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D", **env)
-
-    @property
-    def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}"
 
     def start(self) -> float:
         """Start; returns seconds until /health answers (process start and imports included)."""
         started = time.perf_counter()
-        self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db), "--port", str(self.port)],
-                                     env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        while True:
-            try:
-                if httpx.get(self.url + "/health", timeout=1).status_code == 200:
-                    return time.perf_counter() - started
-            except httpx.HTTPError:
-                time.sleep(0.02)
-            if self.proc.poll() is not None:
-                raise SystemExit("the service exited")
+        self.proc, self.url = serve(self.db, self.env)
+        return time.perf_counter() - started
 
     def stop(self) -> None:
-        self.proc.send_signal(signal.SIGTERM)
-        self.proc.wait(timeout=30)
+        stop(self.proc)
 
 
 def memory_and_creation(homes, n: int, tmp: Path) -> None:
     """Households created one by one over HTTP, then asked for a prediction each. The request body
     is JSON-encoded before the clock starts: what is timed is the request (transfer, parsing,
     validation, counting, storing), not the client's encoding, which is measured separately."""
-    svc = Service(tmp / "memory.sqlite3", {"GLOBE_SERVICE__MAX_BUILT_HOUSEHOLDS": str(n + 10), "GLOBE_SERVICE__PRELOAD": "false"})
+    svc = Service(tmp / "memory.sqlite3",
+                  {"GLOBE_SERVICE__MAX_BUILT_HOUSEHOLDS": str(n + 10), "GLOBE_SERVICE__PRELOAD": "false"})
     svc.start()
     payloads = [household_payload(h) for h in homes]
     headers = {"Authorization": f"Bearer {svc.admin}", "Content-Type": "application/json"}
-    with GlobeClient(svc.url, token=svc.admin, timeout_s=120) as c, httpx.Client(base_url=svc.url, timeout=120, headers=headers) as http:
+    with (GlobeClient(svc.url, token=svc.admin, timeout_s=120) as c,
+          httpx.Client(base_url=svc.url, timeout=120, headers=headers) as http):
         c.create_household("warm-up", **payloads[0])  # first-use imports and allocations are not a household's cost
         c.prediction("warm-up")
         c.delete_household("warm-up")
@@ -122,13 +109,13 @@ def memory_and_creation(homes, n: int, tmp: Path) -> None:
     per, per_created = (after - before) / n, (created - before) / n
     med, enc = statistics.median(times), statistics.median(encode)
     size = statistics.mean(len(json.dumps(p)) for p in payloads) / 2**20
-    print(f"memory per HOMER+ household   {per:7.2f} MB   (RSS {before:.0f} -> {after:.0f} MB over {n} households, each asked for a "
-          f"prediction; {per_created:.2f} MB right after creation)   target <= {TARGET_MB} MB: {'met' if per <= TARGET_MB else 'NOT met'};"
+    print(f"memory per HOMER+ household   {per:7.2f} MB   (RSS {before:.0f} -> {after:.0f} MB over {n} households, "
+          f"each asked for a prediction; {per_created:.2f} MB right after creation)   {verdict(per, TARGET_MB, 'MB')};"
           f" before ~38 MB: {38 / per:.1f}x less")
-    print(f"creation per HOMER+ household {med:7.3f} s    (median of {n}; {size:.1f} MB request; p95 "
-          f"{sorted(times)[int(0.95 * (n - 1))]:.3f} s; server CPU {statistics.median(cpu):.3f} s; the client's JSON encoding, "
-          f"not included: {enc:.3f} s)"
-          f"   target <= {TARGET_CREATE_S} s: {'met' if med <= TARGET_CREATE_S else 'NOT met'}; before ~0.8 s: {0.8 / med:.1f}x faster")
+    print(f"creation per HOMER+ household {med:7.3f} s    (median of {n}; {size:.1f} MB request; "
+          f"p95 {p95(times):.3f} s; server CPU {statistics.median(cpu):.3f} s; "
+          f"the client's JSON encoding, not included: {enc:.3f} s)"
+          f"   {verdict(med, TARGET_CREATE_S, 's')}; before ~0.8 s: {0.8 / med:.1f}x faster")
 
 
 def startup(homes, n: int, days: int, tmp: Path) -> None:
@@ -149,14 +136,17 @@ def startup(homes, n: int, days: int, tmp: Path) -> None:
         for d, day in enumerate(source):
             for t in range(len(day)):
                 time_ = BASE + dt.timedelta(days=d, minutes=day.minutes[t])
-                rows.append((f"h{i:03d}", time_.isoformat(), day.activities[t], json.dumps(dict(zip(home.objects, day.locations[t]))),
-                             created.isoformat()))
+                locations = json.dumps(dict(zip(home.objects, day.locations[t])))
+                rows.append((f"h{i:03d}", time_.isoformat(), day.activities[t], locations, created.isoformat()))
     db_ = sqlite3.connect(db)
-    db_.execute("UPDATE households SET created_at = ?", ((BASE - dt.timedelta(days=1)).replace(tzinfo=dt.timezone.utc).isoformat(),))
-    db_.executemany("INSERT INTO observations (household, time, activity, locations, received_at) VALUES (?, ?, ?, ?, ?)", rows)
+    day_before = (BASE - dt.timedelta(days=1)).replace(tzinfo=dt.timezone.utc)
+    db_.execute("UPDATE households SET created_at = ?", (day_before.isoformat(),))
+    db_.executemany("INSERT INTO observations (household, time, activity, locations, received_at) "
+                    "VALUES (?, ?, ?, ?, ?)", rows)
     db_.commit()
     db_.close()
-    cfg = GlobeConfig().with_overrides({"llm.backend": "none", "service.max_clock_skew": "P400D", "service.max_built_households": n})
+    cfg = GlobeConfig().with_overrides(
+        {"llm.backend": "none", "service.max_clock_skew": "P400D", "service.max_built_households": n})
     t0 = time.perf_counter()
     store = Store(db)
     reg = Registry(store, cfg, None)
@@ -170,9 +160,10 @@ def startup(homes, n: int, days: int, tmp: Path) -> None:
     process = svc.start()
     svc.stop()
     print(f"start-up, {n} households x {days} days ({len(rows)} observations, {db.stat().st_size / 2**20:.0f} MB):")
-    print(f"  ready to serve (in process)   {ready:7.3f} s   target <= {TARGET_STARTUP_S} s: {'met' if ready <= TARGET_STARTUP_S else 'NOT met'}")
+    print(f"  ready to serve (in process)   {ready:7.3f} s   {verdict(ready, TARGET_STARTUP_S, 's')}")
     print(f"  ready to serve (new process)  {process:7.3f} s   (Python start and imports included)")
-    print(f"  every household built         {built:7.3f} s   (background warm-up; a request builds its household first)")
+    print(f"  every household built         {built:7.3f} s   "
+          "(background warm-up; a request builds its household first)")
 
 
 def load(homes, steps: int, tmp: Path) -> None:
@@ -182,7 +173,8 @@ def load(homes, steps: int, tmp: Path) -> None:
     with GlobeClient(svc.url, token=svc.admin, timeout_s=120) as c:
         for i in range(8):
             c.create_household(f"c{i}", **payloads[i % len(payloads)])
-    print(f"{'clients':>7s} {'obs median ms':>14s} {'obs p95 ms':>11s} {'pred median ms':>15s} {'requests/s':>11s}   before: ~{BEFORE_OBS_MS} ms per observation")
+    print(f"{'clients':>7s} {'obs median ms':>14s} {'obs p95 ms':>11s} {'pred median ms':>15s} {'requests/s':>11s}"
+          f"   before: ~{BEFORE_OBS_MS} ms per observation")
     offset = 0
     for clients in (1, 4, 8):
         obs_lat: list[float] = []
@@ -218,8 +210,7 @@ def load(homes, steps: int, tmp: Path) -> None:
             th.join()
         wall = time.perf_counter() - started
         offset += steps // 100 + 2
-        o = sorted(obs_lat)
-        print(f"{clients:7d} {1000 * statistics.median(o):14.2f} {1000 * o[int(0.95 * (len(o) - 1))]:11.2f} "
+        print(f"{clients:7d} {1000 * statistics.median(obs_lat):14.2f} {1000 * p95(obs_lat):11.2f} "
               f"{1000 * statistics.median(pred_lat):15.2f} {(len(obs_lat) + len(pred_lat)) / wall:11.0f}")
     svc.stop()
 

@@ -50,14 +50,14 @@ def _default(cls: type, name: str):
 @pytest.mark.parametrize("cls_path, params, section", [
     ("globe.models.activity:ActivityModel", {"estimator": "activity_estimator", "max_order": "activity_max_order",
                                              "time_weight": "time_weight", "time_window": "time_window_minutes"}, "models"),
-    ("globe.models.routine:RoutineModel", {"order": "routine_order", "time_weight": "routine_time_weight",
-                                           "time_window": "routine_time_window_minutes", "shrinkage": "routine_shrinkage",
-                                           "duration_cap": "routine_duration_cap_minutes"}, "models"),
+    ("globe.models.routine:RoutineModel",
+     {"order": "routine_order", "time_weight": "routine_time_weight", "time_window": "routine_time_window_minutes",
+      "shrinkage": "routine_shrinkage", "duration_cap": "routine_duration_cap_minutes"}, "models"),
     ("globe.models.objects:ObjectModel", {"estimator": "object_estimator", "max_order": "object_max_order",
                                           "run_start_token": "run_start_token"}, "models"),
-    ("globe.inference.emission:MovementEmission", {"smoothing": "emission_smoothing", "weight": "emission_weight",
-                                                   "previous_share": "emission_previous_share",
-                                                   "boundary": "emission_boundary", "switch": "emission_switch"}, "filter"),
+    ("globe.inference.emission:MovementEmission",
+     {"smoothing": "emission_smoothing", "weight": "emission_weight", "previous_share": "emission_previous_share",
+      "boundary": "emission_boundary", "switch": "emission_switch"}, "filter"),
     ("globe.inference.activity_filter:ActivityFilter", {"max_hypotheses": "max_hypotheses", "min_weight": "min_weight"},
      "filter"),
     ("globe.inference.movements:MovementModel", {"hazard_shrinkage": "hazard_shrinkage", "duration_cap": "duration_cap_minutes",
@@ -66,9 +66,9 @@ def _default(cls: type, name: str):
      "lookahead"),
     ("globe.inference.fetch_policy:FetchPolicy", {"cost_useless": "cost_useless", "cost_missed": "cost_missed",
                                                   "max_fetches_per_step": "max_fetches_per_step"}, "policy"),
-    ("globe.reasoning.gate:UncertaintyGate", {"threshold": "threshold", "top_k": "top_k", "min_prob": "min_prob",
-                                              "mode": "mode", "combine_weight": "combine_weight", "examples": "examples"},
-     "gate"),
+    ("globe.reasoning.gate:UncertaintyGate",
+     {"threshold": "threshold", "top_k": "top_k", "min_prob": "min_prob", "mode": "mode",
+      "combine_weight": "combine_weight", "examples": "examples"}, "gate"),
 ])
 def test_estimator_defaults_are_the_configuration_defaults(cls_path, params, section):
     """Built without the configuration (a test, a user's script), an estimator behaves as the

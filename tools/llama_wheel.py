@@ -72,7 +72,8 @@ def main() -> None:
         if not built:
             sys.exit(f"pip reported success but left no llama_cpp_python-{version} wheel in {wheels}")
     # --force-reinstall: an environment may hold a build of the same version with AMX kernels
-    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--force-reinstall", str(built[-1])], check=True)
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--force-reinstall", str(built[-1])],
+                   check=True)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,8 @@ NODES = [
     ("plate#6", "plate", "placable_objects", 1, "counter#3"),
 ]
 OBJECTS = ("cup", "plate")
-ACTIVITIES = ("sleeping", "breakfast", "breakfast", "cleaning", "idle", "idle", "reading", "reading", "idle", "sleeping", "sleeping")
+ACTIVITIES = ("sleeping", "breakfast", "breakfast", "cleaning", "idle", "idle", "reading", "reading", "idle",
+              "sleeping", "sleeping")
 
 
 def nodes_text(nodes=NODES) -> str:
@@ -35,7 +36,8 @@ def day_text(rows: list[list[str]] | None = None, header: tuple[str, ...] = ("mi
     return ",".join(header) + "\n" + "".join(",".join(r) + "\n" for r in rows)
 
 
-def write_home(root: Path, name: str = "HouseholdT", *, train: int = 3, test: int = 1, nodes: str | None = None) -> Path:
+def write_home(root: Path, name: str = "HouseholdT", *, train: int = 3, test: int = 1,
+               nodes: str | None = None) -> Path:
     """``root/name`` with ``nodes.csv``, ``train/000..`` and ``test/000..``; returns the folder."""
     home = Path(root) / name
     (home / "train").mkdir(parents=True)

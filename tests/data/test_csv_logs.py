@@ -112,7 +112,8 @@ def test_ragged_row_is_an_error(home):
     day = home / "train" / "001.csv"
     last_column = day.read_text().splitlines()[0].split(",")[-1]
     _edit(day, 10, lambda s: s.rstrip("\n").rsplit(",", 1)[0] + "\n")
-    with pytest.raises(DataError, match=rf"train/001\.csv:10: column '{last_column}': ragged row: 62 fields, header has 63"):
+    ragged = rf"train/001\.csv:10: column '{last_column}': ragged row: 62 fields, header has 63"
+    with pytest.raises(DataError, match=ragged):
         _load(home)
 
 

@@ -53,7 +53,8 @@ def _nodes(rows):
 
 def test_check_map_is_reusable_without_files():
     check_map(_nodes(NODES))
-    bad = _nodes(NODES[:4] + [("cup#5", "cup", "placable_objects", 1, "plate#6"), ("plate#6", "plate", "placable_objects", 1, "cup#5")])
+    bad = _nodes(NODES[:4] + [("cup#5", "cup", "placable_objects", 1, "plate#6"),
+                              ("plate#6", "plate", "placable_objects", 1, "cup#5")])
     with pytest.raises(DataError, match=r"containment cycle: cup#5 is in plate#6 is in cup#5") as err:
         check_map(bad, "nodes", [10, 11, 12, 13, 14, 15])
     assert err.value.line == 14 and err.value.field == "start_location"
@@ -91,7 +92,8 @@ def test_lines_count_quoted_newlines_and_labels_refuse_them():
     with pytest.raises(DataError, match=r"d\.csv:2: column 'cup': unknown location 'counter\\n#3'"):
         parse_day_text(text, ("cup",), frozenset({"counter#3"}), "d", "d.csv")
     text = 'minute,activity,cup\n360,"idle",counter#3\n370,"two\nlines",counter#3\n380,idle,attic#1\n'
-    with pytest.raises(DataError, match=r"d\.csv:3: column 'activity': activity 'two\\nlines' contains a control character"):
+    with pytest.raises(DataError,
+                       match=r"d\.csv:3: column 'activity': activity 'two\\nlines' contains a control character"):
         parse_day_text(text, ("cup",), frozenset({"counter#3"}), "d", "d.csv")
 
 

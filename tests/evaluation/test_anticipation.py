@@ -10,10 +10,9 @@ from globe.evaluation.published import DataScope
 
 
 def test_results_folder(households, config, tmp_path):
-    cfg = config.model_copy(update={
-        "lookahead": config.lookahead.model_copy(update={"methods": ("persistence",), "last_reference": 12, "cv_stride": 4}),
-        "policy": config.policy.model_copy(update={"method": "persistence", "curve_ratios": (1.0, 3.0)}),
-    })
+    cfg = config.with_overrides({"lookahead.methods": ("persistence",), "lookahead.last_reference": 12,
+                                 "lookahead.cv_stride": 4, "policy.method": "persistence",
+                                 "policy.curve_ratios": (1.0, 3.0)})
     messages: list[str] = []
     result = run_anticipation(cfg, {"A": households["A"]}, progress=messages.append)
     assert messages == ["lookahead and fetch policy: 1 households x methods (in parallel)"]
@@ -30,4 +29,5 @@ def test_results_folder(households, config, tmp_path):
     with (tmp_path / "lookahead_selection.csv").open() as fh:
         chosen = [r for r in csv.DictReader(fh) if r["chosen"] == "True"]
     assert [r["horizon_min"] for r in chosen] == ["10", "20", "30", "40", "50", "60"]  # one threshold per horizon
-    assert len({r["run_end"] for r in chosen}) == 1 and all(float(r["threshold"]) in cfg.lookahead.thresholds for r in chosen)
+    assert len({r["run_end"] for r in chosen}) == 1
+    assert all(float(r["threshold"]) in cfg.lookahead.thresholds for r in chosen)

@@ -40,7 +40,8 @@ def test_use_steps():
 
 
 def test_replay_counts_by_hand():
-    # t=0: cup (used at 2: lead 20 min, useful); t=1: cup again is pending -> skipped, book (used at 5: too late, useless)
+    # t=0: cup (used at 2: lead 20 min, useful);
+    # t=1: cup again is pending -> skipped, book (used at 5: too late, useless)
     # t=4: book again (its first fetch expired at 1 + 2 = 3), used at 5: useful, lead 10 min
     # t=5: cup with p = 0.4 is not worth it (EV < 0)
     cands = table({0: [("cup", 0.9)], 1: [("cup", 0.9), ("book", 0.8)], 4: [("book", 0.7)], 5: [("cup", 0.4)]})
@@ -57,13 +58,12 @@ def test_minimum_lead_excludes_uses_that_come_too_soon():
     assert (rep.fetches, rep.useful_fetches, rep.used_fetched_in_advance) == (1, 0, 0)
 
 
-def test_curve_rows_and_lead_times_on_homer(households, config):
+def test_curve_rows_and_lead_times_on_homer(households, config, persistence_forecaster):
     """End to end on two real test days: thresholds rise with the cost ratio, so fetches fall."""
     from globe import assembly
 
     h = households["A"]
-    fitted = assembly.forecaster(h, config, models=config.models.model_copy(update={"activity_estimator": "persistence"}))
-    pol = assembly.fetch_policy(fitted.forecaster, config.policy, 10)
+    pol = assembly.fetch_policy(persistence_forecaster, config.policy, 10)
     ev = evaluate_fetch(pol, h, h.test[:2], (0.5, 3.0, 9.0))
     fetches = [rep.fetches for _, _, rep in ev.curve]
     assert fetches == sorted(fetches, reverse=True) and fetches[0] > 0

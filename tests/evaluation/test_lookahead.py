@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from globe import assembly
 from globe.evaluation.lookahead import (
     HorizonPairs,
     LookaheadResult,
@@ -82,18 +81,17 @@ def test_reference_steps_keep_the_horizon_inside_the_day(households):
     assert list(reference_steps(day, 6, 1, 500))[-1] == len(day) - 7
 
 
-def test_pooled_scorer_agrees_with_hand_counting(households, config):
+def test_pooled_scorer_agrees_with_hand_counting(households, persistence_forecaster):
     """forecast_days' vectorised pairs give the same counts as relocation_counts on the same
     predictions, at every horizon."""
     h = households["A"]
-    fitted = assembly.forecaster(h, config, models=config.models.model_copy(update={"activity_estimator": "persistence"}))
     day = h.test[0]
     threshold = 0.3
-    run = forecast_days(fitted.forecaster, [day], 6, first=10, last=40)
+    run = forecast_days(persistence_forecaster, [day], 6, first=10, last=40)
     for s in range(6):
         total = RelocationCounts()
         for r in range(10, 41):
-            fc = fitted.forecaster.forecast(day.activities[:r], day.locations[: r + 1], 5)
+            fc = persistence_forecaster.forecast(day.activities[:r], day.locations[: r + 1], 5)
             where, p = fc.first_location(s)
             predicted = [w if q >= threshold and q > 0 else None for w, q in zip(where, p)]
             total = total + relocation_counts(true_first_locations(day.locations, r, s), predicted)
@@ -123,8 +121,8 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
         return {s: LookaheadRun(cfg.lookahead.horizons, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}
 
     monkeypatch.setattr(lk, "cv_runs", fake_runs)
-    cfg = config.model_copy(update={"lookahead": config.lookahead.model_copy(update={
-        "run_end": (False, True), "run_memory": (False, True), "thresholds": (0.5, 0.4, 0.3)})})
+    cfg = config.with_overrides({"lookahead.run_end": (False, True), "lookahead.run_memory": (False, True),
+                                 "lookahead.thresholds": (0.5, 0.4, 0.3)})
     chosen = lk.choose_settings(households["A"], cfg, cfg.models, Memo())
     # threshold 0.5 finds 1 of 2 changes, 0.4 and 0.3 both: 0.4 is listed first among the best
     assert chosen.best == {"run_end": False, "run_memory": False, "run_next": False, "thresholds": (0.4,) * 6}

@@ -27,7 +27,8 @@ from globe.evaluation.selection import Memo, Selection
 def _setup(h, config: GlobeConfig, previous_share: float) -> FilterSetup:
     models = config.models.model_copy(update={"activity_estimator": "routine", "object_marginal": True})
     fitted = assembly.fit_household(h, config.model_copy(update={"models": models}))
-    emission = assembly.movement_emission(config.filter, previous_share=previous_share, weight=0.5).fit(h.train, h.objects)
+    emission = assembly.movement_emission(config.filter, previous_share=previous_share, weight=0.5)
+    emission.fit(h.train, h.objects)
     chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=True)
     return FilterSetup(h, models, fitted.activity, emission, chooser, Selection({}), 0.0, config.sequences.alignment)
 
@@ -131,7 +132,7 @@ def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(mo
     assert ml.label_share_thresholds(setup, config, Memo(), 0.0) == (0.3,) + (0.2,) * 5
     assert seen == [(0.0, (True, False, True))]
     assert ml.label_share_thresholds(setup, config, Memo(), 1.0) == labelled["thresholds"]
-    off = config.model_copy(update={"filter": config.filter.model_copy(update={"threshold_per_fraction": False})})
+    off = config.with_overrides({"filter.threshold_per_fraction": False})
     assert ml.label_share_thresholds(setup, off, Memo(), 0.25) == labelled["thresholds"]
     assert len(seen) == 1
 

@@ -13,7 +13,8 @@ from globe.sequences.runs import activity_runs
 
 OBJECTS = ("cup", "book")
 NODES = tuple(Node(n, n.split("#")[0], "Furniture", False, "home#-1") for n in ("home#-1", "shelf#1", "table#2")) + (
-    Node("cup#10", "cup", "placable_objects", True, "shelf#1"), Node("book#11", "book", "placable_objects", True, "shelf#1"))
+    Node("cup#10", "cup", "placable_objects", True, "shelf#1"),
+    Node("book#11", "book", "placable_objects", True, "shelf#1"))
 
 
 def day(name, acts, moves):
@@ -26,7 +27,8 @@ def day(name, acts, moves):
     return Day(name, tuple(360 + 10 * t for t in range(len(acts))), tuple(acts), tuple(locs))
 
 
-TRAIN = [day(f"train/{i}", ["idle", "tea", "tea", "read", "read"], {2: {"cup": "table#2"}, 4: {"book": "table#2"}}) for i in range(3)]
+TRAIN = [day(f"train/{i}", ["idle", "tea", "tea", "read", "read"], {2: {"cup": "table#2"}, 4: {"book": "table#2"}})
+         for i in range(3)]
 TEST = [day("test/0", ["idle", "tea", "read", "read", "read"], {2: {"cup": "table#2"}, 3: {"book": "table#2"}})]
 HOME = Household("T", NODES, OBJECTS, tuple(TRAIN), tuple(TEST))
 
@@ -87,7 +89,8 @@ def test_table1_rows_have_the_documented_columns(homer_runs, tmp_path):
                                      "n_households", "n_households_object"]
         got = list(reader)
     assert {(r["method"], r["household"], r["average"]) for r in got} == {
-        (m, h, a) for m in ("persistence", "ngram") for h in ("A", "B", "C", "mean") for a in ("weighted", "micro", "macro")}
+        (m, h, a) for m in ("persistence", "ngram") for h in ("A", "B", "C", "mean")
+        for a in ("weighted", "micro", "macro")}
 
 
 def test_rankings_shared_between_choosers_give_the_same_records(households, fitted):

@@ -29,7 +29,7 @@ def test_on_runs_of_random_activities_f1_picks_persistence_and_log_loss_a_model_
     """By F1 nothing beats "the activity stays"; by log loss (the default) persistence pays for
     every change it calls impossible, and a model of how long runs last wins."""
     h = _patternless(households["C"], seed)
-    by_f1 = GlobeConfig().model_copy(update={"selection": GlobeConfig().selection.model_copy(update={"criterion": "f1"})})
+    by_f1 = GlobeConfig().with_overrides({"selection.criterion": "f1"})
     models, selection = tuned_models(h, by_f1, "routine", Memo())
     assert models.activity_estimator == "persistence", selection["activity"].scores[:3]
     assert {p["activity_estimator"] for p, _ in selection["activity"].scores} == {"persistence", "longest", "routine",
@@ -88,9 +88,10 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
         models = cfg.model_copy(update=params)
         for fold in data_folds(h, 3):
             train, held_out = fold_days(h, fold)
-            shared = activity_f1(fitted_activity(h, fold, models, "previous", memo, 10), [d.activities for d in held_out])
+            held_out_days = [d.activities for d in held_out]
+            shared = activity_f1(fitted_activity(h, fold, models, "previous", memo, 10), held_out_days)
             alone = assembly.activity_model(models, 10).fit([d.activities for d in train])
-            assert shared == activity_f1(alone, [d.activities for d in held_out])  # type: ignore[arg-type]
+            assert shared == activity_f1(alone, held_out_days)  # type: ignore[arg-type]
     counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")
                                        and k.model != "sequences")]
     assert len(counted) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit

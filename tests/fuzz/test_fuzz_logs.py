@@ -4,8 +4,6 @@ repair. Bounded by ``max_examples`` so the whole run takes seconds."""
 
 from __future__ import annotations
 
-import csv
-import io
 import os
 from pathlib import Path
 
@@ -17,7 +15,7 @@ from globe.data.csv_logs import load_household
 from globe.data.records import Household
 from globe.errors import DataError
 from tests.corpus.homes import NODES, OBJECTS, nodes_text, write_home
-from tests.fuzz.mutations import damaged, harmless
+from tests.fuzz.mutations import cells_of, damaged, harmless, text_of
 
 # CI: 150 fixed examples per property (reproducible). GLOBE_FUZZ_EXAMPLES=5000 explores further
 # with fresh random examples each run.
@@ -33,14 +31,14 @@ def valid_day(draw) -> str:
     """A day by the rules: ASCII minutes every 10 within one day, labels, known locations."""
     n = draw(st.integers(1, 12))
     start = draw(st.integers(0, 1440 - STEP * (n - 1)))
-    label = st.text(st.characters(codec="utf-8", exclude_categories=("Cc", "Cs", "Zs", "Zl", "Zp")), min_size=1, max_size=8)
+    printable = st.characters(codec="utf-8", exclude_categories=("Cc", "Cs", "Zs", "Zl", "Zp"))
+    label = st.text(printable, min_size=1, max_size=8)
     rows = [["minute", "activity", *OBJECTS]]
     for t in range(n):
         rows.append([str(start + STEP * t), draw(st.sampled_from(["sleeping", "idle", "breakfast"]) | label),
-                     draw(st.sampled_from(["counter#3", "table#4", "kitchen#2"])), draw(st.sampled_from(LOCATIONS[:4]))])
-    out = io.StringIO()
-    csv.writer(out, lineterminator="\n").writerows(rows)
-    return out.getvalue()
+                     draw(st.sampled_from(["counter#3", "table#4", "kitchen#2"])),
+                     draw(st.sampled_from(LOCATIONS[:4]))])
+    return text_of(rows)
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +61,7 @@ def _check_error(err: DataError, home: Path, data: bytes) -> None:
 
 
 def _rows(data: bytes) -> list[list[str]]:
-    return [r for r in csv.reader(io.StringIO(data.decode("utf-8-sig"), newline="")) if r]
+    return [r for r in cells_of(data.decode("utf-8-sig")) if r]
 
 
 def _assert_day_says(day, data: bytes) -> None:

@@ -33,8 +33,8 @@ def saved(tmp_path_factory) -> Path:
     write_home(root / "data", "HouseholdT")
     h = load_household(root / "data", "T")
     f = fit_household(h, GlobeConfig())
-    save_household_model(root / "m", f.activity, f.objects, household="HouseholdT", fingerprint=map_fingerprint(h.nodes, h.objects),
-                         objects_columns=h.objects)
+    save_household_model(root / "m", f.activity, f.objects, household="HouseholdT",
+                         fingerprint=map_fingerprint(h.nodes, h.objects), objects_columns=h.objects)
     return root / "m"
 
 

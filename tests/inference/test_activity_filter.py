@@ -3,7 +3,6 @@ enumerated; and its invariants on HOMER+ (every label visible = the model's scan
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -19,6 +18,7 @@ from globe.models.baselines import PersistenceModel
 from globe.models.routine import RoutineModel
 from globe.models.state_space import NumberedStates
 from globe.models.vocabulary import Vocabulary
+from tests.helpers import enumerate_paths
 
 
 class ToyMarkov:
@@ -104,7 +104,8 @@ def test_filter_is_the_dense_forward_algorithm_without_pruning(seed):
         predicted = alpha if t == 0 else alpha @ trans
         got = flt.predictive(belief)[0, [flt.labels.index(a) for a in acts]]
         assert got == pytest.approx(predicted / predicted.sum(), abs=1e-10)
-        likelihood = np.ones(4) if moved is None else np.array([np.exp(emission.log_likelihood(None, a, moved)) for a in acts])
+        likelihood = (np.ones(4) if moved is None
+                      else np.array([np.exp(emission.log_likelihood(None, a, moved)) for a in acts]))
         alpha = predicted * likelihood
         alpha = alpha / alpha.sum()
         belief = flt.update(belief, t, None, [moved])
@@ -112,8 +113,7 @@ def test_filter_is_the_dense_forward_algorithm_without_pruning(seed):
 
 
 def _toy_days() -> list[tuple[str, ...]]:
-    return [("s", "s", "e", "e", "w", "w", "s"), ("s", "e", "e", "w", "s", "s", "s"), ("s", "s", "s", "e", "w", "w", "w"),
-            ("e", "e", "s", "w", "w", "e", "s")]
+    return [tuple(day) for day in ("sseewws", "seewsss", "sssewww", "eeswwes")]
 
 
 def test_routine_filter_is_every_history_enumerated():
@@ -133,21 +133,18 @@ def test_routine_filter_is_every_history_enumerated():
     for t in range(len(test)):
         weights: dict[str, float] = {}
         ahead: dict[str, float] = {}
-        for history in itertools.product(model.classes_, repeat=t + 1):
+        for w, history in enumerate_paths(model, (), t + 1):
             if any(visible[s] and history[s] != test.activities[s] for s in range(t)):
                 continue
-            w = 1.0
-            for s, a in enumerate(history):
-                w *= model.predict_proba(history[:s]).get(a, 0.0)
-                if s > 0:
-                    w *= math.exp(emission.log_likelihood(history[s - 1], a, moved[s]))
+            for s in range(1, t + 1):
+                w *= math.exp(emission.log_likelihood(history[s - 1], history[s], moved[s]))
             weights[history[-1]] = weights.get(history[-1], 0.0) + w
             ahead_w = w / math.exp(emission.log_likelihood(history[-2], history[-1], moved[t])) if t > 0 else w
             ahead[history[-1]] = ahead.get(history[-1], 0.0) + ahead_w
         total, total_ahead = sum(weights.values()), sum(ahead.values())
         _close(as_dicts(now[0][t: t + 1], flt.labels)[0], {a: w / total for a, w in weights.items() if w > 0}, 1e-12)
-        _close(as_dicts(predictive[0][t: t + 1], flt.labels)[0], {a: w / total_ahead for a, w in ahead.items() if w > 0},
-               1e-12)
+        expected_ahead = {a: w / total_ahead for a, w in ahead.items() if w > 0}
+        _close(as_dicts(predictive[0][t: t + 1], flt.labels)[0], expected_ahead, 1e-12)
 
 
 def test_skipped_steps_carry_no_evidence_and_steps_must_increase():
@@ -254,23 +251,30 @@ def _day(name, activities, cup, plate):
                tuple((c, p) for c, p in zip(cup, plate)))
 
 
+def _whole_step(days: list[Day], *, boundary: bool, switch: bool = False) -> MovementEmission:
+    """Counts of the cup and the plate, all credited to the earlier activity, Laplace-smoothed."""
+    return MovementEmission(smoothing=1.0, weight=1.0, previous_share=1.0, boundary=boundary, switch=switch).fit(
+        days, ("cup", "plate"))
+
+
 def test_movement_emission_counts_by_hand():
     d1 = _day("train/000", ["x", "x", "y", "y"], ["t", "t", "s", "s"], ["t", "t", "t", "f"])
     d2 = _day("train/001", ["y", "y", "x"], ["s", "t", "t"], ["f", "f", "f"])
     assert moved_objects(d1, ("cup", "plate")) == [frozenset(), frozenset(), {"cup"}, {"plate"}]
-    em = MovementEmission(smoothing=1.0, weight=1.0, previous_share=1.0, boundary=False, switch=False).fit([d1, d2], ("cup", "plate"))
+    em = _whole_step([d1, d2], boundary=False)
     # 5 transitions: cup moved twice, plate once -> overall rates (2+1)/(5+2), (1+1)/(5+2). Credited to
     # the earlier activity: x at (x->x, x->y), y at (y->y, y->y, y->x); the cup moved under x once.
     cup_x, plate_x = (1 + 3 / 7) / (2 + 1), (0 + 2 / 7) / (2 + 1)
     assert em.log_likelihood("x", "y", frozenset()) == pytest.approx(math.log(1 - cup_x) + math.log(1 - plate_x))
     assert em.log_likelihood("x", "x", {"cup"}) == pytest.approx(math.log(cup_x) + math.log(1 - plate_x))
-    edge = MovementEmission(smoothing=1.0, weight=1.0, previous_share=1.0, boundary=True, switch=False).fit([d1, d2], ("cup", "plate"))
+    edge = _whole_step([d1, d2], boundary=True)
     # x -> y happened once (day 1, step 2) and the cup moved then: shrunk towards the rates above
     cup_change, plate_change = (1 + cup_x) / (1 + 1), (0 + plate_x) / (1 + 1)
     assert edge.log_likelihood("x", "y", {"cup"}) == pytest.approx(math.log(cup_change) + math.log(1 - plate_change))
     cup_stay = (0 + cup_x) / (1 + 1)
     assert edge.log_likelihood("x", "x", {"cup"}) == pytest.approx(math.log(cup_stay) + math.log(1 - (0 + plate_x) / 2))
-    both = MovementEmission(previous_share=0.5, weight=0.5, boundary=False, switch=False).fit([d1, d2], ("cup", "plate"))
+    both = MovementEmission(previous_share=0.5, weight=0.5, boundary=False, switch=False)
+    both.fit([d1, d2], ("cup", "plate"))
     # part credited to a_s: y counted at (x->y, y->y, y->y, y->x) ... the cup moved at x->y and y->y
     cup_y1, plate_y1 = (2 + 3 / 7) / (3 + 1), (1 + 2 / 7) / (3 + 1)
     mix = 0.5 * cup_x * (1 - plate_x) + 0.5 * cup_y1 * (1 - plate_y1)
@@ -285,9 +289,8 @@ def test_switch_emission_tells_apart_what_the_next_activity_takes_out():
     never seen keeps that rate."""
     d1 = _day("train/000", ["x", "x", "y"], ["t", "t", "s"], ["t", "t", "t"])
     d2 = _day("train/001", ["x", "x", "z"], ["t", "t", "t"], ["t", "t", "f"])
-    objects = ("cup", "plate")
-    plain = MovementEmission(smoothing=1.0, weight=1.0, previous_share=1.0, boundary=True, switch=False).fit([d1, d2], objects)
-    em = MovementEmission(smoothing=1.0, weight=1.0, previous_share=1.0, boundary=True, switch=True).fit([d1, d2], objects)
+    plain = _whole_step([d1, d2], boundary=True)
+    em = _whole_step([d1, d2], boundary=True, switch=True)
     cup = frozenset({"cup"})
     assert em.log_likelihood("x", "y", cup) > plain.log_likelihood("x", "y", cup) > em.log_likelihood("x", "z", cup)
     assert em.log_likelihood("x", "w", cup) == pytest.approx(plain.log_likelihood("x", "w", cup))  # never seen
@@ -296,14 +299,14 @@ def test_switch_emission_tells_apart_what_the_next_activity_takes_out():
     base = (1 + (1 + 1) / (4 + 2)) / (4 + 1)
     changed = (1 + base) / (2 + 1)
     assert math.exp(em.log_likelihood("x", "y", cup)) / (1 - _plate(em)) == pytest.approx((1 + changed) / (1 + 1))
-    off = MovementEmission(smoothing=1.0, weight=1.0, previous_share=1.0, boundary=True, switch=False).fit(
-        [d1, d2], objects).with_params(switch=True)
+    off = _whole_step([d1, d2], boundary=True).with_params(switch=True)
     assert off.log_likelihood("x", "y", cup) == pytest.approx(em.log_likelihood("x", "y", cup))  # counted either way
 
 
 def _plate(em: MovementEmission) -> float:
     """P(the plate moves) credited to x at its change to y (none in training: shrunk to x's rate)."""
-    odds = math.exp(em.log_likelihood("x", "y", frozenset({"cup", "plate"})) - em.log_likelihood("x", "y", frozenset({"cup"})))
+    odds = math.exp(em.log_likelihood("x", "y", frozenset({"cup", "plate"}))
+                    - em.log_likelihood("x", "y", frozenset({"cup"})))
     return odds / (1 + odds)
 
 

@@ -13,6 +13,7 @@ from globe.data.records import Day
 from globe.inference.forecast import Forecaster
 from globe.inference.movements import MovementModel, durations, moved_in_run
 from globe.models.base import ActivityModelBase
+from tests.helpers import enumerate_paths
 
 OBJECTS = ("cup", "book")
 
@@ -59,14 +60,15 @@ def test_nothing_is_counted_across_days():
     shelf; a one-step day between them has no transition at all)."""
     one_step = toy_day("train/009", "b", ["sink"], ["sink"])
     alone = toy_forecaster().movements
-    mv = MovementModel(hazard_shrinkage=1e-9, destination_shrinkage=1e-9).fit((TOY_DAYS[0], one_step, TOY_DAYS[1]), OBJECTS)
+    mv = MovementModel(hazard_shrinkage=1e-9, destination_shrinkage=1e-9)
+    mv.fit((TOY_DAYS[0], one_step, TOY_DAYS[1]), OBJECTS)
     for place in ("table", "sink"):  # the cup only ever went to the table (the object-level backoff)
         idx, _ = mv.destination("b", 0, mv.location_index(place))
         assert [mv.locations_[i] for i in idx] == ([] if place == "table" else ["table"])
     for a in ("a", "b"):
         for d in range(3):
-            shelf = np.array([mv.location_index("shelf")] * 2)
-            assert mv.hazards(a, d, shelf) == pytest.approx(alone.hazards(a, d, np.array([alone.location_index("shelf")] * 2)))
+            shelf, shelf_alone = (np.array([m.location_index("shelf")] * 2) for m in (mv, alone))
+            assert mv.hazards(a, d, shelf) == pytest.approx(alone.hazards(a, d, shelf_alone))
 
 
 def test_hazards_and_destinations_are_the_counted_rates():
@@ -182,7 +184,8 @@ def test_run_next_hazards_tell_apart_what_the_next_activity_takes_out():
     departure = fc.forecast(("a", "a"), [("shelf", "shelf")] * 2, horizon=0).departure
     assert departure[0] == pytest.approx([0.3, 0.7], abs=1e-6)  # each path's own switch
     pooled = Forecaster(Next().fit([]), plain, min_path_probability=0.0, max_paths=1000)
-    assert pooled.forecast(("a", "a"), [("shelf", "shelf")] * 2, horizon=0).departure[0] == pytest.approx([0.5, 0.5], abs=1e-6)
+    departure = pooled.forecast(("a", "a"), [("shelf", "shelf")] * 2, horizon=0).departure
+    assert departure[0] == pytest.approx([0.5, 0.5], abs=1e-6)
 
 
 def test_memos_follow_the_models_when_they_learn():
@@ -249,7 +252,8 @@ def test_a_batch_of_forecasts_is_each_forecast_alone(households, config, estimat
             for s in range(6):
                 names, prob = batch[q].first_location(s)
                 assert np.array_equal(prob, p[q, s])
-                assert [n for n, pp in zip(names, prob) if pp > 0] == [batch.locations[x] for x, pp in zip(where[q, s], p[q, s]) if pp > 0]
+                batched = [batch.locations[x] for x, pp in zip(where[q, s], p[q, s]) if pp > 0]
+                assert [n for n, pp in zip(names, prob) if pp > 0] == batched
 
 
 def test_shared_memos_do_not_keep_a_model_alive():
@@ -318,12 +322,13 @@ def test_counts_are_those_of_every_transition_and_object(run_end, run_memory):
                 acts.append(rng.choice("abc"))
             days.append(Day(f"d{k}", tuple(range(len(acts))), tuple(acts), tuple(rows)))
         cap = rng.choice((2, 8))
-        mv = MovementModel(hazard_shrinkage=1e-12, duration_cap=cap, run_end=run_end, run_memory=run_memory).fit(days, objects)
+        mv = MovementModel(hazard_shrinkage=1e-12, duration_cap=cap, run_end=run_end,
+                           run_memory=run_memory).fit(days, objects)
         seen, moved, dest = _counted_one_by_one(days, objects, cap, run_end, run_memory)
         for (a, d, e, m, j, place), n in seen.items():
             pair = int(np.searchsorted(mv.pairs_, j * len(mv.locations_) + mv.location_index(place)))
-            assert mv.hazard_[mv.activity_index(a), d, int(e), int(m), pair] == pytest.approx(moved[(a, d, e, m, j, place)] / n,
-                                                                                               rel=1e-9, abs=1e-9)
+            rate = moved[(a, d, e, m, j, place)] / n
+            assert mv.hazard_[mv.activity_index(a), d, int(e), int(m), pair] == pytest.approx(rate, rel=1e-9, abs=1e-9)
         got = [((mv.activities_[key[0]], key[1], mv.locations_[key[2]]), [(mv.locations_[x], n) for x, n in c.items()])
                for key, c in mv.destinations_.items() if len(key) == 3]
         assert got == [(k, list(c.items())) for k, c in dest.items()]
@@ -366,31 +371,24 @@ def _brute_force(model, mv: MovementModel, history, places, horizon: int):
     activity = [dict() for _ in range(horizon + 1)]
     sources = np.array([mv.location_index(x) for x in places[m]])
 
-    def walk(path, weight):
+    for weight, path in enumerate_paths(model, history, horizon + 2 - (len(history) - m)):
         full = tuple(history) + path
-        if len(path) == horizon + 2 - (len(history) - m):
-            survive = np.ones(nj)
-            for k in range(horizon + 1):
-                u = m + 1 + k
-                act = full[u - 1]
-                run = 0
-                while u - 2 - run >= 0 and full[u - 2 - run] == act:
-                    run += 1
-                h = mv.hazards(act, run, sources, ends=full[u] != act, next_activity=full[u])
-                leave = weight * survive * h
-                departure[k] += leave
-                for j in range(nj):
-                    idx, p = mv.destination(act, j, int(sources[j]))
-                    destination[k, j, idx] += leave[j] * p
-                survive = survive * (1 - h)
-            for k in range(horizon + 1):
-                activity[k][full[m + k]] = activity[k].get(full[m + k], 0.0) + weight
-            return
-        for a, p in model.predict_proba(full).items():
-            if p > 0:
-                walk(path + (a,), weight * p)
-
-    walk((), 1.0)
+        survive = np.ones(nj)
+        for k in range(horizon + 1):
+            u = m + 1 + k
+            act = full[u - 1]
+            run = 0
+            while u - 2 - run >= 0 and full[u - 2 - run] == act:
+                run += 1
+            h = mv.hazards(act, run, sources, ends=full[u] != act, next_activity=full[u])
+            leave = weight * survive * h
+            departure[k] += leave
+            for j in range(nj):
+                idx, p = mv.destination(act, j, int(sources[j]))
+                destination[k, j, idx] += leave[j] * p
+            survive = survive * (1 - h)
+        for k in range(horizon + 1):
+            activity[k][full[m + k]] = activity[k].get(full[m + k], 0.0) + weight
     return departure, destination, activity
 
 
@@ -399,9 +397,11 @@ def _brute_force(model, mv: MovementModel, history, places, horizon: int):
 def test_forecast_is_every_path_enumerated_without_pruning(known, run_next):
     """With no pruning the forward pass holds every path with its exact probability, and the
     forecast's departures, destinations and activities are the sums over them."""
-    days = TOY_DAYS + (toy_day("train/002", "abca", ["shelf", "table", "table", "shelf"], ["shelf", "shelf", "sink", "sink"]),
-                       toy_day("train/003", "bbcc", ["table", "shelf", "shelf", "shelf"], ["sink", "sink", "sink", "shelf"]))
-    mv = MovementModel(hazard_shrinkage=0.5, destination_shrinkage=0.5, run_end=True, run_next=run_next).fit(days, OBJECTS)
+    days = TOY_DAYS + (
+        toy_day("train/002", "abca", ["shelf", "table", "table", "shelf"], ["shelf", "shelf", "sink", "sink"]),
+        toy_day("train/003", "bbcc", ["table", "shelf", "shelf", "shelf"], ["sink", "sink", "sink", "shelf"]))
+    mv = MovementModel(hazard_shrinkage=0.5, destination_shrinkage=0.5, run_end=True,
+                       run_next=run_next).fit(days, OBJECTS)
     model = TreeModel().fit([])
     f = Forecaster(model, mv, min_path_probability=0.0, max_paths=100_000)
     history = ("a", "a", "b", "b")[: 3 + known]
@@ -412,11 +412,8 @@ def test_forecast_is_every_path_enumerated_without_pruning(known, run_next):
     np.testing.assert_allclose(fc.destination, destination, atol=1e-12)
     for got, want in zip(fc.activity, activity):
         assert got == pytest.approx(want, abs=1e-12)
-    every: dict[tuple[str, ...], float] = {(): 1.0}
-    for _ in range(3):
-        every = {path + (a,): w * p for path, w in every.items() for a, p in model.predict_proba(history + path).items()}
-    paths = f.paths(history, 3)
-    assert {path: p for p, path in paths} == pytest.approx(every, abs=1e-15)
+    every = {path: p for p, path in enumerate_paths(model, history, 3)}
+    assert {path: p for p, path in f.paths(history, 3)} == pytest.approx(every, abs=1e-15)
 
 
 def test_pruned_paths_are_the_most_probable_ties_broken_by_name():

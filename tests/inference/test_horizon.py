@@ -9,22 +9,10 @@ from globe.models.activity import ActivityModel
 from globe.models.clock import ClockModel
 from globe.models.routine import RoutineModel
 from globe.models.state_space import state_space
+from tests.helpers import enumerate_paths
 
 DAYS = [("sleep", "sleep", "eat", "work", "work", "eat"), ("sleep", "eat", "eat", "work", "tv", "tv"),
         ("sleep", "sleep", "eat", "eat", "tv", "work")]
-
-
-def enumerate_paths(model, history, steps):
-    """Every continuation of ``history`` of ``steps`` activities with its probability."""
-    out = [(1.0, ())]
-    for _ in range(steps):
-        grown = []
-        for p, path in out:
-            for a, q in model.predict_proba(tuple(history) + path).items():
-                if q > 0:
-                    grown.append((p * q, path + (a,)))
-        out = grown
-    return out
 
 
 MODELS = [lambda: ClockModel(slot_minutes=20, shrinkage=2.0), lambda: RoutineModel(order=2),

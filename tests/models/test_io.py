@@ -45,7 +45,8 @@ def test_round_trip_keeps_predictions_and_identity(tiny, tmp_path):
     h, fitted = tiny
     path = _save(tiny, tmp_path / "m")
     assert path == tmp_path / "m" / MODEL_FILE and sorted(p.name for p in (tmp_path / "m").iterdir()) == [MODEL_FILE]
-    loaded = load_household_model(tmp_path / "m", fingerprint=map_fingerprint(h.nodes, h.objects), household="HouseholdT")
+    loaded = load_household_model(tmp_path / "m", fingerprint=map_fingerprint(h.nodes, h.objects),
+                                  household="HouseholdT")
     assert loaded.household == "HouseholdT" and loaded.objects_columns == ("cup", "plate")
     assert loaded.activity.predict_proba(("sleeping",)) == fitted.activity.predict_proba(("sleeping",))
     assert loaded.objects.predict_proba("breakfast") == fitted.objects.predict_proba("breakfast")
@@ -53,8 +54,9 @@ def test_round_trip_keeps_predictions_and_identity(tiny, tmp_path):
 
 def test_real_household_round_trip(households, fitted, tmp_path):
     h, f = households["C"], fitted["C"]
-    save_household_model(tmp_path, f.activity, f.objects, household="HouseholdC", fingerprint=map_fingerprint(h.nodes, h.objects))
-    loaded = load_household_model(tmp_path, fingerprint=map_fingerprint(h.nodes, h.objects))
+    fingerprint = map_fingerprint(h.nodes, h.objects)
+    save_household_model(tmp_path, f.activity, f.objects, household="HouseholdC", fingerprint=fingerprint)
+    loaded = load_household_model(tmp_path, fingerprint=fingerprint)
     history = h.test[0].activities[:20]
     assert loaded.activity.predict_proba(history) == f.activity.predict_proba(history)
 
@@ -101,8 +103,10 @@ def _resign(path, edit):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda p: p["activity"].update(data="x"), r"\(activity\): malformed model file: 'data' is str, expected a list"),
-    (lambda p: p["activity"].update(data=[[1, 2]]), r"\(activity\): malformed model file: data\[0\] is not a non-empty list"),
-    (lambda p: p["objects"].update(data=[["a", "b"]]), r"\(objects\): malformed model file: data\[0\] is not \[activity"),
+    (lambda p: p["activity"].update(data=[[1, 2]]),
+     r"\(activity\): malformed model file: data\[0\] is not a non-empty list"),
+    (lambda p: p["objects"].update(data=[["a", "b"]]),
+     r"\(objects\): malformed model file: data\[0\] is not \[activity"),
     (lambda p: p["activity"].update(params={"max_order": -3}), r"\(activity\): malformed model file: .*max_order=-3"),
     (lambda p: p["activity"].update(params={"nope": 1}), r"\(activity\): malformed model file: .*nope"),
     (lambda p: p["activity"].update(kind="magic"), r"unknown model kind 'magic'"),
@@ -165,7 +169,8 @@ def test_a_killed_save_never_leaves_a_model_that_loads_wrong(tmp_path):
         expected[name] = len(fit_household(h, GlobeConfig()).activity.training_data_)
     for delay in (0.05, 0.13, 0.21):
         out = tmp_path / f"m{delay}"
-        proc = subprocess.Popen([sys.executable, "-c", _SAVER, str(tmp_path / "data"), str(out)], stdout=subprocess.PIPE, text=True)
+        argv = [sys.executable, "-c", _SAVER, str(tmp_path / "data"), str(out)]
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
         assert proc.stdout.readline().strip() == "ready"
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
@@ -180,8 +185,10 @@ def test_a_killed_save_never_leaves_a_model_that_loads_wrong(tmp_path):
 @pytest.mark.parametrize("content, message", [
     (b"\xff\xfe\x00{", r"not a GLOBE model file \(not UTF-8 text at byte 0\)"),
     (b"[1, 2]", r"not a GLOBE model file \(a JSON list, expected an object\)"),
-    (b'{"format": "globe-model", "version": 1, "kind": "object", "params": {}, "data": [["a"]]}', r"data\[0\] is not"),
-    (b'{"format": "globe-model", "version": 1, "kind": "activity", "params": [], "data": []}', r"'params' is not an object"),
+    (b'{"format": "globe-model", "version": 1, "kind": "object", "params": {}, "data": [["a"]]}',
+     r"data\[0\] is not"),
+    (b'{"format": "globe-model", "version": 1, "kind": "activity", "params": [], "data": []}',
+     r"'params' is not an object"),
     (b"[" * 100_000, r"not JSON|nested too deeply"),
 ])
 def test_single_model_files_are_checked(tmp_path, content, message):
@@ -194,7 +201,8 @@ def test_single_model_files_are_checked(tmp_path, content, message):
 def test_single_model_round_trip_and_unwritable_target(tiny, tmp_path):
     _, fitted = tiny
     save_model(fitted.activity, tmp_path / "a.json")
-    assert model_from_dict(model_to_dict(load_model(tmp_path / "a.json"))).training_data_ == fitted.activity.training_data_
+    again = model_from_dict(model_to_dict(load_model(tmp_path / "a.json")))
+    assert again.training_data_ == fitted.activity.training_data_
     (tmp_path / "file").write_text("x")
     with pytest.raises(ModelFileError, match=r"cannot write the model"):
         save_model(fitted.activity, tmp_path / "file" / "a.json")

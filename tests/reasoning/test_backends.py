@@ -61,11 +61,13 @@ def test_remote_backend_round_trip_against_a_real_server(llm_server):
     from globe.reasoning.backends.remote import SYSTEM
     from globe.reasoning.prompts import remote_prompt
 
-    backend = RemoteBackend(model="gemma", base_url=llm_server, api_key="unused", temperature=0.0, timeout_s=60, max_retries=0)
+    backend = RemoteBackend(model="gemma", base_url=llm_server, api_key="unused", temperature=0.0, timeout_s=60,
+                            max_retries=0)
     context, candidates, _ = UNAMBIGUOUS[0]
     direct = openai.OpenAI(base_url=llm_server, api_key="unused").chat.completions.create(
         model="gemma", temperature=0.0, max_tokens=backend.max_tokens,
-        messages=[{"role": "system", "content": SYSTEM}, {"role": "user", "content": remote_prompt(context, candidates)}])
+        messages=[{"role": "system", "content": SYSTEM},
+                  {"role": "user", "content": remote_prompt(context, candidates)}])
     reply = direct.choices[0].message.content or ""
     expected = match_candidate(reply, candidates) if reply.strip() else None
     if expected is None:  # a base model often answers off the list: reported, with the reply
@@ -93,7 +95,8 @@ def test_gate_over_the_real_server_never_loses_the_prediction(llm_server):
 def test_remote_backend_unreachable_server_is_an_llm_error():
     from tests.helpers import free_port
 
-    backend = RemoteBackend(model="m", base_url=f"http://127.0.0.1:{free_port()}/v1", api_key="x", timeout_s=2, max_retries=0)
+    backend = RemoteBackend(model="m", base_url=f"http://127.0.0.1:{free_port()}/v1", api_key="x", timeout_s=2,
+                            max_retries=0)
     with pytest.raises(LLMUnavailableError):
         backend.choose(ChoiceContext("eat", ()), ("milk", "bowl"))
 

@@ -11,7 +11,8 @@ pytestmark = pytest.mark.llm
 OBJECTS = ("milk", "food_cereal", "food_jam", "food_peanut_butter", "tooth_paste", "toothbrush", "deck_of_cards",
            "coffee_filter", "coffee_cup", "bowl")
 CONTINUATIONS = [cloze_continuation(o) for o in OBJECTS]
-BREAKFAST = ChoiceContext("breakfast", ("bowl",), (("bowl", "food_cereal", "milk"), ("bowl", "food_jam"), ("bowl", "milk")))
+BREAKFAST = ChoiceContext("breakfast", ("bowl",),
+                          (("bowl", "food_cereal", "milk"), ("bowl", "food_jam"), ("bowl", "milk")))
 PROMPTS = [cloze_prefix(ChoiceContext("breakfast", ("bowl", "spoon"))), NULL_PREFIX, diary_prefix(BREAKFAST)]
 LONG_DIARY = diary_prefix(ChoiceContext("breakfast", ("bowl",), tuple(
     ("bowl", "food_cereal", "milk", "coffee_cup", "coffee_filter", OBJECTS[i % len(OBJECTS)]) for i in range(12))))

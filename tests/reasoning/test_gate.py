@@ -119,6 +119,8 @@ def test_prompts_show_the_habits():
     from globe.reasoning.prompts import diary_prefix, remote_prompt
 
     ctx = ChoiceContext("breakfast", ("bowl",), (("bowl", "food_cereal"), ("plate",)))
-    assert diary_prefix(ctx) == "Day 1, breakfast: bowl, food cereal.\nDay 2, breakfast: plate.\nDay 3, breakfast: bowl,"
+    assert diary_prefix(ctx) == ("Day 1, breakfast: bowl, food cereal.\nDay 2, breakfast: plate.\n"
+                                 "Day 3, breakfast: bowl,")
     text = remote_prompt(ctx, ("milk", "spoon"))
-    assert "- bowl -> food_cereal" in text and text.endswith("Return only one object name from this list: [milk, spoon]")
+    assert "- bowl -> food_cereal" in text
+    assert text.endswith("Return only one object name from this list: [milk, spoon]")

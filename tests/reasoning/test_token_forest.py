@@ -99,7 +99,8 @@ def test_big_forests_over_many_batches_score_like_nodes_alone(embedded_llm, seed
     requests = []
     for activity in ("cooking", "cleaning the kitchen", "reading"):
         for used in rng.sample(words, 4):
-            prompt = tuple(rt.tokenize(f"While {activity}, the person used the {used}. Next, the person used the", True))
+            text = f"While {activity}, the person used the {used}. Next, the person used the"
+            prompt = tuple(rt.tokenize(text, True))
             requests.append(Request(prompt, tuple(rng.sample(tails, rng.randint(1, len(tails))))))
     assert any(len(_split(r, rt.cells)) > 1 for r in requests)  # some need several forests
     with rt.lock:
@@ -117,7 +118,8 @@ def test_scores_do_not_depend_on_the_thread_count(gguf_path, embedded_llm):
     rt2 = embedded_llm._shared()
     rt1 = runtime(str(gguf_path), 1, rt2.n_ctx)
     prompt = "While cooking, the person used the pan. Next, the person used the"
-    request = Request(tuple(rt2.tokenize(prompt, True)), tuple(tuple(rt2.tokenize(w, False)) for w in (" spatula", " coffee cup", " food jam")))
+    tails = tuple(tuple(rt2.tokenize(w, False)) for w in (" spatula", " coffee cup", " food jam"))
+    request = Request(tuple(rt2.tokenize(prompt, True)), tails)
     with rt1.lock, rt2.lock:
         assert rt1.score([request]) == rt2.score([request])
 

@@ -66,7 +66,8 @@ def test_moved_steps_memo_answers_as_without_it_even_for_days_built_on_the_fly()
     """The memo is keyed by the row objects' ids; it keeps the rows, so a day freed after its
     call cannot lend its ids to another day's different rows."""
     def fresh_day(shift: int) -> Day:  # new row tuples on every call
-        rows = [tuple(f"{loc}{(i + shift) % 3 if k == shift % 3 else ''}" for k, loc in enumerate(row)) for i, row in enumerate(LOCS)]
+        rows = [tuple(f"{loc}{(i + shift) % 3 if k == shift % 3 else ''}" for k, loc in enumerate(row))
+                for i, row in enumerate(LOCS)]
         return Day(f"d{shift}", DAY.minutes, ACTS, tuple(rows))
 
     memo: dict = {}

@@ -50,23 +50,32 @@ def _short(text: str, limit: int = 64) -> str:
 # -- reading text -------------------------------------------------------------------------------
 
 
-def _read_text(path: Path) -> str:
-    """The file as text: UTF-8, with or without a byte-order mark (Excel writes one)."""
+def _read_bytes(path: Path, kind: str = "CSV file") -> bytes:
+    """The file's bytes; a folder, a missing or an unreadable file is a :class:`DataError`."""
     path = Path(path)
     if path.is_dir():
-        raise DataError("is a folder, not a CSV file", source=str(path))
+        raise DataError(f"is a folder, not a {kind}", source=str(path))
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except FileNotFoundError as err:
         raise DataError("file not found", source=str(path)) from err
     except OSError as err:
         raise DataError(f"cannot read file: {err.strerror or err}", source=str(path)) from err
+
+
+def _decode(data: bytes, source: str) -> str:
+    """UTF-8 text, with or without a byte-order mark (Excel writes one)."""
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
         raise DataError(f"not UTF-8 text (byte {err.start}: {err.reason}); save the file as UTF-8",
-                        source=str(path), line=line) from err
+                        source=source, line=line) from err
+
+
+def _read_text(path: Path) -> str:
+    """The file as text: UTF-8, with or without a byte-order mark."""
+    return _decode(_read_bytes(path), str(path))
 
 
 def _csv_rows(text: str, source: str) -> list[tuple[int, list[str]]]:
@@ -89,11 +98,6 @@ def _csv_rows(text: str, source: str) -> list[tuple[int, list[str]]]:
     return rows
 
 
-def _read_rows(path: Path) -> list[list[str]]:
-    """Kept for callers that want cells only (line numbers are lost)."""
-    return [row for _, row in _csv_rows(_read_text(path), str(path))]
-
-
 def _check_header(path: Path | str, header: list[str], required: Iterable[str]) -> None:
     for i, name in enumerate(header):
         if "\x00" in name:
@@ -113,10 +117,19 @@ def _check_header(path: Path | str, header: list[str], required: Iterable[str]) 
             raise DataError(f"missing column (header has {shown})", source=str(path), line=1, field=name)
 
 
+def csv_table(text: str, source: str, required: Iterable[str]) -> tuple[list[tuple[int, list[str]]], list[str]]:
+    """The (line, cells) of a CSV text and its cleaned header, which must have the ``required`` columns."""
+    rows = _csv_rows(text, source)
+    header = [_clean(h) for h in rows[0][1]]
+    _check_header(source, header, required)
+    return rows, header
+
+
 def _ragged(path: Path | str, lineno: int, row: list[str], header: list[str]) -> DataError:
     """A row with too few fields names the first column it lacks."""
     field = header[len(row)] if len(row) < len(header) else None
-    return DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno, field=field)
+    return DataError(f"ragged row: {len(row)} fields, header has {len(header)}", source=str(path), line=lineno,
+                     field=field)
 
 
 def _label(value: str, source: str | None, line: int | None, field: str, what: str = "label") -> str:
@@ -162,8 +175,8 @@ def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[
     index: dict[str, int] = {}
     for i, n in enumerate(nodes):
         if n.node in index:
-            raise DataError(f"duplicate node {n.node!r} (first at line {lines[index[n.node]] if lines else index[n.node]})",
-                            **where(i), field="node")
+            first = lines[index[n.node]] if lines else index[n.node]
+            raise DataError(f"duplicate node {n.node!r} (first at line {first})", **where(i), field="node")
         index[n.node] = i
     for i, n in enumerate(nodes):
         if n.start_location not in index:
@@ -172,10 +185,12 @@ def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[
     for i, n in enumerate(nodes):
         if n.movable:
             if n.cls in FIXED_COLUMNS:
-                raise DataError(f"a movable node may not be of class {n.cls!r} (a day file's fixed column)", **where(i), field="class")
-            if n.cls in classes:
-                raise DataError(f"class {n.cls!r} of movable nodes must be unique (also {nodes[classes[n.cls]].node!r})",
+                raise DataError(f"a movable node may not be of class {n.cls!r} (a day file's fixed column)",
                                 **where(i), field="class")
+            if n.cls in classes:
+                also = nodes[classes[n.cls]].node
+                raise DataError(f"class {n.cls!r} of movable nodes must be unique (also {also!r})", **where(i),
+                                field="class")
             classes[n.cls] = i
     # in_room[label]: the chain label -> start_location -> ... (label included) passes a room.
     in_room: dict[str, bool] = {}
@@ -193,7 +208,8 @@ def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[
                 break
             if cur in on_path:
                 cycle = path[path.index(cur):] + [cur]
-                raise DataError("containment cycle: " + " is in ".join(cycle), **where(index[cur]), field="start_location")
+                raise DataError("containment cycle: " + " is in ".join(cycle), **where(index[cur]),
+                                field="start_location")
             on_path.add(cur)
             path.append(cur)
             cur = node.start_location
@@ -203,15 +219,13 @@ def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[
             in_room[label] = result
     for i, n in enumerate(nodes):
         if not _is_room(n) and not _is_top(n) and not in_room[n.start_location]:
-            raise DataError(f"{n.node!r} is not in a room (its start_location chain reaches the top without a node of category Rooms)",
-                            **where(i), field="start_location")
+            raise DataError(f"{n.node!r} is not in a room (its start_location chain reaches the top without a node "
+                            "of category Rooms)", **where(i), field="start_location")
 
 
 def parse_nodes_text(text: str, source: str) -> tuple[Node, ...]:
     """The nodes of a ``nodes.csv`` text, checked by :func:`check_map`."""
-    rows = _csv_rows(text, source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, NODE_COLUMNS)
+    rows, header = csv_table(text, source, NODE_COLUMNS)
     col = {name: header.index(name) for name in NODE_COLUMNS}
     nodes: list[Node] = []
     lines: list[int] = []
@@ -263,9 +277,7 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
                    owners: dict[str, str] | None = None) -> tuple[Day, tuple[int, ...]]:
     """One day from its text, and the line of each row. ``owners`` maps each object column to its
     node label (an object cannot be inside itself or inside an object that is inside it)."""
-    rows = _csv_rows(text, source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, FIXED_COLUMNS + objects)
+    rows, header = csv_table(text, source, FIXED_COLUMNS + objects)
     extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects]
     if extra:
         raise DataError("not a movable node of this home (see nodes.csv)", source=source, line=1, field=extra[0])
@@ -288,7 +300,8 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
             raise _ragged(source, lineno, row, header)
         minute = _parse_minute(_clean(row[i_min]), source, lineno)
         if minutes and minute <= minutes[-1]:
-            raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source, line=lineno, field="minute")
+            raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source,
+                            line=lineno, field="minute")
         activity = activity_label(row[i_act], source, lineno)
         cells = tuple(row[first: first + len(obj_idx)]) if contiguous else tuple(row[i] for i in obj_idx)
         state = known.get(cells)
@@ -355,8 +368,8 @@ def check_step(day: Day, lines: Sequence[int], step: int, resample: Resample = "
         return day
     irregular = next(t for t in range(1, len(day)) if day.minutes[t] - day.minutes[t - 1] != step)
     if resample != "locf":
-        gap = day.minutes[irregular] - day.minutes[irregular - 1]
-        raise DataError(f"{day.minutes[irregular]} is {gap} minutes after {day.minutes[irregular - 1]}; this household's step is "
+        previous, minute = day.minutes[irregular - 1], day.minutes[irregular]
+        raise DataError(f"{minute} is {minute - previous} minutes after {previous}; this household's step is "
                         f"{step} minutes (fix the log, or set data.resample = \"locf\" to resample to the step)",
                         source=day.source, line=lines[irregular], field="minute")
     minutes, activities, states = [], [], []
@@ -384,7 +397,8 @@ def _child(folder: Path, name: str, want_dir: bool) -> Path | None:
     if not found:
         return None
     if found[0].is_dir() != want_dir:
-        raise DataError("is a file, expected a folder" if want_dir else "is a folder, expected a file", source=str(found[0]))
+        raise DataError("is a file, expected a folder" if want_dir else "is a folder, expected a file",
+                        source=str(found[0]))
     return found[0]
 
 
@@ -405,7 +419,8 @@ def day_files(folder: Path) -> list[Path]:
             raise DataError("is a folder, not a day file", source=str(p))
         key = p.name.lower()
         if key in by_key:
-            raise DataError(f"{by_key[key].name} and {p.name} are the same day (names differ only in case)", source=str(folder))
+            raise DataError(f"{by_key[key].name} and {p.name} are the same day (names differ only in case)",
+                            source=str(folder))
         by_key[key] = p
     return sorted(by_key.values(), key=lambda p: (_natural(p.stem.lower()), p.name))
 
@@ -436,7 +451,8 @@ def load_household(root: Path, name: str, *, step_minutes: int | None = None, re
         raise DataError("no training days (expected train/*.csv)", source=str(folder))
     step = step_minutes or household_step(d for days in parsed.values() for d, _ in days)
     splits: dict[Split, tuple[Day, ...]] = {
-        split: tuple(check_step(d, lines, step, resample) if step else d for d, lines in days) for split, days in parsed.items()
+        split: tuple(check_step(d, lines, step, resample) if step else d for d, lines in days)
+        for split, days in parsed.items()
     }
     return Household(name, nodes, objects, splits["train"], splits["test"], str(folder))
 
@@ -493,7 +509,7 @@ def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
 
 
 __all__: list[str] = [
-    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "activity_label", "check_map", "parse_nodes_text", "read_nodes",
-    "parse_day_text", "read_day",
-    "household_step", "check_step", "day_files", "read_household_map", "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
+    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "csv_table", "activity_label", "check_map", "parse_nodes_text",
+    "read_nodes", "parse_day_text", "read_day", "household_step", "check_step", "day_files", "read_household_map",
+    "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
 ]

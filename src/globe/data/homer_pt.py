@@ -64,7 +64,8 @@ def import_household(source: Path, dest: Path) -> list[Path]:
     try:
         common = json.loads(common_path.read_text(encoding="utf-8"))
         activities = [str(a) for a in common["activities"]]
-        categories = dict(zip((f"{c}#{i}" for c, i in zip(common["node_classes"], common["node_ids"])), common["node_categories"]))
+        node_labels = (f"{c}#{i}" for c, i in zip(common["node_classes"], common["node_ids"]))
+        categories = dict(zip(node_labels, common["node_categories"]))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise DataError(f"cannot read: {err}", source=str(common_path)) from err
     except (KeyError, TypeError) as err:
@@ -85,7 +86,8 @@ def import_household(source: Path, dest: Path) -> list[Path]:
             if not nodes_written:
                 first = raw["edges"][0].argmax(-1).tolist()
                 mov = set(movable)
-                nodes = [Node(lab, lab.split("#")[0], categories.get(lab, ""), i in mov, labels[first[i]]) for i, lab in enumerate(labels)]
+                nodes = [Node(lab, lab.split("#")[0], categories.get(lab, ""), i in mov, labels[first[i]])
+                         for i, lab in enumerate(labels)]
                 write_nodes(Path(dest) / "nodes.csv", nodes)
                 nodes_written = True
     if not written:

@@ -54,7 +54,8 @@ def household_dir(root: Path, name: str) -> Path:
     rather than a guess; a name with a path separator is refused (the data folder is ``--data``)."""
     root = Path(root)
     if not _is_folder_name(name):
-        raise DataError(f"household name {name!r} is not a folder name (set the data folder with --data)", source=str(root))
+        raise DataError(f"household name {name!r} is not a folder name (set the data folder with --data)",
+                        source=str(root))
     exact = root / name
     short = root / HOUSEHOLD_DIR.format(name=name)
     if exact.is_dir() and short.is_dir():
@@ -64,10 +65,12 @@ def household_dir(root: Path, name: str) -> Path:
         if folder.is_dir():
             return folder
     try:
-        available = sorted(p.name for p in root.iterdir() if p.is_dir() and any(c.name.lower() == "nodes.csv" for c in p.iterdir()))
+        available = sorted(p.name for p in root.iterdir()
+                           if p.is_dir() and any(c.name.lower() == "nodes.csv" for c in p.iterdir()))
     except OSError:
         available = []
     raise DataError(
-        f"household {name!r} not found (no folder {exact.name}/ or {short.name}/); available: {', '.join(available) or 'none'}",
+        f"household {name!r} not found (no folder {exact.name}/ or {short.name}/); "
+        f"available: {', '.join(available) or 'none'}",
         source=str(root),
     )

@@ -66,6 +66,6 @@ def map_fingerprint(nodes: tuple[Node, ...] | list[Node], objects: tuple[str, ..
     import hashlib
     import json
 
-    payload = json.dumps([[list((n.node, n.cls, n.category, n.movable, n.start_location)) for n in nodes], list(objects)],
-                         ensure_ascii=True, separators=(",", ":"))
+    rows = [[n.node, n.cls, n.category, n.movable, n.start_location] for n in nodes]
+    payload = json.dumps([rows, list(objects)], ensure_ascii=True, separators=(",", ":"))
     return "sha256:" + hashlib.sha256(payload.encode("ascii")).hexdigest()

@@ -127,17 +127,16 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope:
                                                "fetch_lead_times.csv", "fetch_lead_times.png")}
     report.write_csv(paths["lookahead.csv"], rows, list(LOOKAHEAD_COLUMNS))
     report.write_csv(paths["lookahead_selection.csv"],
-                     [{"method": r.method, "household": r.household, "run_end": p["run_end"], "run_memory": p["run_memory"],
-                       "run_next": p["run_next"], "horizon_min": step * (p["horizon"] + 1), "threshold": p["threshold"],
-                       "cv_f1": round(s, 4),
+                     [{"method": r.method, "household": r.household,
+                       "run_end": p["run_end"], "run_memory": p["run_memory"], "run_next": p["run_next"],
+                       "horizon_min": step * (p["horizon"] + 1), "threshold": p["threshold"], "cv_f1": round(s, 4),
                        "chosen": (p["run_end"], p["run_memory"], p["run_next"]) == (r.run_end, r.run_memory, r.run_next)
                        and p["threshold"] == r.thresholds[p["horizon"]]}
                       for r in result.lookahead for p, s in r.selection.scores],
                      ["method", "household", "run_end", "run_memory", "run_next", "horizon_min", "threshold", "cv_f1",
                       "chosen"])
-    report.write_csv(paths["lookahead_timing.csv"],
-                     [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4)} for r in result.lookahead],
-                     ["method", "household", "train_s"])
+    timing = [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4)} for r in result.lookahead]
+    report.write_csv(paths["lookahead_timing.csv"], timing, ["method", "household", "train_s"])
     save_figure(lookahead_figure(rows, scope), paths["lookahead.png"])
     frows = fetch_rows(result.fetch, _ratio(result.config))
     report.write_csv(paths["fetch_policy.csv"], frows, list(FETCH_COLUMNS))

@@ -11,7 +11,7 @@ from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
-from globe.evaluation.metrics import AVERAGES, Average, calibration, f1, log_loss
+from globe.evaluation.metrics import AVERAGES, Average, calibration, log_loss, records_f1, rounded
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.evaluation.selection import Memo
 from globe.reasoning.backends.base import LLMBackend
@@ -68,9 +68,7 @@ def run_methods(
 
 
 def _f1s(ev: Evaluation, average: Average) -> tuple[float | None, float | None]:
-    a = f1([r.true for r in ev.activity], [r.predicted for r in ev.activity], average)
-    o = f1([r.true for r in ev.objects], [r.predicted for r in ev.objects], average)
-    return a, o
+    return records_f1(ev.activity, average), records_f1(ev.objects, average)
 
 
 def table1_rows(runs: Sequence[MethodRun]) -> list[dict]:
@@ -114,12 +112,12 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
         asked = [r for r in ev.objects if r.asked]
         rows.append({
             "method": run.method, "household": run.household,
-            "activity_f1": _round(_f1s(ev, "weighted")[0]),
-            "activity_f1_change_steps": _round(f1([r.true for r in changes], [r.predicted for r in changes])),
-            "activity_log_loss": _round(log_loss([r.p_true for r in ev.activity])),
+            "activity_f1": rounded(_f1s(ev, "weighted")[0]),
+            "activity_f1_change_steps": rounded(records_f1(changes)),
+            "activity_log_loss": rounded(log_loss([r.p_true for r in ev.activity])),
             "change_steps": len(changes),
-            "object_f1": _round(_f1s(ev, "weighted")[1]),
-            "object_f1_oracle_activity": _round(_f1s(run.oracle, "weighted")[1]),
+            "object_f1": rounded(_f1s(ev, "weighted")[1]),
+            "object_f1_oracle_activity": rounded(_f1s(run.oracle, "weighted")[1]),
             "object_events": len(ev.objects),
             "gate_opened": len(asked),
             "gate_rate": round(len(asked) / len(ev.objects), 4) if ev.objects else 0.0,
@@ -130,19 +128,11 @@ def detail_rows(runs: Sequence[MethodRun]) -> list[dict]:
     return rows
 
 
-def _round(x: float | None, digits: int = 4) -> float | None:
-    return None if x is None else round(x, digits)
-
-
 def timing_rows(runs: Sequence[MethodRun]) -> list[dict]:
     return [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4),
              "inference_s": round(r.evaluation.inference_s, 4), "llm_calls": r.llm_calls, "llm_s": round(r.llm_s, 4),
              "selection_s": round(sum(s.seconds for s in r.selection.values()), 4)}
             for r in runs]
-
-
-def _maybe_round(x: float | None) -> float | None:
-    return None if x is None else round(x, 4)
 
 
 def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
@@ -158,8 +148,8 @@ def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
                 rows.append({"method": run.method, "household": run.household, "part": part,
                              "params": ";".join(f"{k}={v}" for k, v in params.items()),
                              "criterion": "log_loss" if sel.criterion == "log_loss" else "weighted_f1",
-                             "cv_log_loss": _maybe_round(metrics.get("log_loss")),
-                             "cv_weighted_f1": _maybe_round(metrics.get("f1")), "chosen": params == sel.best})
+                             "cv_log_loss": rounded(metrics.get("log_loss")),
+                             "cv_weighted_f1": rounded(metrics.get("f1")), "chosen": params == sel.best})
     return rows
 
 

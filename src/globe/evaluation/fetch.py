@@ -106,7 +106,8 @@ class FetchEvaluation:
     curve: tuple[tuple[float, float, FetchReport], ...]  # (cost ratio useless/missed, threshold, report)
 
 
-def evaluate_fetch(policy: FetchPolicy, household: Household, days: Sequence[Day], ratios: Sequence[float]) -> FetchEvaluation:
+def evaluate_fetch(policy: FetchPolicy, household: Household, days: Sequence[Day],
+                   ratios: Sequence[float]) -> FetchEvaluation:
     """Replay ``days`` with ``policy`` and with the same policy at each cost ratio in ``ratios``."""
     tables = [day_candidates(policy, d) for d in days]
 
@@ -118,13 +119,15 @@ def evaluate_fetch(policy: FetchPolicy, household: Household, days: Sequence[Day
 
     curve = []
     for ratio in ratios:
-        variant = FetchPolicy(policy.forecaster, cost_useless=ratio, cost_missed=1.0, min_lead_steps=policy.min_lead_steps,
-                              window_steps=policy.window_steps, max_fetches_per_step=policy.max_fetches_per_step)
+        variant = FetchPolicy(policy.forecaster, cost_useless=ratio, cost_missed=1.0,
+                              min_lead_steps=policy.min_lead_steps, window_steps=policy.window_steps,
+                              max_fetches_per_step=policy.max_fetches_per_step)
         curve.append((float(ratio), variant.threshold, run(variant)))
     return FetchEvaluation(household.name, run(policy), tuple(curve))
 
 
-FETCH_COLUMNS = ("household", "cost_ratio", "threshold", "fetches", "precision", "recall", "median_lead_min", "configured")
+FETCH_COLUMNS = ("household", "cost_ratio", "threshold", "fetches", "precision", "recall", "median_lead_min",
+                 "configured")
 
 
 def fetch_rows(evaluations: Sequence[FetchEvaluation], configured_ratio: float) -> list[dict]:

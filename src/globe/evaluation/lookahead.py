@@ -106,7 +106,8 @@ class LookaheadRun:
 
     @classmethod
     def empty(cls, horizons: int) -> "LookaheadRun":
-        return cls(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int), np.zeros(horizons, int))
+        return cls(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int),
+                   np.zeros(horizons, int))
 
     def f1s(self, threshold: float) -> list[float]:
         return [p.counts(threshold).f1 for p in self.pairs]
@@ -135,8 +136,8 @@ def score_forecasts(run: LookaheadRun, forecasts: Forecasts, refs: Sequence[tupl
     score_arrays(run, refs, best, prob, top, forecasts.trees.names, forecasts.locations, location_rows)
 
 
-def score_arrays(run: LookaheadRun, refs: Sequence[tuple[Day, int]], best: np.ndarray, prob: np.ndarray, top: np.ndarray,
-                 names: Sequence[str], locations: tuple[str, ...], location_rows: dict) -> None:
+def score_arrays(run: LookaheadRun, refs: Sequence[tuple[Day, int]], best: np.ndarray, prob: np.ndarray,
+                 top: np.ndarray, names: Sequence[str], locations: tuple[str, ...], location_rows: dict) -> None:
     """Add pairs to ``run``: per reference, horizon and object the predicted first new place
     (``best``, location indices of ``locations``) and its probability, and the top activity
     per horizon (``top``: ids of ``names``, -1 for none)."""
@@ -200,7 +201,8 @@ def top_activities(dense: np.ndarray, names: Sequence[str], model: ActivityModel
     dense = dense[:, :horizons]
     frequency = getattr(model, "frequency_", {})
     tiebreak = np.empty(len(names), dtype=int)
-    tiebreak[sorted(range(len(names)), key=lambda i: (-frequency.get(names[i], 0), str(names[i])))] = np.arange(len(names))
+    order = sorted(range(len(names)), key=lambda i: (-frequency.get(names[i], 0), str(names[i])))
+    tiebreak[order] = np.arange(len(names))
     top = dense.max(axis=2, initial=0.0)
     candidate = (dense == top[..., None]) & (dense > 0)
     score = np.where(candidate, tiebreak[None, None, :], len(names))
@@ -274,7 +276,8 @@ def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, sett
     runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting in todo}
     for fold in data_folds(household, config.selection.folds) if todo else ():
         train, held_out = fold_days(household, fold)
-        activity = assembly.activity_model(models, assembly.step_minutes(household, config)).fit([d.activities for d in train])
+        step = assembly.step_minutes(household, config)
+        activity = assembly.activity_model(models, step).fit([d.activities for d in train])
         refs = reference_queries(held_out, la.horizons, la.first_reference, la.last_reference, la.cv_stride)
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
         trees = None
@@ -315,8 +318,10 @@ def _choose(household: Household, config: GlobeConfig, models: ModelConfig, sett
     for setting in settings:
         named = dict(zip(SETTING_KEYS, setting))
         per = threshold_f1s(pooled_runs[setting], la.thresholds)
-        scores.extend(({**named, "horizon": s, "threshold": t}, f) for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
-        per_setting.append(({**named, "thresholds": best_thresholds(per, la.thresholds)}, float(np.mean([max(row) for row in per]))))
+        scores.extend(({**named, "horizon": s, "threshold": t}, f)
+                      for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
+        best = float(np.mean([max(row) for row in per]))
+        per_setting.append(({**named, "thresholds": best_thresholds(per, la.thresholds)}, best))
     return Selection(best_of(per_setting), scores, time.perf_counter() - started)
 
 
@@ -349,7 +354,8 @@ class LookaheadResult:
     forecaster: Forecaster | None = field(default=None, compare=False, repr=False)  # fitted on every training day
 
 
-TIMING_FITS = 3  # the training time reported is the best of this many fits (as timeit): what it costs, not the machine's noise
+# The training time reported is the best of this many fits (as timeit): what it costs, not the machine's noise.
+TIMING_FITS = 3
 
 
 def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelConfig, method: str,

@@ -137,8 +137,9 @@ def _same_noise(summary: dict | None, config: GlobeConfig) -> bool:
     if summary is None:
         return False
     n = config.noise
-    return (summary.get("seed") == n.seed and summary.get("rate") == n.rate and summary.get("temperature") == n.temperature
-            and summary.get("levels") == list(n.levels) and set(summary.get("types", {})) == set(n.types)
+    return (summary.get("seed") == n.seed and summary.get("rate") == n.rate
+            and summary.get("temperature") == n.temperature and summary.get("levels") == list(n.levels)
+            and set(summary.get("types", {})) == set(n.types)
             and summary.get("scorer", "").startswith("uniform") == (config.llm.backend == "none"))
 
 

@@ -61,16 +61,14 @@ def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, mem
     return Prepared(model, ObjectChooser(fitted.objects), time.perf_counter() - t + fitted.train_s)
 
 
-def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
-    fitted = _fit(h, cfg, memo)
-    return Prepared(fitted.activity, assembly.object_chooser(fitted.objects, cfg.gate, None, marginal=cfg.models.object_marginal),
-                    fitted.train_s)
-
-
 def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
     fitted = _fit(h, cfg, memo)
     chooser = assembly.object_chooser(fitted.objects, cfg.gate, backend, marginal=cfg.models.object_marginal)
     return Prepared(fitted.activity, chooser, fitted.train_s)
+
+
+def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    return _globe(h, cfg, None, memo)  # the same models, the n-gram's choice alone
 
 
 def _globe_combine(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
@@ -128,6 +126,7 @@ METHODS: dict[str, Method] = {
         Method("llm_only", "LLM-only", True, _llm_only),
         Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False), "witten_bell"),
         Method("routine", "Routine model (CV)", False, _tuned("routine", False), "routine"),
-        Method("globe_routine", "GLOBE + routine model (personalised, gate CV)", True, _tuned("routine", True), "routine"),
+        Method("globe_routine", "GLOBE + routine model (personalised, gate CV)", True, _tuned("routine", True),
+               "routine"),
     )
 }

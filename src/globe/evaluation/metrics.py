@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import Counter
-from typing import Iterable, Literal, Sequence
+from typing import Iterable, Literal, Protocol, Sequence
 
 import numpy as np
 
@@ -45,7 +45,23 @@ def f1(true: Sequence[str], predicted: Sequence[str], average: Average = "weight
     return float(np.average(score))
 
 
-def calibration(confidences: Sequence[float], correct: Sequence[bool], bins: int = 10) -> tuple[float, tuple[list[float], list[float], list[int]]]:
+class Scored(Protocol):
+    """A record with a true and a predicted label: an activity step or a movement event."""
+
+    @property
+    def true(self) -> str: ...
+
+    @property
+    def predicted(self) -> str: ...
+
+
+def records_f1(records: Sequence[Scored], average: Average = "weighted") -> float | None:
+    """:func:`f1` of the true and predicted labels of ``records``."""
+    return f1([r.true for r in records], [r.predicted for r in records], average)
+
+
+def calibration(confidences: Sequence[float], correct: Sequence[bool],
+                bins: int = 10) -> tuple[float, tuple[list[float], list[float], list[int]]]:
     """Expected calibration error and the reliability curve (mean confidence, accuracy, count per bin)."""
     buckets: list[list[tuple[float, bool]]] = [[] for _ in range(bins)]
     for c, ok in zip(confidences, correct):
@@ -115,6 +131,11 @@ def log_loss(p_true: Sequence[float]) -> float | None:
     if not p_true:
         return None
     return statistics.fmean(-math.log(max(p, LOG_LOSS_FLOOR)) for p in p_true)
+
+
+def rounded(x: float | None) -> float | None:
+    """A figure of a results table: 4 decimals; absent stays absent."""
+    return None if x is None else round(x, 4)
 
 
 def mean_present(values: Iterable[float | None]) -> float | None:

@@ -42,7 +42,7 @@ from globe.data.records import Day, Household
 from globe.errors import ConfigError
 from globe.evaluation import lookahead as lk
 from globe.evaluation import report
-from globe.evaluation.metrics import f1, log_loss
+from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
 from globe.evaluation.selection import DataKey, FitKey, Memo, SearchKey, Selection, best_of, grid
@@ -86,8 +86,8 @@ def day_beliefs(activity: ActivityModelBase, emission: MovementEmission | None, 
     predictive distribution. Every day is filtered at once (``emissions``: each day's evidence)."""
     flt = assembly.activity_filter(activity, emission, config.filter)
     nowcast = alignment == "previous"
-    ahead, now = filtered_beliefs(flt, days, masks, objects, nowcast=nowcast, predictive=activity_question or not nowcast,
-                                  emissions=emissions)
+    ahead, now = filtered_beliefs(flt, days, masks, objects, nowcast=nowcast,
+                                  predictive=activity_question or not nowcast, emissions=emissions)
     out: list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]] = []
     for q in range(len(days)):
         predictive = as_dicts(ahead[q], flt.labels) if ahead is not None else None
@@ -152,23 +152,25 @@ def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
             for switch in (fc.emission_switches if params["boundary"] and params["previous_share"] > 0 else (False,))]
 
 
-def evidence_scores(household: Household, config: GlobeConfig, models: ModelConfig, candidates: Sequence[dict[str, Any]],
-                    memo: Memo, alignment: Alignment) -> list[float]:
+def evidence_scores(household: Household, config: GlobeConfig, models: ModelConfig,
+                    candidates: Sequence[dict[str, Any]], memo: Memo, alignment: Alignment) -> list[float]:
     """Each candidate evidence's mean object F1 over the folds of training days, under the
     protocol with every activity label hidden (the case the evidence is for). On each fold the
     candidates share the models and the counts, and are filtered together, day by day."""
     k = config.selection.folds
     scores = np.zeros((len(data_folds(household, k)), len(candidates)))
+    step = assembly.step_minutes(household, config)
     for f, fold in enumerate(data_folds(household, k)):
         train, days = fold_days(household, fold)
-        activity = fitted_activity(household, fold, models, alignment, memo, assembly.step_minutes(household, config)).model
+        activity = fitted_activity(household, fold, models, alignment, memo, step).model
         objects = memo.get(FitKey("ObjectModel:remembered", fold.data, fold, models, alignment), _MemoObjects,
                            fitted_objects(household, fold, models, alignment, memo))
         chooser = assembly.object_chooser(objects, config.gate, None, marginal=models.object_marginal)
         counts = memo.get(FitKey("MovementEmission", fold.data, fold, config.filter.emission_smoothing),
                           assembly.movement_emission(config.filter, **candidates[0]).fit, train, household.objects)
         emissions = [counts.with_params(**c) for c in candidates for _ in days]
-        found = day_beliefs(activity, None, config, list(days) * len(candidates), [[False] * len(d) for d in days] * len(candidates),
+        hidden = [[False] * len(d) for d in days]  # every label hidden
+        found = day_beliefs(activity, None, config, list(days) * len(candidates), hidden * len(candidates),
                             household.objects, alignment, False, emissions)
         for c in range(len(candidates)):
             true, pred = [], []
@@ -223,7 +225,8 @@ class FilterSetup:
     alignment: Alignment  # chosen with the models (:func:`~globe.evaluation.tuning.chosen_alignment`)
 
 
-def setup_household(household: Household, config: GlobeConfig, memo: Memo, selection: Selection | None = None) -> FilterSetup:
+def setup_household(household: Household, config: GlobeConfig, memo: Memo,
+                    selection: Selection | None = None) -> FilterSetup:
     """The models chosen on training days, fitted on all of them, and the chosen movement emission
     (``selection``: the evidence already chosen by :func:`tune_evidence`)."""
     models, alignment = routine_choice(household, config, memo)
@@ -254,12 +257,13 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
     masks = {day.name: day_mask(config.filter, h.name, day, fraction) for day in days}
     found = day_beliefs(setup.activity, setup.emission, config, days, [masks[d.name] for d in days], h.objects,
                         setup.alignment)
+    align = setup.alignment
     for day, (predictive, for_objects) in zip(days, found):
         assert predictive is not None
-        ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=setup.alignment)
+        ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=align)
         res.activity.extend(ev.activity)
         if for_objects is not predictive:
-            ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser, alignment=setup.alignment)
+            ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser, alignment=align)
         res.objects.extend(ev.objects)
         res.hidden_steps += sum(not v for v in masks[day.name])
     if lookahead:
@@ -355,7 +359,8 @@ def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterC
             activity[owners[mine]] += weights[mine][:, None, None] * acts[mine]
         best, prob = first_locations(destination, fcs.targets, horizons)
         top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
-        lk.score_arrays(run, [(ref.day, ref.step) for ref in part], best, prob, top, fcs.trees.names, fcs.locations, rows)
+        scored = [(ref.day, ref.step) for ref in part]
+        lk.score_arrays(run, scored, best, prob, top, fcs.trees.names, fcs.locations, rows)
         lo = hi
     return run
 
@@ -372,10 +377,12 @@ def forecaster_of(setup: FilterSetup, config: GlobeConfig, memo: Memo) -> Foreca
     h, la = setup.household, config.lookahead
     setting = lk.setting_of(lookahead_choice(setup, config, memo))
     key = FitKey("Forecaster:filter", DataKey.of(h), None, (setup.models, la, setting), setup.alignment)
-    return memo.get(key, lambda: assembly.forecaster_over(setup.activity, lk.movements_on(h, la, None, setting, memo, assembly.step_minutes(h, config)), la))
+    return memo.get(key, lambda: assembly.forecaster_over(
+        setup.activity, lk.movements_on(h, la, None, setting, memo, assembly.step_minutes(h, config)), la))
 
 
-def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo, fraction: float = 1.0) -> tuple[float, ...]:
+def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo,
+                           fraction: float = 1.0) -> tuple[float, ...]:
     """The lookahead's change threshold per horizon at label share ``fraction``: the lookahead's
     own, chosen on fully labelled training days, or, with ``filter.threshold_per_fraction`` and
     labels missing, the best per horizon on held-out training days with the same share of labels
@@ -389,8 +396,11 @@ def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo, 
     key = SearchKey("label-share-thresholds", DataKey.of(h), (la, config.filter, fraction),
                     (setup.models, tuple(sorted(setup.selection.best.items())), setting), config.selection.folds,
                     setup.alignment)
-    return memo.get(key, lambda: lk.best_thresholds(lk.threshold_f1s(hidden_cv_run(setup, config, fraction, memo, setting),
-                                                                    la.thresholds), la.thresholds))
+
+    def thresholds() -> tuple[float, ...]:
+        f1s = lk.threshold_f1s(hidden_cv_run(setup, config, fraction, memo, setting), la.thresholds)
+        return lk.best_thresholds(f1s, la.thresholds)
+    return memo.get(key, thresholds)
 
 
 def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo: Memo,
@@ -414,10 +424,12 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
     return lk.pool(runs, la.horizons)
 
 
-def _fold_filter(setup: FilterSetup, config: GlobeConfig, train: Sequence[Day]) -> tuple[ActivityModelBase, MovementEmission]:
+def _fold_filter(setup: FilterSetup, config: GlobeConfig,
+                 train: Sequence[Day]) -> tuple[ActivityModelBase, MovementEmission]:
     step = assembly.step_minutes(setup.household, config)
     activity = assembly.activity_model(setup.models, step).fit([d.activities for d in train])
-    return activity, assembly.movement_emission(config.filter, **setup.selection.best).fit(train, setup.household.objects)
+    emission = assembly.movement_emission(config.filter, **setup.selection.best)
+    return activity, emission.fit(train, setup.household.objects)
 
 
 # -- the whole run ------------------------------------------------------------------------------
@@ -466,8 +478,9 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
     tasks = [(setups[h.name], fraction) for h in households for fraction in fractions]
     if progress:
         progress(f"missing labels: {len(tasks)} households x label shares (in parallel)")
+    weights = [2.0 - fraction for _, fraction in tasks]  # fewer labels, more hypotheses
     results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], memo, lookahead=lookahead),
-                         len(tasks), workers, [2.0 - fraction for _, fraction in tasks])  # fewer labels, more hypotheses
+                         len(tasks), workers, weights)
     rows = missing_label_rows(results, config.lookahead.horizons, assembly.common_step(households, config))
     return MissingLabelResults(rows, selection_rows, results)
 
@@ -483,9 +496,9 @@ def missing_label_rows(results: Sequence[FractionResult], horizons: int = 6, ste
         acts, objs = r.activity, r.objects
         row: dict[str, Any] = {
             "method": METHOD, "household": r.household, "labels_pct": round(100 * r.fraction),
-            "activity_f1": f1([a.true for a in acts], [a.predicted for a in acts]),
+            "activity_f1": records_f1(acts),
             "activity_log_loss": log_loss([a.p_true for a in acts]),
-            "object_f1": f1([o.true for o in objs], [o.predicted for o in objs]),
+            "object_f1": records_f1(objs),
             "hidden_steps": r.hidden_steps, "seconds": r.seconds,
         }
         for s in range(horizons):

@@ -49,7 +49,8 @@ def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list
         return [fn(t) for t in tasks]
     if "fork" in multiprocessing.get_all_start_methods():
         return run_forked(lambda i: fn(tasks[i]), len(tasks), workers)
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=multiprocessing.get_context("spawn")) as pool:
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=spawn) as pool:
         return list(pool.map(fn, tasks))
 
 
@@ -93,7 +94,8 @@ def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
     return tuned_models(household, config, family, Memo())
 
 
-def precompute_selections(config: GlobeConfig, households: Sequence[Household], families: Sequence[str], memo: Memo) -> int:
+def precompute_selections(config: GlobeConfig, households: Sequence[Household], families: Sequence[str],
+                          memo: Memo) -> int:
     """Run every (household, family) cross-validation missing from ``memo`` on
     ``config.evaluation.workers`` processes, and keep each result where
     :func:`~globe.evaluation.tuning.tuned_models` looks for it. Returns how many ran."""

@@ -85,9 +85,9 @@ class ObjectRecord:
         c = self.choice
         return {"household": self.household, "day": self.day, "step": self.step, "true_activity": self.true_activity,
                 "predicted_activity": self.predicted_activity, "context": "|".join(self.context), "true": self.true,
-                "predicted": self.predicted, "confidence": c.confidence, "ngram_choice": c.ngram_choice, "asked": c.asked,
-                "candidates": "|".join(c.candidates), "answer": c.answer, "latency_s": c.latency_s, "fallback": c.fallback,
-                "injected": self.injected}
+                "predicted": self.predicted, "confidence": c.confidence, "ngram_choice": c.ngram_choice,
+                "asked": c.asked, "candidates": "|".join(c.candidates), "answer": c.answer, "latency_s": c.latency_s,
+                "fallback": c.fallback, "injected": self.injected}
 
 
 @dataclass(slots=True)
@@ -142,8 +142,9 @@ def evaluate_days(
         dists = activity_model.scan_proba(acts)
         predicted = [_top(activity_model, d) for d in dists]
         for t in range(1, len(acts)):
-            act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1], true=acts[t],
-                                              predicted=predicted[t], confidence=dists[t].get(predicted[t], 0.0),
+            act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1],
+                                              true=acts[t], predicted=predicted[t],
+                                              confidence=dists[t].get(predicted[t], 0.0),
                                               p_true=dists[t].get(acts[t], 0.0)))
         for run in activity_runs(day, household.objects, alignment):
             for i, ev in enumerate(run.events):
@@ -184,5 +185,6 @@ def evaluate_days(
         obj_records.append(ObjectRecord(household=household.name, day=q.day, step=q.step, true_activity=q.true_activity,
                                         predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
                                         choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranked),
-                                        injected=q.injected, p_true=None if ranked is None else ranked[1].get(q.true, 0.0)))
+                                        injected=q.injected,
+                                        p_true=None if ranked is None else ranked[1].get(q.true, 0.0)))
     return Evaluation(act_records, obj_records, time.perf_counter() - started, prefetch_s)

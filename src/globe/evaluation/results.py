@@ -44,7 +44,8 @@ def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: Globe
     calib, curves = experiments.calibration_rows(runs, config.evaluation.calibration_bins)
     report.write_csv(out_dir / "calibration.csv", calib)
     for part, per_method in curves.items():
-        reliability_figure(per_method, f"Reliability of {part} probabilities").savefig(out_dir / f"reliability_{part}.png", dpi=120)
+        figure = reliability_figure(per_method, f"Reliability of {part} probabilities")
+        figure.savefig(out_dir / f"reliability_{part}.png", dpi=120)
     for run in runs:
         stem = f"{run.method}_{run.household}"
         report.write_records(out_dir / "records", f"{stem}_activity", run.evaluation.activity)

@@ -19,9 +19,9 @@ from typing import Callable, Sequence
 from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS, families
-from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, f1, mean_present
+from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups, mean_present, records_f1, rounded
 from globe.evaluation.parallel import precompute_selections
-from globe.evaluation.protocol import Evaluation, ObjectRecord, evaluate_days
+from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.evaluation.selection import Memo
 from globe.noise.dataset import Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
@@ -44,23 +44,16 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
     return out
 
 
-def _obj_f1(records: Sequence[ObjectRecord]) -> float | None:
-    return f1([r.true for r in records], [r.predicted for r in records])
-
-
-def _round(x: float | None) -> float | None:
-    return None if x is None else round(x, 4)
-
-
 def score_row(dataset: str, method: str, evals: Sequence[Evaluation], **extra: object) -> dict:
     """Mean over households (those with something to score) of activity F1, object F1 (all
     events) and object F1 (routine events); absent values stay None."""
-    act = mean_present(f1([r.true for r in e.activity], [r.predicted for r in e.activity]) for e in evals)
-    obj = mean_present(_obj_f1(e.objects) for e in evals)
-    routine = mean_present(_obj_f1([r for r in e.objects if not r.injected]) for e in evals)
+    act = mean_present(records_f1(e.activity) for e in evals)
+    obj = mean_present(records_f1(e.objects) for e in evals)
+    routine = mean_present(records_f1([r for r in e.objects if not r.injected]) for e in evals)
     injected = sum(r.injected for e in evals for r in e.objects)
-    return {"dataset": dataset, "method": method, **extra, "activity_f1": _round(act), "object_f1": _round(obj),
-            "object_f1_routine": _round(routine), "mean_f1": None if act is None or obj is None else _round((act + obj) / 2),
+    mean = None if act is None or obj is None else rounded((act + obj) / 2)
+    return {"dataset": dataset, "method": method, **extra, "activity_f1": rounded(act), "object_f1": rounded(obj),
+            "object_f1_routine": rounded(routine), "mean_f1": mean,
             "object_events": sum(len(e.objects) for e in evals), "injected_events": injected}
 
 
@@ -72,7 +65,7 @@ def consistency_rows(dataset: str, method: str, evals: Sequence[Evaluation], gro
     for group in ("more", "moderate", "less"):
         recs = [r for e in evals for r in e.objects if groups.get(r.household, {}).get(r.true_activity) == group]
         rows.append({"dataset": dataset, "method": method, "definition": definition, "consistency": group,
-                     "object_f1": _round(_obj_f1(recs)), "object_events": len(recs)})
+                     "object_f1": rounded(records_f1(recs)), "object_events": len(recs)})
     return rows
 
 
@@ -128,6 +121,7 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
         for level in n.levels:
             data = noisy_dataset(noise_root, t, level, n.test_level, names, loaded)
             for method in dict.fromkeys(("ngram", gate_method)):
-                res.train_level.append(score_row(t, method, evaluated(data, level, method, cfg.gate.threshold), train_level=level))
+                evals = evaluated(data, level, method, cfg.gate.threshold)
+                res.train_level.append(score_row(t, method, evals, train_level=level))
     res.threshold.sort(key=lambda r: (r["dataset"], r["threshold"]))
     return res

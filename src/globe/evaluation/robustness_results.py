@@ -28,14 +28,15 @@ def write_robustness_results(out_dir: Path, res: RobustnessResults, noise: Noise
             consistency_figure(res.consistency, method, definition).savefig(
                 out_dir / f"consistency_{method}_{definition}.png", dpi=130)
     if res.train_level:
-        grouped_line_figure([r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level], "train_level", "series",
-                            "object_f1", f"Training noise level (tested at {noise.test_level:g})", "training noise level",
+        series = [r | {"series": f"{r['dataset']} ({r['method']})"} for r in res.train_level]
+        grouped_line_figure(series, "train_level", "series", "object_f1",
+                            f"Training noise level (tested at {noise.test_level:g})", "training noise level",
                             "object F1 (weighted)").savefig(out_dir / "ablation_train_level.png", dpi=130)
     if res.threshold:
         grouped_line_figure(res.threshold, "threshold", "dataset", "object_f1", "Gate threshold d",
                             "threshold d", "object F1 (weighted)").savefig(out_dir / "ablation_threshold.png", dpi=130)
-    note = (f"Published SLaTe-PRO on clean HOMER+: object F1 {TABLE1['slate_pro'][1]:.2f} (its per-noise values are "
-            "only shown graphically in the paper)." if scope.homer_plus else "")
+    note = (f"Published SLaTe-PRO on clean HOMER+: object F1 {TABLE1['slate_pro'][1]:.2f} "
+            "(its per-noise values are only shown graphically in the paper)." if scope.homer_plus else "")
     md = "\n".join([f"# Robustness: {scope.title} ({levels})", "", report.rows_markdown(res.robustness), note, "",
                     "# Behavioural consistency", "", report.rows_markdown(res.consistency),
                     "# Ablation: training noise level", "", report.rows_markdown(res.train_level),

@@ -16,7 +16,7 @@ from typing import Any, Mapping, Sequence, cast
 from globe import assembly
 from globe.config import GateConfig, GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
-from globe.evaluation.metrics import f1, log_loss
+from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.protocol import ActivityPredictor, evaluate_days
 from globe.evaluation.selection import (
     DataKey,
@@ -70,7 +70,8 @@ def fitted_activity(household: Household, fold: Fold | None, models: ModelConfig
     return memo.get(key, lambda: ScanMemo(counted.with_prediction_params(**model.prediction_params())))
 
 
-def fitted_objects(household: Household, fold: Fold | None, models: ModelConfig, alignment: str, memo: Memo) -> ObjectModel:
+def fitted_objects(household: Household, fold: Fold | None, models: ModelConfig, alignment: str,
+                   memo: Memo) -> ObjectModel:
     model = assembly.object_model(models)
     key = FitKey("ObjectModel", DataKey.of(household), fold, frozen_params(model.get_params()), alignment)
     return memo.get(key, lambda: model.fit(sequences(household, fold, alignment, memo).runs))
@@ -123,7 +124,7 @@ def object_scores(household: Household, days: Sequence[Day], activity: ActivityP
     the object at every movement of held-out days, under the full protocol."""
     ev = evaluate_days(household, days, activity, chooser, alignment=alignment, rankings=rankings)  # type: ignore[arg-type]
     p_true = [r.p_true for r in ev.objects if r.p_true is not None]
-    return {"log_loss": log_loss(p_true) or 0.0, "f1": f1([r.true for r in ev.objects], [r.predicted for r in ev.objects]) or 0.0}
+    return {"log_loss": log_loss(p_true) or 0.0, "f1": records_f1(ev.objects) or 0.0}
 
 
 def object_f1(household: Household, days: Sequence[Day], activity: ActivityPredictor, chooser: ObjectChooser,

@@ -69,23 +69,6 @@ def tie_key(weights: np.ndarray) -> np.ndarray:
     return np.ldexp(np.round(mantissa * (1 << TIE_BITS)), exponent - TIE_BITS)
 
 
-def _rank_in_group(groups: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """Position of each element within its group, in ``order`` (which sorts by group first)."""
-    ranked = groups[order]
-    position = np.arange(len(order)) - np.searchsorted(ranked, ranked)
-    out = np.empty(len(order), dtype=np.int64)
-    out[order] = position
-    return out
-
-
-def _first_per_group(groups: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """The first element of each group in ``order`` (which sorts by group first)."""
-    ranked = groups[order]
-    starts = np.ones(len(order), dtype=bool)
-    starts[1:] = ranked[1:] != ranked[:-1]
-    return order[starts]
-
-
 @dataclass(frozen=True, slots=True)
 class Evidence:
     """What each query saw at a step, as likelihoods of the next activity given the last one:

@@ -166,7 +166,8 @@ class MovementEmission(CountingModel):
                 p0[mask] = np.broadcast_to(by0[:, None, :], p0.shape)[mask]
                 p1[:n][mask] = np.broadcast_to(by1[None, :, :], (n, n, len(objects)))[mask]
             if self.switch:
-                seen = [(i, j) for i, a in enumerate(acts) for j, b in enumerate(acts) if i != j and (2, a, b) in self.steps_]
+                seen = [(i, j) for i, a in enumerate(acts) for j, b in enumerate(acts)
+                        if i != j and (2, a, b) in self.steps_]
                 if seen:
                     rows, cols = np.array(seen).T
                     p0[rows, cols] = shrunk([(2, acts[i], acts[j]) for i, j in seen], p0[rows, cols])

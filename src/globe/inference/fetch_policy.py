@@ -48,7 +48,8 @@ class FetchPolicy:
         if cost_useless < 0 or cost_missed < 0:
             raise ValueError("fetch costs must be >= 0")
         if window_steps < max(min_lead_steps, 1):
-            raise ValueError(f"the lead window ({window_steps} steps) ends before the minimum lead ({min_lead_steps} steps)")
+            raise ValueError(f"the lead window ({window_steps} steps) ends before the minimum lead "
+                             f"({min_lead_steps} steps)")
         self.forecaster = forecaster
         self.cost_useless = cost_useless
         self.cost_missed = cost_missed

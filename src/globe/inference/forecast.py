@@ -211,8 +211,8 @@ class Forecaster:
         hazard = mv.hazard_
         nq, nsteps, nj = departure.shape
         shape = (*hazard.shape, nj, nq, nsteps)
-        model = (hazard.reshape(-1), mv.object_hazard_, mv.switch_index_, mv.switch_seen_, mv.switch_moved_, cells, seen,
-                 earlier)
+        model = (hazard.reshape(-1), mv.object_hazard_, mv.switch_index_, mv.switch_seen_, mv.switch_moved_,
+                 cells, seen, earlier)
         wanted = [(level.group_act, level.group_query) for level in trees.levels[1:]]
         index, values = mv.fill_destination_rows(translate, src, wanted)
         where = (nq, nsteps, nj, destination.shape[3], len(mv.locations_))

@@ -126,12 +126,13 @@ class MovementModel(CountingModel):
             seen_counts += np.bincount(at_zero + npairs, minlength=size)
             move_cell = move_cell + earlier[move_t, mj]
         seen = seen_counts.reshape(na, c, e_size, m_size, npairs)
-        moved = np.bincount(move_cell * npairs + move_pair, minlength=size).astype(float).reshape(na, c, e_size, m_size, npairs)
+        moved = np.bincount(move_cell * npairs + move_pair, minlength=size).astype(float).reshape(seen.shape)
         switches = None  # run ends: (activity ending, activity starting), whether moved, (object, place)
         if self.run_next and self.run_end:
             b = np.flatnonzero(after != acts)
             src_b = table[rs[b]]
-            switches = np.repeat(acts[b] * na + after[b], nj), (src_b != table[rd[b]]).ravel(), (cols[None, :] * nl + src_b).ravel()
+            switches = (np.repeat(acts[b] * na + after[b], nj), (src_b != table[rd[b]]).ravel(),
+                        (cols[None, :] * nl + src_b).ravel())
         self.destinations_ = self._count_destinations(acts[moving], src_m, table[rd[moving]])
         self._places_key = (self.objects_, self.locations_, self.activities_, self.destination_shrinkage,
                             self._dest_counted, self.pairs_.tobytes())
@@ -141,9 +142,10 @@ class MovementModel(CountingModel):
         to_object = np.zeros((npairs, nj))
         to_object[np.arange(npairs), self._pair_object] = 1.0
         base = (moved.sum() + 1.0) / (seen.sum() + 2.0)  # Laplace: the rate of any object moving in a step
-        p0 = (moved.sum(axis=(0, 1, 2, 3)) @ to_object + k * base) / (seen.sum(axis=(0, 1, 2, 3)) @ to_object + k)  # (J,)
-        self.object_hazard_ = (moved.sum(axis=(1, 2, 3)) @ to_object + k * p0[None, :]) / (seen.sum(axis=(1, 2, 3)) @ to_object + k)  # (A, J)
-        p2 = (moved.sum(axis=(1, 2, 3)) + k * self.object_hazard_[:, self._pair_object]) / (seen.sum(axis=(1, 2, 3)) + k)  # (A, P)
+        moved_a, seen_a = moved.sum(axis=(1, 2, 3)), seen.sum(axis=(1, 2, 3))  # (A, P)
+        p0 = (moved.sum(axis=(0, 1, 2, 3)) @ to_object + k * base) / (seen.sum(axis=(0, 1, 2, 3)) @ to_object + k)
+        self.object_hazard_ = (moved_a @ to_object + k * p0[None, :]) / (seen_a @ to_object + k)  # (A, J)
+        p2 = (moved_a + k * self.object_hazard_[:, self._pair_object]) / (seen_a + k)  # (A, P)
         p3 = (moved.sum(axis=(1, 3)) + k * p2[:, None]) / (seen.sum(axis=(1, 3)) + k)  # (A, E, P)
         p4 = (moved.sum(axis=3) + k * p3[:, None]) / (seen.sum(axis=3) + k)  # (A, C, E, P)
         self.hazard_ = (moved + k * p4[:, :, :, None]) / (seen + k)  # (A, C, E, M, P); E, M of size 1 if pooled
@@ -173,7 +175,8 @@ class MovementModel(CountingModel):
             dest[(j_,)][x_] += n
         return dest
 
-    def _fit_switches(self, switches: tuple[np.ndarray, np.ndarray, np.ndarray] | None, lookup: np.ndarray, npairs: int) -> None:
+    def _fit_switches(self, switches: tuple[np.ndarray, np.ndarray, np.ndarray] | None, lookup: np.ndarray,
+                      npairs: int) -> None:
         """With ``run_next``: counts of moves at the last step of a run per (activity ending,
         activity starting, object, place): what is taken out for the next activity depends on
         which one it is. ``switch_index_`` maps a switch code a * A + b to its row (-1: never seen)."""
@@ -192,7 +195,8 @@ class MovementModel(CountingModel):
         self.switch_moved_ = np.bincount(keys, weights=changes.astype(float),
                                          minlength=size).reshape(len(used), npairs)
 
-    def switch_hazards(self, ending: np.ndarray, starting: np.ndarray, pairs: np.ndarray, at_end: np.ndarray) -> np.ndarray:
+    def switch_hazards(self, ending: np.ndarray, starting: np.ndarray, pairs: np.ndarray,
+                       at_end: np.ndarray) -> np.ndarray:
         """``at_end`` (the run-end hazards of (object, place) cells ``pairs``, rows of ``ending``
         activity indices) shrunk towards the counts of the switch to ``starting`` (unchanged
         where that switch was never seen, or without ``run_next``)."""
@@ -249,7 +253,8 @@ class MovementModel(CountingModel):
         found = self.pairs_[idx] == codes  # an object never seen at this place: P(move | activity, object)
         h = self.hazard_[a, d, e, m, idx]
         if e and next_activity is not None:
-            h = self.switch_hazards(np.array([a]), np.array([self.activity_index(next_activity)]), idx[None, :], h[None, :])[0]
+            starting = np.array([self.activity_index(next_activity)])
+            h = self.switch_hazards(np.array([a]), starting, idx[None, :], h[None, :])[0]
         return np.where(found, h, self.object_hazard_[a])
 
     def destination(self, activity: str, obj: int, source: int) -> tuple[np.ndarray, np.ndarray]:
@@ -270,21 +275,14 @@ class MovementModel(CountingModel):
                 continue
             total = sum(counts.values())
             weight = k if prob else 0.0
-            prob = {x: (counts.get(x, 0) + weight * prob.get(x, 0.0)) / (total + weight) for x in set(prob) | set(counts)}
+            prob = {x: (counts.get(x, 0) + weight * prob.get(x, 0.0)) / (total + weight)
+                    for x in set(prob) | set(counts)}
         prob.pop(s, None)  # an object cannot move to where it already is
         z = sum(prob.values())
         if z <= 0:
             return np.zeros(0, dtype=int), np.zeros(0)
         idx = np.array(sorted(prob), dtype=int)
         return idx, np.array([prob[i] / z for i in idx])
-
-    def destination_matrix(self, activity: str, sources: np.ndarray) -> np.ndarray:
-        """(objects x locations): each object's destination distribution from its place."""
-        out = np.zeros((len(self.objects_), len(self.locations_)))
-        for j, s in enumerate(sources):
-            idx, p = self.destination(activity, j, int(s))
-            out[j, idx] = p
-        return out
 
 
     # -- what a forecast reads, memoised per set of training places ------------------------------

@@ -34,6 +34,7 @@ BUNDLE_FORMAT = "globe-household-model"
 BUNDLE_VERSION = 1
 MODEL_FILE = "model.json"
 LEGACY_FILES = ("activity.json", "objects.json")
+_TRAIN = "globe train --household NAME --model-dir DIR"
 MAX_MODEL_BYTES = 256 << 20
 _KINDS = {cls.kind: cls for cls in (ActivityModel, ClockModel, ObjectModel, PersistenceModel, RoutineModel)}
 _ACTIVITY_KINDS = frozenset(k for k in _KINDS if k != "object")
@@ -58,8 +59,11 @@ def _check_data(kind: str, data: Any, source: str) -> None:
     if not isinstance(data, list):
         raise ModelFileError(f"{source}: malformed model file: 'data' is {type(data).__name__}, expected a list")
     for i, item in enumerate(data):
-        ok = (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and item[0] and _is_labels(item[1])) \
-            if kind == "object" else (_is_labels(item) and len(item) > 0)
+        if kind == "object":
+            ok = (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and item[0]
+                  and _is_labels(item[1]))
+        else:
+            ok = _is_labels(item) and len(item) > 0
         if not ok:
             expected = "[activity, [objects...]]" if kind == "object" else "a non-empty list of activity labels"
             raise ModelFileError(f"{source}: malformed model file: data[{i}] is not {expected}")
@@ -121,7 +125,8 @@ def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
         if cls.kind == "object":
             return model.fit([(a, tuple(o)) for a, o in data])
         return model.fit([tuple(d) for d in data])
-    except (GlobeError, TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as err:
+    except (GlobeError, TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError,
+            RecursionError) as err:
         raise ModelFileError(f"{source}: malformed model file: {' '.join(str(err).split())}") from err
 
 
@@ -177,8 +182,8 @@ def _read_json(path: Path) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as err:
-        raise ModelFileError(f"{path}: not JSON (line {err.lineno}, column {err.colno}: {err.msg}); the file is damaged or "
-                             "truncated") from err
+        raise ModelFileError(f"{path}: not JSON (line {err.lineno}, column {err.colno}: {err.msg}); "
+                             "the file is damaged or truncated") from err
     except RecursionError as err:
         raise ModelFileError(f"{path}: not a GLOBE model file (nested too deeply)") from err
 
@@ -212,7 +217,8 @@ def save_household_model(model_dir: Path, activity: Any, objects: Any, *, househ
     """Save both models as one file ``model_dir/model.json`` in one atomic step; returns its path."""
     body = {
         "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "household": household, "map_fingerprint": fingerprint,
-        "objects_columns": list(objects_columns), "activity": model_to_dict(activity), "objects": model_to_dict(objects),
+        "objects_columns": list(objects_columns),
+        "activity": model_to_dict(activity), "objects": model_to_dict(objects),
     }
     path = Path(model_dir) / MODEL_FILE
     try:
@@ -224,17 +230,18 @@ def save_household_model(model_dir: Path, activity: Any, objects: Any, *, househ
     return path
 
 
-def load_household_model(model_dir: Path, *, fingerprint: str | None = None, household: str | None = None) -> HouseholdModel:
+def load_household_model(model_dir: Path, *, fingerprint: str | None = None,
+                         household: str | None = None) -> HouseholdModel:
     """Load ``model_dir/model.json``, checking its format, checksum and parts, and, when given, that
     it was trained for this map (``fingerprint``) and household."""
     model_dir = Path(model_dir)
     path = model_dir / MODEL_FILE
     if not model_dir.is_dir():
-        raise ModelFileError(f"{model_dir}: no such model folder (create one with: globe train --household NAME --model-dir DIR)")
+        raise ModelFileError(f"{model_dir}: no such model folder (create one with: {_TRAIN})")
     if not path.exists():
         legacy = [n for n in LEGACY_FILES if (model_dir / n).exists()]
-        hint = (f"{' and '.join(legacy)} are from an older GLOBE that saved the models separately; retrain with globe train"
-                if legacy else "train one with: globe train --household NAME --model-dir DIR")
+        hint = (f"{' and '.join(legacy)} are from an older GLOBE that saved the models separately; "
+                "retrain with globe train" if legacy else f"train one with: {_TRAIN}")
         raise ModelFileError(f"{path}: model file not found ({hint})")
     payload = _read_json(path)
     src = str(path)
@@ -245,7 +252,8 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None, hou
         raise ModelFileError(f"{src}: format version {payload.get('version')!r}, this GLOBE reads {BUNDLE_VERSION}")
     body = {k: v for k, v in payload.items() if k != "checksum"}
     if payload.get("checksum") != _checksum(body):
-        raise ModelFileError(f"{src}: checksum mismatch (the file was edited, mixed with another or damaged); retrain it")
+        raise ModelFileError(f"{src}: checksum mismatch (the file was edited, mixed with another or damaged); "
+                             "retrain it")
     name, fp, columns = payload.get("household"), payload.get("map_fingerprint"), payload.get("objects_columns", [])
     if not isinstance(name, str) or not isinstance(fp, str) or not _is_labels(columns):
         raise ModelFileError(f"{src}: malformed model file: household, map_fingerprint or objects_columns missing")
@@ -257,6 +265,6 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None, hou
     activity = model_from_dict(payload.get("activity"), f"{src} (activity)")
     objects = model_from_dict(payload.get("objects"), f"{src} (objects)")
     if activity.kind not in _ACTIVITY_KINDS or objects.kind != "object":
-        raise ModelFileError(f"{src}: malformed model file: parts are {activity.kind!r} and {objects.kind!r}, expected an "
-                             "activity model and an object model")
+        raise ModelFileError(f"{src}: malformed model file: parts are {activity.kind!r} and {objects.kind!r}, "
+                             "expected an activity model and an object model")
     return HouseholdModel(name, fp, activity, objects, tuple(columns))

@@ -56,7 +56,8 @@ def write_manifest(path: Path, injections: Iterable[Injection]) -> None:
         writer.writerow(MANIFEST_COLUMNS)
         for i in sorted(injections, key=lambda i: (i.household, i.day, i.step, i.obj)):
             split, day = i.day.split("/", 1)
-            writer.writerow((i.household, split, day, i.step, i.minute, i.obj, i.source, i.target, i.noise_type, i.origin))
+            writer.writerow((i.household, split, day, i.step, i.minute, i.obj, i.source, i.target, i.noise_type,
+                             i.origin))
 
 
 def read_manifest(path: Path) -> set[tuple[str, str, int, str]]:

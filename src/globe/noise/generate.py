@@ -74,14 +74,15 @@ def propose(household: Household, noise_type: NoiseType, scorer: Scorer, *, seed
                 t = rng.randint(max(first, 1), max(last, 1))
                 u = rng.random()
                 before = dict(zip(objects, day.locations[t - 1]))
-                candidates = [o for o in objects if rules.reachable_source(noise_type, o, rules.support(before[o], before))]
+                candidates = [o for o in objects
+                              if rules.reachable_source(noise_type, o, rules.support(before[o], before))]
                 if not candidates:
                     out.dropped["no reachable object"] += 1
                     continue
                 scores = model.object_scores(noise_type, activity)
                 obj = sample(candidates, [scores[o] for o in candidates], temperature, rng)
                 support = rules.support(before[obj], before)
-                dests = rules.destinations(noise_type, obj, support)
+                dests = rules.destinations(noise_type, support)
                 if not dests:
                     out.dropped["no destination"] += 1
                     continue
@@ -135,4 +136,4 @@ def apply(household: Household, injections: Sequence[Injection]) -> Household:
                 rows[r][col[inj.obj]] = inj.target
         return replace(day, locations=tuple(tuple(r) for r in rows), source="")
 
-    return replace(household, train=tuple(noisy(d) for d in household.train), test=tuple(noisy(d) for d in household.test))
+    return replace(household, train=tuple(map(noisy, household.train)), test=tuple(map(noisy, household.test)))

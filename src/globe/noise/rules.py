@@ -62,7 +62,7 @@ class HomeRules:
         return (obj not in HEAVY and obj not in OUT_OF_CHILD_REACH and cls not in HIGH
                 and (cls not in CLOSED or cls in ("cupboard", "dresser")))
 
-    def destinations(self, noise_type: NoiseType, obj: str, support: str) -> list[str]:
+    def destinations(self, noise_type: NoiseType, support: str) -> list[str]:
         """Static nodes the disturber could put the object on (rooms mean their floor)."""
         here_room = self.room_of(support)
         out = []
@@ -91,6 +91,6 @@ class HomeRules:
         support = self.support(source, locations)
         if not self.reachable_source(noise_type, obj, support):
             return "source out of reach"
-        if target not in self.destinations(noise_type, obj, support):
+        if target not in self.destinations(noise_type, support):
             return "destination not allowed"
         return None

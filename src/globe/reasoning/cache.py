@@ -157,7 +157,8 @@ class AnswerCache:
     def put(self, key: str, value: Any) -> None:
         with self._lock:
             try:
-                self._connection().execute("INSERT OR REPLACE INTO answers (key, value) VALUES (?, ?)", (key, json.dumps(value)))
+                self._connection().execute("INSERT OR REPLACE INTO answers (key, value) VALUES (?, ?)",
+                                           (key, json.dumps(value)))
             except LLMCacheError as err:
                 self.errors[_reason(err)] += 1
                 log.warning("LLM answer not cached: %s", err)

@@ -50,8 +50,8 @@ def run_context(run_activity: str | None, objects: tuple[str, ...]) -> ContextFo
 MIN_BELIEF = 1e-3  # activities less likely than this cannot change the mixed object ranking much
 
 
-def object_distribution(model: NextObjectModel, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
-                        marginal: bool) -> dict[str, float]:
+def object_distribution(model: NextObjectModel, activity: str, belief: Mapping[str, float] | None,
+                        context_for: ContextFor, marginal: bool) -> dict[str, float]:
     """The next-object distribution for the predicted ``activity``, or, with ``marginal``, mixed
     over every activity the activity model finds possible: sum_a P(a) P(o | a, context(a))."""
     if not marginal or not belief:

@@ -64,11 +64,13 @@ class UncertaintyGate(ObjectChooser):
                                 time.perf_counter() - started, reason)
         latency = time.perf_counter() - started
         if answer.answer not in candidates:
-            return ObjectChoice(top, confidence, top, True, candidates, answer.raw or answer.answer, latency, "off_list")
+            raw = answer.raw or answer.answer
+            return ObjectChoice(top, confidence, top, True, candidates, raw, latency, "off_list")
         chosen = answer.answer
         scores = answer.scores
         if self.mode == "combine" and scores:
-            chosen = max(candidates, key=lambda c: (scores.get(c, -math.inf) + self.combine_weight * math.log(dist[c]), dist[c]))
+            weight = self.combine_weight
+            chosen = max(candidates, key=lambda c: (scores.get(c, -math.inf) + weight * math.log(dist[c]), dist[c]))
         return ObjectChoice(chosen, dist[chosen], top, True, candidates, answer.answer, latency, None)
 
 
@@ -93,7 +95,8 @@ class LLMOnlyChooser(ObjectChooser):
         try:
             answer = self.backend.choose(ChoiceContext(activity, context_for(activity)), candidates)
         except LLMError as err:
-            return ObjectChoice(None, 0.0, None, True, candidates, None, time.perf_counter() - started, type(err).__name__)
+            latency = time.perf_counter() - started
+            return ObjectChoice(None, 0.0, None, True, candidates, None, latency, type(err).__name__)
         latency = time.perf_counter() - started
         if answer.answer not in candidates:
             return ObjectChoice(None, 0.0, None, True, candidates, answer.raw, latency, "off_list")

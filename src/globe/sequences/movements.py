@@ -43,7 +43,8 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
     raise ValueError(f"unknown alignment {alignment!r}; expected one of {', '.join(ALIGNMENTS)}")
 
 
-def moved_steps(day: Day, objects: Sequence[str], memo: dict[tuple[int, int], tuple] | None = None) -> list[tuple[int, tuple[str, ...]]]:
+def moved_steps(day: Day, objects: Sequence[str],
+                memo: dict[tuple[int, int], tuple] | None = None) -> list[tuple[int, tuple[str, ...]]]:
     """(t, the objects whose location at t differs from t-1, in column order) for every step t at
     which something moved. Most steps move nothing, and the rows of such steps are often the
     same tuple (the parser shares them), so those cost one identity check. ``memo``, shared by

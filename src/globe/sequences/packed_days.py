@@ -93,7 +93,8 @@ class PackedDays(Sequence[Day]):
         for r in self._rows[lo:hi]:
             row = decoded.get(r)
             if row is None:
-                row = decoded[r] = tuple(labels[x] for x in self._row_labels[self._row_start[r]: self._row_start[r + 1]])
+                cells = self._row_labels[self._row_start[r]: self._row_start[r + 1]]
+                row = decoded[r] = tuple(labels[x] for x in cells)
             locations.append(row)
         name, source = self._meta[i]
         return Day(name, tuple(self._minutes[lo:hi]), tuple(labels[a] for a in self._activities[lo:hi]),

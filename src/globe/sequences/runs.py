@@ -55,7 +55,8 @@ def activity_runs(day: Day, objects: tuple[str, ...], alignment: Alignment = "pr
     by_step: dict[int, list[MovementEvent]] = defaultdict(list)
     for e in extract_movements(day, objects, alignment):
         by_step[e.activity_step].append(e)
-    return [ActivityRun(day.name, day.activities[s], s, e, events) for s, e, events in _per_run(day.activities, by_step)]
+    return [ActivityRun(day.name, day.activities[s], s, e, events)
+            for s, e, events in _per_run(day.activities, by_step)]
 
 
 Moves = list[tuple[int, tuple[str, ...]]]

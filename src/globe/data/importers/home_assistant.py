@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Callable
 from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
-from globe.data.csv_logs import _check_header, _clean, _csv_rows, _label, _ragged
+from globe.data.csv_logs import _clean, _label, _ragged, csv_table
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
 from globe.data.importers.text import parse_iso_8601, read_text, show
@@ -66,9 +66,7 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
                         timezone: str | None = None) -> SensorLog:
     """The activity entity's states as annotations and the mapped entities' on-intervals."""
     source = str(path)
-    rows = _csv_rows(read_text(Path(path)), source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, COLUMNS)
+    rows, header = csv_table(read_text(Path(path)), source, COLUMNS)
     column = {name: header.index(name) for name in COLUMNS}
     sensor_log = SensorLog("home-assistant", (source,))
     extra = [h for h in header if h not in COLUMNS]

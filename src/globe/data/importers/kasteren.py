@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from globe.data.csv_logs import _check_header, _clean, _csv_rows, _label
+from globe.data.csv_logs import _label, csv_table
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
 from globe.data.importers.text import (
@@ -97,9 +97,7 @@ def read_intervals(path: Path) -> tuple[list[Interval], int]:
 def read_sensor_list(path: Path) -> dict[str, Sensor]:
     """A van Kasteren sensor list: CSV ``sensor,name[,type][,room]``, one sensor a row."""
     source = str(path)
-    rows = _csv_rows(read_text(Path(path)), source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, ("sensor", "name"))
+    rows, header = csv_table(read_text(Path(path)), source, ("sensor", "name"))
     unknown = [h for h in header if h not in ("sensor", "name", "type", "room")]
     if unknown:
         raise DataError("unknown column (a sensor list has sensor, name, and optionally type, room)", source=source,
@@ -117,9 +115,7 @@ def read_sensor_list(path: Path) -> dict[str, Sensor]:
 def read_activity_list(path: Path) -> dict[str, str]:
     """Activity ids to labels: CSV ``id,activity``."""
     source = str(path)
-    rows = _csv_rows(read_text(Path(path)), source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, ("id", "activity"))
+    rows, header = csv_table(read_text(Path(path)), source, ("id", "activity"))
     labels: dict[str, str] = {}
     for line, cell in table_cells(rows, header, source):
         key = _label(cell["id"], source, line, "id", "activity id")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from globe.data.csv_logs import FIXED_COLUMNS, _check_header, _clean, _csv_rows
+from globe.data.csv_logs import FIXED_COLUMNS, csv_table
 from globe.data.importers.text import read_text, show, slug, table_cells
 from globe.data.records import Node
 from globe.errors import DataError
@@ -93,9 +93,7 @@ def read_mapping(path: Path) -> ObjectMapping:
     """The ``--objects`` file, checked: known columns, valid names, each sensor once, one room per
     object."""
     source = str(path)
-    rows = _csv_rows(read_text(Path(path)), source)
-    header = [_clean(h) for h in rows[0][1]]
-    _check_header(source, header, MAPPING_COLUMNS)
+    rows, header = csv_table(read_text(Path(path)), source, MAPPING_COLUMNS)
     unknown = [h for h in header if h not in MAPPING_COLUMNS + MAPPING_OPTIONAL]
     if unknown:
         raise DataError("unknown column (a mapping has sensor, object, and optionally room, furniture)",

@@ -14,7 +14,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Iterator, Sequence
 
-from globe.data.csv_logs import _clean, _ragged
+from globe.data.csv_logs import _clean, _decode, _ragged, _read_bytes
 from globe.errors import DataError
 
 _ISO_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
@@ -34,24 +34,12 @@ def read_text(path: Path) -> str:
     """A log's text: UTF-8 (a byte-order mark is dropped), not empty, with no NUL byte (a binary
     file, or a log cut off mid-write, shows them)."""
     source = str(path)
-    if Path(path).is_dir():
-        raise DataError("is a folder, not a log file", source=source)
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError as err:
-        raise DataError("file not found", source=source) from err
-    except OSError as err:
-        raise DataError(f"cannot read file: {err.strerror or err}", source=source) from err
+    data = _read_bytes(path, "log file")
     nul = data.find(b"\x00")
     if nul >= 0:
         line = data.count(b"\n", 0, nul) + 1
         raise DataError(f"binary data (a NUL byte at byte {nul}): not a text log", source=source, line=line)
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        line = data.count(b"\n", 0, err.start) + 1
-        raise DataError(f"not UTF-8 text (byte {err.start}: {err.reason}); save the file as UTF-8",
-                        source=source, line=line) from err
+    text = _decode(data, source)
     if not text.strip():
         raise DataError("empty file (no records)", source=source, line=1)
     return text

@@ -160,7 +160,8 @@ class EmbeddedBackend(LLMBackend):
         """Sum of token log-probabilities of each continuation after ``prefix``."""
         return self.continuation_logprobs_many([(prefix, continuations)], memo)[0]
 
-    def continuation_logprobs_many(self, asks: Sequence[tuple[str, Sequence[str]]], memo: bool = False) -> list[list[float]]:
+    def continuation_logprobs_many(self, asks: Sequence[tuple[str, Sequence[str]]],
+                                   memo: bool = False) -> list[list[float]]:
         """:meth:`continuation_logprobs` of several (prompt, continuations) at once: the distinct
         pairs not memoised are scored together as forests (see the module doc)."""
         known = self._scores(asks, memo)
@@ -267,7 +268,8 @@ class EmbeddedBackend(LLMBackend):
         """Cached continuation scores for other users of the model (the noise generator)."""
         key = None
         if self.cache is not None:
-            key = cache_key(backend=self.name, model=self.model_name, scoring=SCORING, prefix=prefix, continuations=continuations)
+            key = cache_key(backend=self.name, model=self.model_name, scoring=SCORING, prefix=prefix,
+                            continuations=continuations)
             hit = self.cache.get(key, valid=lambda v: isinstance(v, list) and len(v) == len(continuations)
                                  and all(map(finite_number, v)))
             if hit is not None:

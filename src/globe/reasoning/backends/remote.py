@@ -58,9 +58,11 @@ class RemoteBackend(LLMBackend):
             api_key = self.api_key or os.environ.get("OPENAI_API_KEY")
             if not api_key:
                 if base_url is None:
-                    raise LLMUnavailableError("no API key: pass api_key or set OPENAI_API_KEY (or OPENAI_BASE_URL for a local server)")
+                    raise LLMUnavailableError("no API key: pass api_key or set OPENAI_API_KEY "
+                                              "(or OPENAI_BASE_URL for a local server)")
                 api_key = "not-needed"  # local OpenAI-compatible servers ignore it
-            self._client = openai.OpenAI(base_url=base_url, api_key=api_key, timeout=self.timeout_s, max_retries=self.max_retries)
+            self._client = openai.OpenAI(base_url=base_url, api_key=api_key, timeout=self.timeout_s,
+                                         max_retries=self.max_retries)
         return self._client
 
     def choose(self, context: ChoiceContext, candidates: tuple[str, ...]) -> Choice:
