@@ -480,7 +480,7 @@ class Registry:
     def set_shadow(self, name: str, shadow: bool) -> ShadowOut:
         """Switch the household's shadow mode (stored: it outlives a restart)."""
         with self._held(name) as held:
-            self._write(name, held, lambda: self.store.set_shadow(name, shadow) or 0)
+            self._write(name, held, lambda: self.store.set_shadow(name, shadow))
             with self._lock:
                 held.row = dataclasses.replace(held.row, shadow=shadow)
             return ShadowOut(household=name, shadow=shadow)

@@ -588,8 +588,8 @@ class Store:
         return [bool(r[0]) for r in self._read("SELECT accepted FROM feedback WHERE household = ? ORDER BY id", (household,))]
 
     # -- shadow mode and online scores -------------------------------------------------------
-    def set_shadow(self, household: str, shadow: bool) -> None:
-        self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
+    def set_shadow(self, household: str, shadow: bool) -> int:
+        return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
                                                   (int(shadow), household))])
 
     def shadow(self, household: str) -> bool:
