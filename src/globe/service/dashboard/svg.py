@@ -65,7 +65,7 @@ def timeline(steps: Sequence[TimelineStep], *, day_start: int, step_minutes: int
     width, x0, lane = 900.0, 78.0, 26.0
     span = 1440
     rows = (("observed", 8.0), ("predicted", 8.0 + lane + 8))
-    parts = [f'<svg viewBox="0 0 {x0 + width + 10:.0f} {2 * lane + 46:.0f}" '
+    parts = [f'<svg viewBox="0 0 {x0 + width + 24:.0f} {2 * lane + 46:.0f}" '
              'class="chart" role="img" aria-label="today: observed and predicted activity per step">']
     for name, y in rows:
         parts.append(f'<text x="{x0 - 8}" y="{y + lane / 2 + 4}" class="lane" text-anchor="end">{name}</text>')
@@ -96,7 +96,7 @@ def actogram(rows: Sequence[tuple[str, Sequence[str | None]]], *, day_start: int
     width, x0, h = 900.0, 78.0, 13.0
     span = 1440
     top = 4.0
-    parts = [f'<svg viewBox="0 0 {x0 + width + 10:.0f} {top + h * len(rows) + 24:.0f}" '
+    parts = [f'<svg viewBox="0 0 {x0 + width + 24:.0f} {top + h * len(rows) + 24:.0f}" '
              'class="chart" role="img" aria-label="actogram: activity by day and time of day">']
     w = width * step_minutes / span
     for r, (label, values) in enumerate(rows):

@@ -32,7 +32,7 @@ SECURITY_HEADERS = {
                                "connect-src 'self'; form-action 'self'; frame-ancestors 'none'; base-uri 'none'",
     "X-Content-Type-Options": "nosniff",
     "X-Frame-Options": "DENY",
-    "Referrer-Policy": "no-referrer",
+    "Referrer-Policy": "same-origin",  # not "no-referrer": Chromium then sends form posts with "Origin: null"
     "Cache-Control": "no-store",
     "Cross-Origin-Opener-Policy": "same-origin",
 }
