@@ -7,6 +7,7 @@ import pytest
 
 from globe.service.auth import Caller
 from globe.service.dashboard.sessions import SESSION_COOKIE, Sessions
+from globe.service.client import household_payload
 from tests.service.dashboard_helpers import app_client, create, csrf_of, login, observe_days, tokens
 
 pytestmark = pytest.mark.service
@@ -20,6 +21,8 @@ def home(tmp_path_factory, households):
     with app_client(db, admin) as c:
         create(c, "A", households["A"])
         create(c, "B", households["B"])
+        payload = household_payload(households["C"])
+        assert c.post("/households", json={"name": "C", "timezone": "Europe/Paris", "nodes": payload["nodes"]}).status_code == 201
         observe_days(c, "A", households["A"], households["A"].test[:2], steps=13)  # to 08:00, before breakfast
     return db, admin, member
 
@@ -92,6 +95,15 @@ def test_the_today_page_shows_the_timeline_the_next_hour_and_the_scores(browser,
     assert "The last 28 days" in routine and routine.count("<rect") > 28
     settings = browser.get("/dashboard/households/A/settings").text
     assert "Activity model" in settings and "kind" in settings and 'id="shadow-toggle"' not in settings  # not an admin
+
+
+def test_a_household_still_learning_has_every_page(browser, home):
+    """A cold start (a map, no day learned yet): no prediction, no forecast, nothing to score."""
+    assert login(browser, home[1]).status_code == 303
+    html = browser.get("/dashboard/households/C").text
+    assert "learning" in html and "No observation yet today" in html and "still learning this home" in html
+    for page in ("routine", "settings"):
+        assert browser.get(f"/dashboard/households/C/{page}").status_code == 200
 
 
 def test_a_household_token_sees_only_its_household(browser, home):
