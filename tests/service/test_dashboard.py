@@ -6,8 +6,8 @@ import re
 import pytest
 
 from globe.service.auth import Caller
-from globe.service.dashboard.sessions import SESSION_COOKIE, Sessions
 from globe.service.client import household_payload
+from globe.service.dashboard.sessions import SESSION_COOKIE, Sessions
 from tests.service.dashboard_helpers import app_client, create, csrf_of, login, observe_days, tokens
 
 pytestmark = pytest.mark.service
