@@ -29,4 +29,5 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks tools
 
 test: $(STAMP) typecheck lint
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict -q -d site
 	$(VENV)/bin/python -m pytest

@@ -20,6 +20,7 @@ from globe import assembly
 from globe.evaluation.anticipation import method_models, run_anticipation, write_anticipation_results
 from globe.evaluation.fetch import pooled
 from globe.evaluation.lookahead import lookahead_rows
+from globe.evaluation.published import DataScope
 from globe.evaluation.selection import Memo
 
 
@@ -67,7 +68,7 @@ def main() -> None:
         print(f"    ratio {r:5.2f} (p > {thr:.2f}): precision {rep.precision:.3f} recall {rep.recall:.3f} "
               f"median lead {rep.median_lead_min} min, leads mean {statistics.fmean(rep.lead_minutes or [0]):.1f}{mark}")
     if args.out:
-        for path in write_anticipation_results(Path(args.out), result):
+        for path in write_anticipation_results(Path(args.out), result, DataScope.of(homes)):
             print(f"wrote {path}")
 
 

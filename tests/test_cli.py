@@ -194,3 +194,44 @@ def test_data_import_reports_bad_options_and_bad_lines_in_one_line(tmp_path):
     res = globe("data", "import", "casas", str(log), str(tmp_path / "home"))
     assert res.returncode == 1 and res.stderr.startswith(f"error: {log}:2: column 'time': ")
     assert not (tmp_path / "home").exists()
+
+
+def test_tables_keep_full_method_names_in_a_file_or_a_pipe(monkeypatch, capsys):
+    """rich squeezes a table into 80 columns when stdout is not a terminal; the main job's tables
+    must keep every method name whole there (logs, CI, ``| less``)."""
+    from globe.cli.common import print_table
+    from globe.cli.evaluate_cmd import table1_table
+    from globe.evaluation.methods import METHODS
+
+    labels = {m.name: m.label for m in METHODS.values()}
+    rows = [{"method": m, "household": h, "average": "weighted", "activity_f1": 0.8, "object_f1": 0.6, "mean_f1": 0.7}
+            for m in METHODS for h in ("A", "B", "C", "mean")]
+    print_table(table1_table(rows, labels))
+    printed = capsys.readouterr().out
+    assert "…" not in printed
+    for label in labels.values():
+        assert label in printed, label
+    assert max(len(line) for line in printed.splitlines()) > 80  # wider than rich's default for a pipe
+
+
+def test_the_main_job_tables_are_whole_when_piped(tmp_path):
+    res = globe("evaluate", "--households", "A,B,C", "--methods", "persistence,ngram", "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert "Persistence" in res.stdout and "n-gram Markov" in res.stdout and "…" not in res.stdout
+
+
+def test_docs_tables_writes_stale_tables_and_check_reports_them(tmp_path):
+    from pathlib import Path
+
+    reference = Path(__file__).resolve().parents[1] / "reference" / "homer_plus"
+    (tmp_path / "docs").mkdir()
+    page = tmp_path / "docs" / "results.md"
+    page.write_text("# R\n\n<!-- globe:table calibration -->\n| stale |\n<!-- /globe:table -->\n", encoding="utf-8")
+    args = ("docs", "tables", "--root", str(tmp_path), "--results", str(reference))
+    stale = globe(*args, "--check")
+    assert stale.returncode == 1 and "results.md: its tables differ" in stale.stderr
+    wrote = globe(*args)
+    assert wrote.returncode == 0 and "wrote" in wrote.stdout
+    assert "| Routine model (CV) |" in page.read_text(encoding="utf-8") and "| stale |" not in page.read_text(encoding="utf-8")
+    again = globe(*args, "--check")
+    assert again.returncode == 0 and "every table matches" in again.stdout

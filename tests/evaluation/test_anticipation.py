@@ -6,6 +6,7 @@ import csv
 
 from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
 from globe.evaluation.lookahead import LOOKAHEAD_COLUMNS
+from globe.evaluation.published import DataScope
 
 
 def test_results_folder(households, config, tmp_path):
@@ -16,7 +17,7 @@ def test_results_folder(households, config, tmp_path):
     messages: list[str] = []
     result = run_anticipation(cfg, {"A": households["A"]}, progress=messages.append)
     assert messages == ["lookahead and fetch policy: 1 households x methods (in parallel)"]
-    paths = write_anticipation_results(tmp_path, result)
+    paths = write_anticipation_results(tmp_path, result, DataScope.of([households["A"]]))
     assert all(p.exists() and p.stat().st_size > 0 for p in paths)
     with (tmp_path / "lookahead.csv").open() as fh:
         rows = list(csv.DictReader(fh))

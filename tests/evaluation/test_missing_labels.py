@@ -29,7 +29,7 @@ def _setup(h, config: GlobeConfig, previous_share: float) -> FilterSetup:
     fitted = assembly.fit_household(h, config.model_copy(update={"models": models}))
     emission = assembly.movement_emission(config.filter, previous_share=previous_share, weight=0.5).fit(h.train, h.objects)
     chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=True)
-    return FilterSetup(h, models, fitted.activity, emission, chooser, Selection({}), 0.0)
+    return FilterSetup(h, models, fitted.activity, emission, chooser, Selection({}), 0.0, config.sequences.alignment)
 
 
 def test_every_label_visible_is_the_protocol(households):

@@ -5,6 +5,7 @@ from dataclasses import replace
 import pytest
 
 from globe.config import GlobeConfig
+from globe.evaluation.published import DataScope
 from globe.evaluation.robustness import run_suite
 from globe.evaluation.robustness_results import write_robustness_results
 from globe.noise.dataset import level_dir, read_manifest, write_level
@@ -27,7 +28,8 @@ def setup(households, tmp_path_factory):
 def test_suite_scores_all_and_routine_events(setup, tmp_path):
     cfg, small, root = setup
     res = run_suite(cfg, [small], root, None, methods=("ngram",))
-    write_robustness_results(tmp_path, res, cfg.noise)
+    write_robustness_results(tmp_path, res, cfg.noise, DataScope.of([small]))
+    assert "SLaTe-PRO" not in (tmp_path / "robustness.md").read_text()  # a part of C is not HOMER+
     for name in ("robustness.csv", "consistency.csv", "ablation_train_level.csv", "robustness.md", "robustness.png",
                  "consistency_ngram_start_time.png", "ablation_train_level.png"):
         assert (tmp_path / name).is_file(), name

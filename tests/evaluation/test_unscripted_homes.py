@@ -8,6 +8,7 @@ import pytest
 
 from globe import assembly
 from globe.config import GlobeConfig
+from globe.evaluation.experiments import run_methods
 from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.selection import Memo
 from globe.evaluation.tuning import tuned_models
@@ -56,3 +57,22 @@ def test_a_home_whose_routine_is_a_clock_gets_a_model_that_wins_clearly(seed):
     assert s["chosen"]["log_loss"] < 0.5 * s["persistence"]["log_loss"]
     assert s["chosen"]["log_loss"] < 0.8 * s["time_of_day"]["log_loss"]
     assert s["chosen"]["f1"] > s["time_of_day"]["f1"] + 0.05
+
+
+def test_the_alignment_cross_validation_chooses_is_the_best_on_test_days():
+    """Which activity a use is credited to is searched with the routine models, through the
+    protocol (so the credited activity must itself be predicted): on the clock home the choice is
+    the alignment whose objects are then predicted best on the test days; with one candidate
+    there is no search."""
+    home = clock_home(45, 8, 10, 5)
+    chosen = run_methods(GlobeConfig(), [home], ["routine"], None, Memo())[0]
+    search = chosen.selection["alignment"]
+    assert [c["alignment"] for c, _ in search.scores] == ["previous", "current", "hybrid"]
+    test_f1 = {}
+    for alignment in ("previous", "current", "hybrid"):
+        cfg = GlobeConfig().with_overrides({"sequences.alignment": alignment, "selection.alignments": [alignment]})
+        run = run_methods(cfg, [home], ["routine"], None, Memo())[0]
+        assert "alignment" not in run.selection
+        test_f1[alignment] = f1([r.true for r in run.evaluation.objects], [r.predicted for r in run.evaluation.objects])
+    assert test_f1[search.best["alignment"]] >= max(test_f1.values()) - 0.01
+    assert max(test_f1.values()) - min(test_f1.values()) > 0.03  # the choice matters here

@@ -8,6 +8,7 @@ from typing import Annotated, Any, Iterator
 
 import typer
 from rich.console import Console
+from rich.measure import Measurement
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -15,6 +16,7 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
+from rich.table import Table
 from rich.text import Text
 
 from globe.config import GlobeConfig, load_config
@@ -49,6 +51,17 @@ def household_map(cfg: GlobeConfig, data: Path | None, name: str) -> tuple[str, 
     """``(folder name, map fingerprint)`` of a household, from its ``nodes.csv`` alone."""
     folder, nodes = read_household_map(resolve_data_root(data if data is not None else cfg.data.root), name)
     return folder.name, map_fingerprint(nodes, tuple(n.cls for n in nodes if n.movable))
+
+
+def print_table(table: Table) -> None:
+    """Print a table on stdout. A terminal fits it to its width; a file or a pipe (a log, CI,
+    ``| less``) gets it at its natural width, since rich would otherwise squeeze it into 80
+    columns and cut the method names ("Persisten…")."""
+    if out.is_terminal:
+        out.print(table)
+        return
+    natural = Measurement.get(out, out.options.update(max_width=100_000), table).maximum
+    Console(file=out.file, width=max(natural, 20), emoji=False, color_system=None).print(table)
 
 
 def plain(text: object) -> Text:

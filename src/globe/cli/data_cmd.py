@@ -15,6 +15,7 @@ from globe.cli.common import (
     households_from,
     out,
     plain,
+    print_table,
     resolve,
 )
 from globe.data.csv_logs import household_step
@@ -44,7 +45,7 @@ def validate(data: DataOption = None, households: HouseholdsOption = None, confi
         step = cfg.data.step_minutes or household_step(days)
         table.add_row(plain(h.name), str(len(h.train)), str(len(h.test)), str(step or "-"), str(len(h.objects)), str(len(acts)),
                       str(moves))
-    out.print(table)
+    print_table(table)
     out.print("all files valid", style="green", markup=False)
 
 

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 from contextlib import contextmanager
 from pathlib import Path
@@ -18,10 +19,12 @@ from globe.cli.common import (
     console,
     households_from,
     out,
+    print_table,
     require_test_days,
     resolve,
 )
 from globe.evaluation.methods import METHODS
+from globe.evaluation.published import DataScope
 
 if TYPE_CHECKING:
     from globe.evaluation.results import Table1Results
@@ -35,13 +38,14 @@ def _num(x: float | None) -> str:
     return "–" if x is None else f"{x:.3f}"
 
 
-def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
-    """Compact terminal view of Table I: weighted F1 averaged over households, and per household."""
-    from globe.evaluation.published import TABLE1
+def table1_table(rows: list[dict], labels: dict[str, str], scope: DataScope) -> Table:
+    """Compact terminal view of Table I: weighted F1 averaged over households, and per household;
+    the paper's published rows beside HOMER+ only."""
+    from globe.evaluation.published import TABLE1, TABLE1_MEAN_ONLY
 
     weighted = [r for r in rows if r["average"] == "weighted"]
     households = [h for h in dict.fromkeys(r["household"] for r in weighted) if h != "mean"]
-    table = Table(title="Table I - HOMER+ test days, weighted F1 (mean of households)")
+    table = Table(title=f"Table I - {scope.title} test days, weighted F1 (mean of households)")
     for col in ["method", "activity", "object", "mean", *[f"{h}: act/obj" for h in households]]:
         table.add_column(col, justify="left" if col == "method" else "right")
     for method in dict.fromkeys(r["method"] for r in weighted):
@@ -49,12 +53,14 @@ def table1_table(rows: list[dict], labels: dict[str, str]) -> Table:
         m = get["mean"]
         table.add_row(labels.get(method, method), _num(m["activity_f1"]), _num(m["object_f1"]), _num(m["mean_f1"]),
                       *[f"{_num(get[h]['activity_f1'])} / {_num(get[h]['object_f1'])}" for h in households])
-    for method, (a, o, mean) in TABLE1.items():
-        table.add_row(f"[dim]{method} (published)[/dim]", f"{a:.2f}", f"{o:.2f}", f"{mean:.2f}", *["" for _ in households])
+    published = [(m, f"{a:.2f}", f"{o:.2f}", f"{mean:.2f}") for m, (a, o, mean) in TABLE1.items()]
+    published += [(m, "–", "–", f"{mean:.2f}") for m, mean in TABLE1_MEAN_ONLY.items()]
+    for method, *figures in published if scope.homer_plus else ():
+        table.add_row(f"[dim]{method} (published)[/dim]", *figures, *["" for _ in households])
     return table
 
 
-def timing_table(rows: list[dict]) -> Table:
+def timing_table(rows: list[dict], scope: DataScope) -> Table:
     from globe.evaluation.published import TABLE2
 
     table = Table(title="Table II - time for the whole test split (s)")
@@ -63,7 +69,7 @@ def timing_table(rows: list[dict]) -> Table:
     for r in rows:
         table.add_row(r["method"], r["household"], f"{r['train_s']:.3f}", f"{r['inference_s']:.3f}", str(r["llm_calls"]),
                       f"{r['llm_s']:.2f}", f"{r['selection_s']:.2f}" if r["selection_s"] else "")
-    for method, (tr, inf) in TABLE2.items():
+    for method, (tr, inf) in TABLE2.items() if scope.homer_plus else ():
         table.add_row(f"[dim]{method} (published)[/dim]", "", f"{tr:.2f}", f"{inf:.2f}", "", "", "")
     return table
 
@@ -78,8 +84,8 @@ def stage_display() -> Iterator[Callable[[str], None]]:
 
 
 def print_table1(results: Table1Results) -> None:
-    out.print(table1_table(results.rows, results.labels))
-    out.print(timing_table(results.timing))
+    print_table(table1_table(results.rows, results.labels, results.scope))
+    print_table(timing_table(results.timing, results.scope))
 
 
 def print_stages(stages: list[dict]) -> None:
@@ -89,7 +95,7 @@ def print_stages(stages: list[dict]) -> None:
     for row in stages:
         table.add_row(row["stage"], f"{row['seconds']:.1f}")
     table.add_row("total", f"{sum(r['seconds'] for r in stages):.1f}")
-    out.print(table)
+    print_table(table)
 
 
 def evaluate(
@@ -150,7 +156,7 @@ def print_robustness(res: RobustnessResults) -> None:
     for r in res.robustness:
         table.add_row(r["dataset"], r["method"], _num(r["activity_f1"]), _num(r["object_f1"]),
                       _num(r["object_f1_routine"]), str(r["injected_events"]))
-    out.print(table)
+    print_table(table)
 
 
 def robustness(
@@ -198,7 +204,13 @@ def print_activity_anticipation(out_dir: Path) -> None:
         get = {r["horizon_min"]: f"{float(r['accuracy']):.3f}" for r in ahead if (r["household"], r["method"]) == r0}
         after = next((f"{float(r['accuracy']):.3f}" for r in nxt if (r["household"], r["method"]) == r0), "–")
         table.add_row(*r0, *[get.get(h, "–") for h in horizons], after)
-    out.print(table)
+    print_table(table)
+
+
+def _scope(out_dir: Path) -> DataScope | None:
+    """What a results folder is about (``data.json``, written with Table I), if it says."""
+    path = out_dir / "data.json"
+    return DataScope.from_dict(json.loads(path.read_text(encoding="utf-8"))) if path.is_file() else None
 
 
 def print_anticipation(out_dir: Path) -> None:
@@ -211,14 +223,16 @@ def print_anticipation(out_dir: Path) -> None:
 
     look = rows("lookahead.csv")
     horizons = list(dict.fromkeys(r["horizon_min"] for r in look))
-    table = Table(title="Lookahead: relocation F1 (mean of households; SLaTe-PRO published 0.57, 0.60 with queries)")
+    scope = _scope(out_dir)
+    published = "; SLaTe-PRO published 0.57, 0.60 with queries" if scope and scope.homer_plus else ""
+    table = Table(title=f"Lookahead{' on ' + scope.title if scope else ''}: relocation F1 (mean of households{published})")
     table.add_column("method")
     for h in horizons:
         table.add_column(f"{h} min", justify="right")
     for method in dict.fromkeys(r["method"] for r in look):
         get = {r["horizon_min"]: r for r in look if r["method"] == method}
         table.add_row(method, *[f"{float(get[h]['f1']):.3f}" for h in horizons])
-    out.print(table)
+    print_table(table)
     fetch = [r for r in rows("fetch_policy.csv") if r.get("configured") in ("True", "true", "1")]
     for r in fetch:
         out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, recall {float(r['recall']):.3f}, "
@@ -229,4 +243,4 @@ def print_anticipation(out_dir: Path) -> None:
         table.add_column(col, justify="right")
     for r in missing:
         table.add_row(r["labels_pct"], r["activity_f1"], r["object_f1"], r.get("lookahead_f1_mean") or "–")
-    out.print(table)
+    print_table(table)

@@ -11,13 +11,14 @@ import typer
 from rich.text import Text
 
 from globe import __version__
-from globe.cli import admin_cmd, data_cmd, evaluate_cmd, model_cmd, noise_cmd, service_cmd
+from globe.cli import admin_cmd, data_cmd, docs_cmd, evaluate_cmd, model_cmd, noise_cmd, service_cmd
 from globe.cli.common import console, out
 from globe.errors import GlobeError
 
 app = typer.Typer(help="GLOBE: predict a person's next activity and object so a robot can help.",
                   no_args_is_help=True, pretty_exceptions_enable=False, add_completion=False)
 app.add_typer(data_cmd.app, name="data")
+app.add_typer(docs_cmd.app, name="docs")
 app.command("train")(model_cmd.train)
 app.command("predict")(model_cmd.predict)
 app.command("evaluate")(evaluate_cmd.evaluate)

@@ -15,7 +15,7 @@ from globe.cli.common import (
     HouseholdsOption,
     console,
     households_from,
-    out,
+    print_table,
     resolve,
 )
 from globe.noise.dataset import generate_dataset
@@ -30,7 +30,7 @@ def print_summary(summary: dict) -> None:
     for noise_type, e in summary["types"].items():
         table.add_row(noise_type, *[str(e["per_level"][f"{lv:g}"]) for lv in summary["levels"]],
                       str(sum(e["dropped"].values())), ", ".join(list(e["objects"])[:4]), ", ".join(list(e["destinations"])[:4]))
-    out.print(table)
+    print_table(table)
 
 
 def noise(

@@ -28,6 +28,7 @@ from globe.evaluation.lookahead import (
 )
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_figure, lookahead_figure, save_figure
+from globe.evaluation.published import DataScope
 from globe.evaluation.selection import Memo, SearchKey
 from globe.evaluation.tuning import tuned_models
 
@@ -113,7 +114,7 @@ def _ratio(config: GlobeConfig) -> float:
     return p.cost_useless / p.cost_missed if p.cost_missed > 0 else float("inf")
 
 
-def write_anticipation_results(out_dir: Path, result: AnticipationResult) -> list[Path]:
+def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope: DataScope) -> list[Path]:
     """``lookahead.csv`` (+ selection, timing, plot), ``fetch_policy.csv`` (+ plot) and
     ``fetch_lead_times.csv`` (+ plot). Returns the paths written."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -135,7 +136,7 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult) -> lis
     report.write_csv(paths["lookahead_timing.csv"],
                      [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4)} for r in result.lookahead],
                      ["method", "household", "train_s"])
-    save_figure(lookahead_figure(rows), paths["lookahead.png"])
+    save_figure(lookahead_figure(rows, scope), paths["lookahead.png"])
     frows = fetch_rows(result.fetch, _ratio(result.config))
     report.write_csv(paths["fetch_policy.csv"], frows, list(FETCH_COLUMNS))
     save_figure(fetch_curve_figure(frows), paths["fetch_policy.png"])

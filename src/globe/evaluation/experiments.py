@@ -59,8 +59,9 @@ def run_methods(
             continue
         for h in households:
             prepared = method.prepare(h, config, backend, memo)
-            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment)
-            oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=config.sequences.alignment, oracle=True)
+            alignment = prepared.alignment or config.sequences.alignment
+            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment)
+            oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment, oracle=True)
             runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection,
                                   assembly.describe(prepared.activity, prepared.chooser)))
     return runs

@@ -24,6 +24,7 @@ from globe.evaluation import report
 from globe.evaluation.experiments import run_methods
 from globe.evaluation.methods import METHODS, families
 from globe.evaluation.parallel import precompute_selections
+from globe.evaluation.published import DataScope
 from globe.evaluation.results import Table1Results, write_table1_results
 from globe.evaluation.robustness import RobustnessResults, run_suite
 from globe.evaluation.robustness_results import write_robustness_results
@@ -104,10 +105,10 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
         from globe.evaluation.activity_anticipation import run_activity_anticipation, write_activity_anticipation
 
         scores = run_activity_anticipation(config, households, memo)
-        homes = ", ".join(h.name for h in households)
-        write_activity_anticipation(out_dir, scores, f"Test days of {homes}: the activity ahead")
+        scope = DataScope.of(households)
+        write_activity_anticipation(out_dir, scores, f"{scope.title} test days: the activity ahead")
     with stages.stage("table1: write results"):
-        return write_table1_results(out_dir, runs, config)
+        return write_table1_results(out_dir, runs, config, scope)
 
 
 def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: Path, out_dir: Path,
@@ -127,7 +128,7 @@ def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: 
     with stages.stage("robustness suite"):
         res = run_suite(config, households, noise_dir, backend, progress=stages.note, memo=memo,
                         loaded=written)
-        write_robustness_results(out_dir, res, config.noise)
+        write_robustness_results(out_dir, res, config.noise, DataScope.of(households))
     return summary, res
 
 
@@ -152,7 +153,7 @@ def anticipation(config: GlobeConfig, households: Sequence[Household], out_dir: 
     memo = Memo() if memo is None else memo
     with stages.stage("anticipation: lookahead and fetch policy"):
         ahead = run_anticipation(config, households, progress=stages.note, memo=memo)
-        write_anticipation_results(out_dir, ahead)
+        write_anticipation_results(out_dir, ahead, DataScope.of(households))
     with stages.stage("anticipation: missing activity labels"):
         missing = run_missing_labels(config, households, progress=stages.note, memo=memo)
         write_missing_label_results(out_dir, missing.rows, missing.selection_rows)

@@ -16,12 +16,13 @@ from globe.assembly import FittedHousehold
 from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation.selection import DataKey, FitKey, Memo, Selection
-from globe.evaluation.tuning import tuned_gate, tuned_models
+from globe.evaluation.tuning import chosen_alignment, tuned_gate, tuned_models
 from globe.models.base import ActivityModelBase
 from globe.models.baselines import PersistenceModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
 from globe.reasoning.gate import LLMOnlyChooser
+from globe.sequences.movements import Alignment
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,6 +33,7 @@ class Prepared:
     chooser: ObjectChooser
     train_s: float
     selection: dict[str, Selection] = field(default_factory=dict)
+    alignment: Alignment | None = None  # chosen by cross-validation; None: ``sequences.alignment``
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +102,9 @@ def families(methods: Sequence[str]) -> list[str]:
 def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LLMBackend | None, Memo], Prepared]:
     def prepare(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
         models, selection = tuned_models(h, cfg, family, memo)
+        alignment = chosen_alignment(selection, cfg)
+        if alignment != cfg.sequences.alignment:
+            cfg = cfg.with_overrides({"sequences.alignment": alignment})
         fitted = _fit(h, cfg, memo, models)
         gate_cfg = cfg.gate
         if with_gate and backend is not None:
@@ -107,7 +112,7 @@ def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LL
             selection = selection | {"gate": gate_sel}
         chooser = assembly.object_chooser(fitted.objects, gate_cfg, backend if with_gate else None,
                                           marginal=models.object_marginal)
-        return Prepared(fitted.activity, chooser, fitted.train_s, selection)
+        return Prepared(fitted.activity, chooser, fitted.train_s, selection, alignment)
 
     return prepare
 

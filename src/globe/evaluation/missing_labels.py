@@ -46,7 +46,7 @@ from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
 from globe.evaluation.selection import DataKey, FitKey, Memo, SearchKey, Selection, best_of, grid
-from globe.evaluation.tuning import data_folds, fitted_activity, fitted_objects, fold_days, tuned_models
+from globe.evaluation.tuning import chosen_alignment, data_folds, fitted_activity, fitted_objects, fold_days, tuned_models
 from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts, filtered_beliefs, label_mask
 from globe.inference.beam import tie_key
 from globe.inference.emission import MovementEmission, moved_objects
@@ -54,6 +54,7 @@ from globe.inference.forecast import Forecaster, first_locations
 from globe.inference.paths import Roots
 from globe.models.base import ActivityModelBase
 from globe.reasoning.choice import NextObjectModel
+from globe.sequences.movements import Alignment
 
 Progress = Callable[[str], None]
 METHOD = "routine"
@@ -74,17 +75,17 @@ def check_fractions(fractions: Sequence[float]) -> tuple[float, ...]:
 
 
 def day_beliefs(activity: ActivityModelBase, emission: MovementEmission | None, config: GlobeConfig,
-                days: Sequence[Day], masks: Sequence[Sequence[bool]], objects: Sequence[str],
+                days: Sequence[Day], masks: Sequence[Sequence[bool]], objects: Sequence[str], alignment: str,
                 activity_question: bool = True, emissions: Sequence[MovementEmission | None] | None = None
                 ) -> list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]]:
     """Per day and step t: the filter's P(a_t) for the activity question (labels and movements of
     steps < t; None without ``activity_question`` when a nowcast answers the object questions) and
     for the object questions whose activity step is t. A movement seen at step t+1 is credited to
-    a_t (``sequences.alignment = "previous"``), so its object question may also use the places seen
+    a_t (``alignment = "previous"``), so its object question may also use the places seen
     at t; under another alignment the object would be seen at t itself, so both questions get the
     predictive distribution. Every day is filtered at once (``emissions``: each day's evidence)."""
     flt = assembly.activity_filter(activity, emission, config.filter)
-    nowcast = config.sequences.alignment == "previous"
+    nowcast = alignment == "previous"
     ahead, now = filtered_beliefs(flt, days, masks, objects, nowcast=nowcast, predictive=activity_question or not nowcast,
                                   emissions=emissions)
     out: list[tuple[list[dict[str, float]] | None, list[dict[str, float]]]] = []
@@ -152,11 +153,11 @@ def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
 
 
 def evidence_scores(household: Household, config: GlobeConfig, models: ModelConfig, candidates: Sequence[dict[str, Any]],
-                    memo: Memo) -> list[float]:
+                    memo: Memo, alignment: Alignment) -> list[float]:
     """Each candidate evidence's mean object F1 over the folds of training days, under the
     protocol with every activity label hidden (the case the evidence is for). On each fold the
     candidates share the models and the counts, and are filtered together, day by day."""
-    alignment, k = config.sequences.alignment, config.selection.folds
+    k = config.selection.folds
     scores = np.zeros((len(data_folds(household, k)), len(candidates)))
     for f, fold in enumerate(data_folds(household, k)):
         train, days = fold_days(household, fold)
@@ -168,7 +169,7 @@ def evidence_scores(household: Household, config: GlobeConfig, models: ModelConf
                           assembly.movement_emission(config.filter, **candidates[0]).fit, train, household.objects)
         emissions = [counts.with_params(**c) for c in candidates for _ in days]
         found = day_beliefs(activity, None, config, list(days) * len(candidates), [[False] * len(d) for d in days] * len(candidates),
-                            household.objects, False, emissions)
+                            household.objects, alignment, False, emissions)
         for c in range(len(candidates)):
             true, pred = [], []
             for day, (_, objects_dists) in zip(days, found[c * len(days):(c + 1) * len(days)]):
@@ -179,7 +180,7 @@ def evidence_scores(household: Household, config: GlobeConfig, models: ModelConf
     return scores.mean(axis=0).tolist()
 
 
-def tune_evidence(household: Household, config: GlobeConfig, models: ModelConfig, memo: Memo,
+def tune_evidence(household: Household, config: GlobeConfig, models: ModelConfig, memo: Memo, alignment: Alignment,
                   scores: Sequence[float] | None = None) -> Selection:
     """The movement evidence (move rates by activity change or not, share credited to the earlier
     activity, weight) with the best object F1 on held-out training days with no activity labels
@@ -187,7 +188,7 @@ def tune_evidence(household: Household, config: GlobeConfig, models: ModelConfig
     candidate, so the simpler evidence (no change-dependent rates) wins them."""
     started = time.perf_counter()
     candidates = filter_candidates(config.filter)
-    scores = evidence_scores(household, config, models, candidates, memo) if scores is None else scores
+    scores = evidence_scores(household, config, models, candidates, memo, alignment) if scores is None else scores
     scored = list(zip(candidates, scores))
     return Selection(dict(best_of(scored)), scored, time.perf_counter() - started)
 
@@ -219,21 +220,28 @@ class FilterSetup:
     chooser: Any
     selection: Selection
     train_s: float
+    alignment: Alignment  # chosen with the models (:func:`~globe.evaluation.tuning.chosen_alignment`)
 
 
 def setup_household(household: Household, config: GlobeConfig, memo: Memo, selection: Selection | None = None) -> FilterSetup:
     """The models chosen on training days, fitted on all of them, and the chosen movement emission
     (``selection``: the evidence already chosen by :func:`tune_evidence`)."""
-    models, _ = tuned_models(household, config, "routine", memo)
-    selection = tune_evidence(household, config, models, memo) if selection is None else selection
+    models, alignment = routine_choice(household, config, memo)
+    selection = tune_evidence(household, config, models, memo, alignment) if selection is None else selection
     started = time.perf_counter()
-    cfg = config.model_copy(update={"models": models})
-    fitted = memo.get(FitKey("household", DataKey.of(household), None, models, config.sequences.alignment),
+    cfg = config.model_copy(update={"models": models, "sequences": config.sequences.model_copy(update={"alignment": alignment})})
+    fitted = memo.get(FitKey("household", DataKey.of(household), None, models, alignment),
                       lambda: assembly.fit_household(household, cfg))
     emission = assembly.movement_emission(config.filter, **selection.best).fit(household.train, household.objects)
     train_s = fitted.train_s + time.perf_counter() - started
     chooser = assembly.object_chooser(fitted.objects, config.gate, None, marginal=models.object_marginal)
-    return FilterSetup(household, models, fitted.activity, emission, chooser, selection, train_s)
+    return FilterSetup(household, models, fitted.activity, emission, chooser, selection, train_s, alignment)
+
+
+def routine_choice(household: Household, config: GlobeConfig, memo: Memo) -> tuple[ModelConfig, Alignment]:
+    """The routine family's models and alignment, chosen on the training days."""
+    models, selections = tuned_models(household, config, "routine", memo)
+    return models, chosen_alignment(selections, config)
 
 
 def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, memo: Memo,
@@ -244,14 +252,14 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
     started = time.perf_counter()
     res = FractionResult(h.name, fraction)
     masks = {day.name: day_mask(config.filter, h.name, day, fraction) for day in days}
-    found = day_beliefs(setup.activity, setup.emission, config, days, [masks[d.name] for d in days], h.objects)
+    found = day_beliefs(setup.activity, setup.emission, config, days, [masks[d.name] for d in days], h.objects,
+                        setup.alignment)
     for day, (predictive, for_objects) in zip(days, found):
         assert predictive is not None
-        ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=config.sequences.alignment)
+        ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=setup.alignment)
         res.activity.extend(ev.activity)
         if for_objects is not predictive:
-            ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser,
-                               alignment=config.sequences.alignment)
+            ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser, alignment=setup.alignment)
         res.objects.extend(ev.objects)
         res.hidden_steps += sum(not v for v in masks[day.name])
     if lookahead:
@@ -363,7 +371,7 @@ def forecaster_of(setup: FilterSetup, config: GlobeConfig, memo: Memo) -> Foreca
     model, once: its state space is shared across label shares."""
     h, la = setup.household, config.lookahead
     setting = lk.setting_of(lookahead_choice(setup, config, memo))
-    key = FitKey("Forecaster:filter", DataKey.of(h), None, (setup.models, la, setting), config.sequences.alignment)
+    key = FitKey("Forecaster:filter", DataKey.of(h), None, (setup.models, la, setting), setup.alignment)
     return memo.get(key, lambda: assembly.forecaster_over(setup.activity, lk.movements_on(h, la, None, setting, memo), la))
 
 
@@ -380,7 +388,7 @@ def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo, 
     setting = lk.setting_of(chosen)
     key = SearchKey("label-share-thresholds", DataKey.of(h), (la, config.filter, fraction),
                     (setup.models, tuple(sorted(setup.selection.best.items())), setting), config.selection.folds,
-                    config.sequences.alignment)
+                    setup.alignment)
     return memo.get(key, lambda: lk.best_thresholds(lk.threshold_f1s(hidden_cv_run(setup, config, fraction, memo, setting),
                                                                     la.thresholds), la.thresholds))
 
@@ -398,7 +406,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
         evidence = tuple(sorted(setup.selection.best.items()))
         activity, emission = memo.get(FitKey("filter", fold.data, fold, (setup.models, config.filter, evidence)),
                                       _fold_filter, setup, config, train)
-        fold_setup = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0)
+        fold_setup = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0, setup.alignment)
         forecaster = assembly.forecaster_over(activity, lk.movements_on(h, la, fold, setting, memo), la)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in held_out}
         runs.append(filtered_lookahead(forecaster, fold_setup, config.filter, held_out, masks, la.horizons,
@@ -428,20 +436,25 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
     fractions = check_fractions(config.filter.fractions)
     memo = Memo() if memo is None else memo
     workers = worker_count(config.evaluation.workers)
-    models = {h.name: tuned_models(h, config, "routine", memo)[0] for h in households}
+    chosen = {h.name: routine_choice(h, config, memo) for h in households}
     # 1. The movement evidence of every household, its candidates split over the processes.
     candidates = filter_candidates(config.filter)
     size = -(-len(candidates) // max(1, min(workers, len(candidates))))
     parts = [(h, candidates[i:i + size]) for h in households for i in range(0, len(candidates), size)]
     if progress:
         progress("missing labels: choosing the filter's movement evidence (cross-validation, in parallel)")
-    scored = run_forked(lambda i: evidence_scores(parts[i][0], config, models[parts[i][0].name], parts[i][1], memo),
-                        len(parts), workers)
+    def scores_of(i: int) -> list[float]:
+        household, part = parts[i]
+        models, alignment = chosen[household.name]
+        return evidence_scores(household, config, models, part, memo, alignment)
+
+    scored = run_forked(scores_of, len(parts), workers)
     setups: dict[str, FilterSetup] = {}
     selection_rows: list[dict] = []
     for h in households:
         scores = [s for (hh, _), part in zip(parts, scored) if hh is h for s in part]
-        selection = tune_evidence(h, config, models[h.name], memo, scores)
+        models, alignment = chosen[h.name]
+        selection = tune_evidence(h, config, models, memo, alignment, scores)
         setup = setups[h.name] = setup_household(h, config, memo, selection)
         for params, score in selection.scores:
             selection_rows.append({"household": h.name, "params": params, "cv_object_f1_no_labels": round(score, 4),

@@ -10,11 +10,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from globe.evaluation.published import TABLE1  # noqa: E402
+from globe.evaluation.published import TABLE1, DataScope  # noqa: E402
 
 
-def table1_figure(rows: Sequence[dict], labels: dict[str, str]) -> Figure:
-    """Mean-over-households weighted F1 per method, with the paper's published values marked."""
+def table1_figure(rows: Sequence[dict], labels: dict[str, str], scope: DataScope) -> Figure:
+    """Mean-over-households weighted F1 per method, with the paper's published values marked on
+    HOMER+ (and only there)."""
     mine = [r for r in rows if r["household"] == "mean" and r["average"] == "weighted"]
     methods = [r["method"] for r in mine]
     fig, ax = plt.subplots(figsize=(max(6.0, 1.6 * len(methods) + 2), 4.2))
@@ -26,14 +27,14 @@ def table1_figure(rows: Sequence[dict], labels: dict[str, str]) -> Figure:
         ax.bar(xs, values, width, label=f"ours: {name}")
         for x, v in zip(xs, values):
             ax.text(x, (0.0 if v != v else v) + 0.01, "–" if v != v else f"{v:.2f}", ha="center", fontsize=7)
-        pub = [(x, TABLE1[m][k]) for x, m in zip(xs, methods) if m in TABLE1]
+        pub = [(x, TABLE1[m][k]) for x, m in zip(xs, methods) if m in TABLE1 and scope.homer_plus]
         if pub:
             ax.scatter([p[0] for p in pub], [p[1] for p in pub], marker="_", s=300, color="black", zorder=3,
                        label="published (paper)" if k == 0 else None)
     ax.set_xticks(range(len(methods)), [labels.get(m, m) for m in methods], rotation=15, ha="right", fontsize=8)
-    ax.set_ylabel("weighted F1 (mean of households A, B, C)")
+    ax.set_ylabel(f"weighted F1 (mean of {', '.join(scope.households)})")
     ax.set_ylim(0, 1.05)
-    ax.set_title("HOMER+ test days: next activity and next object")
+    ax.set_title(f"{scope.title} test days: next activity and next object")
     ax.legend(fontsize=7, loc="upper right", ncols=2)
     fig.tight_layout()
     return fig

@@ -12,6 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from globe.evaluation.published import DataScope  # noqa: E402
+
 # SLaTe-PRO's published object-usage F1 on HOMER+ (its own relocation metric, 10-60 minutes ahead)
 SLATE_PRO_OBJECT_F1 = {"without user queries": 0.57, "with user queries": 0.60}
 
@@ -22,9 +24,9 @@ def save_figure(fig: Figure, path: Path, dpi: int = 130) -> None:
     plt.close(fig)
 
 
-def lookahead_figure(rows: Sequence[dict]) -> Figure:
+def lookahead_figure(rows: Sequence[dict], scope: DataScope) -> Figure:
     """Relocation F1 against the horizon per method (mean of the households, each household
-    thin), with SLaTe-PRO's published object-usage F1 marked and labelled as published."""
+    thin), with SLaTe-PRO's published object-usage F1 marked and labelled as published on HOMER+."""
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     methods = list(dict.fromkeys(r["method"] for r in rows))
     for i, method in enumerate(methods):
@@ -34,12 +36,13 @@ def lookahead_figure(rows: Sequence[dict]) -> Figure:
         for hh in dict.fromkeys(r["household"] for r in rows if r["method"] == method and r["household"] != "mean"):
             mine = [r for r in rows if r["method"] == method and r["household"] == hh]
             ax.plot([r["horizon_min"] for r in mine], [r["f1"] for r in mine], color=color, alpha=0.25, linewidth=0.8)
-    for (label, value), style in zip(SLATE_PRO_OBJECT_F1.items(), ("--", ":")):
+    for (label, value), style in zip(SLATE_PRO_OBJECT_F1.items() if scope.homer_plus else (), ("--", ":")):
         ax.axhline(value, color="black", linestyle=style, linewidth=1, label=f"SLaTe-PRO, published: {label} ({value:.2f})")
     ax.set_xlabel("horizon (minutes ahead)")
-    ax.set_ylabel("relocation F1 (mean of A, B, C; thin: each home)")
+    ax.set_ylabel(f"relocation F1 (mean of {', '.join(scope.households)}; thin: each home)")
     ax.set_ylim(0, 1)
-    ax.set_title("HOMER+ test days: where objects will be, 10-60 minutes ahead")
+    horizons = sorted({r["horizon_min"] for r in rows}) or [0]
+    ax.set_title(f"{scope.title} test days: where objects will be, {horizons[0]}-{horizons[-1]} minutes ahead")
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     return fig

@@ -14,7 +14,7 @@ PANELS = (("activity_f1", "activity F1 (weighted)"), ("object_f1", "object F1 (w
           ("fetch_precision", "fetch precision"), ("fetch_recall", "fetch recall"))
 
 
-def learning_curve_figure(rows: Sequence[dict[str, Any]], title: str = "Learning through the service: HOMER+ test days") -> Figure:
+def learning_curve_figure(rows: Sequence[dict[str, Any]], title: str = "Learning through the service: test days") -> Figure:
     """One panel per metric against the number of learned days (log axis: the early days are
     where learning shows); a thin line per household, a thick one for the ``mean`` rows."""
     fig, axes = plt.subplots(2, 2, figsize=(9.0, 6.4), sharex=True)

@@ -11,6 +11,7 @@ from globe.evaluation import experiments, report
 from globe.evaluation.experiments import MethodRun
 from globe.evaluation.methods import METHODS
 from globe.evaluation.plots import reliability_figure, table1_figure
+from globe.evaluation.published import DataScope
 
 
 @dataclass(frozen=True, slots=True)
@@ -18,12 +19,15 @@ class Table1Results:
     rows: list[dict]
     timing: list[dict]
     labels: dict[str, str]
+    scope: DataScope
 
 
-def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: GlobeConfig) -> Table1Results:
+def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: GlobeConfig,
+                         scope: DataScope) -> Table1Results:
     """Everything a reader needs to trace each number back to the predictions behind it."""
     out_dir.mkdir(parents=True, exist_ok=True)
     report.write_json(out_dir / "config.json", config.model_dump(mode="json"))
+    report.write_json(out_dir / "data.json", scope.as_dict())
     built: dict[str, dict] = {}
     for run in runs:
         built.setdefault(run.method, {})[run.household] = run.built
@@ -47,11 +51,11 @@ def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: Globe
         report.write_records(out_dir / "records", f"{stem}_objects", run.evaluation.objects)
         report.write_records(out_dir / "records", f"{stem}_objects_oracle", run.oracle.objects)
     md = "\n".join([
-        "# Table I (HOMER+)", "", report.table1_markdown(rows, labels, "weighted"),
-        report.table1_markdown(rows, labels, "micro"), report.table1_markdown(rows, labels, "macro"),
-        "# Table II (timing)", "", report.timing_markdown(timing), "# Details", "", report.details_markdown(details),
+        f"# Table I ({scope.title})", "", report.table1_markdown(rows, labels, "weighted", scope),
+        report.table1_markdown(rows, labels, "micro", scope), report.table1_markdown(rows, labels, "macro", scope),
+        "# Table II (timing)", "", report.timing_markdown(timing, scope), "# Details", "", report.details_markdown(details),
         "# Calibration (expected calibration error)", "", report.rows_markdown(calib),
     ])
     (out_dir / "table1.md").write_text(md, encoding="utf-8")
-    table1_figure(rows, labels).savefig(out_dir / "table1.png", dpi=130)
-    return Table1Results(rows, timing, labels)
+    table1_figure(rows, labels, scope).savefig(out_dir / "table1.png", dpi=130)
+    return Table1Results(rows, timing, labels, scope)

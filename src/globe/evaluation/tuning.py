@@ -11,7 +11,7 @@ far as it helped on held-out training days.
 from __future__ import annotations
 
 import time
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence, cast
 
 from globe import assembly
 from globe.config import GateConfig, GlobeConfig, ModelConfig
@@ -35,6 +35,7 @@ from globe.models.base import ActivityModelBase
 from globe.models.objects import ObjectModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
+from globe.sequences.movements import Alignment
 from globe.sequences.runs import TrainingSequences, training_sequences
 
 
@@ -191,9 +192,34 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
 
     obj = select_by(grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token}),
                     object_measure, sel.object_criterion)
-    out = (models.model_copy(update=obj.best), {"activity": act, "objects": obj})
+    models = models.model_copy(update=obj.best)
+    selections = {"activity": act, "objects": obj}
+    if family == "routine" and set(sel.alignments) - {alignment}:
+        # Which activity a use is credited to depends on how the log was made (HOMER+'s rows: the
+        # step before; an imported sensor log: the step itself): scored through the protocol, with
+        # the chosen models, so the activity a use is credited to must itself be predicted.
+        def alignment_measure(params: dict[str, Any]) -> dict[str, float]:
+            chosen = params["alignment"]
+
+            def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
+                activity = fitted_activity(h, fold, models, chosen, memo, step)
+                objects = fitted_objects(h, fold, models, chosen, memo)
+                chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=models.object_marginal)
+                return object_scores(h, days, activity, chooser, chosen, _rankings(memo, fold, models, chosen))
+
+            return mean_over_folds(h, sel.folds, score_fold)
+
+        tried = [{"alignment": a} for a in dict.fromkeys((alignment, *sel.alignments))]
+        selections["alignment"] = select_by(tried, alignment_measure, sel.object_criterion)
+    out = (models, selections)
     memo.put(key, out)
     return out
+
+
+def chosen_alignment(selections: Mapping[str, Selection], cfg: GlobeConfig) -> Alignment:
+    """The alignment cross-validation chose (``selections["alignment"]``), else the configured one."""
+    found = selections.get("alignment")
+    return cast(Alignment, found.best["alignment"]) if found is not None and found.best else cfg.sequences.alignment
 
 
 def _rankings(memo: Memo, fold: Fold, models: ModelConfig, alignment: str) -> dict:

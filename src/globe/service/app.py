@@ -12,6 +12,10 @@ status (``GlobeError.http_status``).
 Each household's requests are serialised by its lock in the registry; an observation is
 validated completely, committed to SQLite, then applied, all under that lock, and only then
 acknowledged (:meth:`globe.service.registry.Registry.observe`).
+
+With ``[mqtt] enabled = true`` the lifespan also starts the link to Home Assistant
+(:mod:`globe.service.mqtt`), which publishes each new prediction and observes through the same
+registry.
 """
 
 from __future__ import annotations
@@ -52,7 +56,15 @@ def create_app(config: GlobeConfig) -> FastAPI:
         threading.Thread(target=_watch, args=(store, stop), name="globe-watch", daemon=True).start()
         if service.preload:
             threading.Thread(target=registry.warm_up, args=(stop,), name="globe-warm-up", daemon=True).start()
+        bridge = None
+        if config.mqtt.enabled:
+            from globe.service.mqtt.bridge import MqttBridge  # paho-mqtt: only with [mqtt] enabled
+
+            bridge = app.state.mqtt = MqttBridge(registry, config)
+            bridge.start()
         yield
+        if bridge is not None:
+            bridge.stop()
         stop.set()
         registry.close()
         store.close()

@@ -97,6 +97,7 @@ class Registry:
         self._creating: set[str] = set()  # names reserved by a creation under way
         self.failed: dict[str, str] = {}  # households that could not be built, and why
         self._encoder = ThreadPoolExecutor(max_workers=1, thread_name_prefix="globe-encode")
+        self._listeners: list[Callable[[str], None]] = []  # told the household after each applied observation
 
     def close(self) -> None:
         """Stop the helper thread (the store is closed by its owner)."""
@@ -254,6 +255,7 @@ class Registry:
             with self._lock:
                 self._creating.discard(name)
         self._touch(name)
+        self._notify(name)
         return assistant
 
     def served(self, name: str) -> Served:
@@ -384,8 +386,29 @@ class Registry:
         return found
 
     # -- a household's requests --------------------------------------------------------------------
+    def subscribe(self, listener: Callable[[str], None]) -> None:
+        """Call ``listener(household)`` after each observation applied and each household created
+        (its lock released, so a listener may ask for the new prediction); what it raises is logged."""
+        self._listeners.append(listener)
+
+    def _notify(self, name: str) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener(name)
+            except Exception:  # noqa: BLE001 - a listener never fails what it is told about
+                log.exception("a listener of household %s failed", name)
+
     def observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
                 client_id: str | None) -> ObservationAck:
+        """One observation (:meth:`_observe`), then the listeners told when it was applied (not
+        when it is a retry's duplicate or held pending)."""
+        ack = self._observe(name, time=time, activity=activity, locations=locations, client_id=client_id)
+        if not ack.duplicate and not ack.pending:
+            self._notify(name)
+        return ack
+
+    def _observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
+                 client_id: str | None) -> ObservationAck:
         """One observation: validated completely, committed to the store, then applied, all under
         the household's lock, and only then acknowledged. A retry with a known ``client_id``
         returns the first acknowledgement (a different observation under that id is a 409).

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import datetime as dt
 import re
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
@@ -249,8 +249,23 @@ class HouseholdExport(_Body):
     feedback: list[StoredFeedback]
 
 
+class MqttHealth(_Body):
+    """The link to Home Assistant over MQTT (``[mqtt]``)."""
+
+    state: Literal["disabled", "connected", "disconnected"] = Field(
+        "disabled", description="'disabled' without [mqtt] enabled; else whether the broker is connected now "
+                                "(while it is not, GLOBE retries with backoff)")
+    broker: str | None = Field(None, description="the broker's URL")
+    last_error: str | None = Field(None, description="the last connection problem (null: none since start-up)")
+    malformed: int = Field(0, description="messages from Home Assistant logged and dropped as malformed")
+    observations: int = Field(0, description="observations made from Home Assistant's states and stored")
+    rejected: int = Field(0, description="observations made from Home Assistant's states that GLOBE refused (logged)")
+    published: int = Field(0, description="state messages published (one per household after each new prediction)")
+
+
 class HealthOut(_Body):
-    status: str = Field(..., description="'ok', or 'degraded' when writes are refused or a household cannot be built")
+    status: str = Field(..., description="'ok', or 'degraded' when writes are refused, a household cannot be built "
+                                         "or the MQTT broker (when enabled) is not connected")
     version: str
     database: str = Field(..., description="'ok', or why writes are refused")
     households: int
@@ -258,6 +273,7 @@ class HealthOut(_Body):
     failed: list[str] = Field(..., description="households that could not be built")
     llm: str = Field(..., description="'none', 'ready', 'loading' (predictions use the n-gram choice meanwhile) or "
                                       "'failed: <why>'")
+    mqtt: MqttHealth = Field(default_factory=MqttHealth, description="Home Assistant over MQTT")
 
 
 class ErrorOut(_Body):

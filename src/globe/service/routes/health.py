@@ -2,21 +2,23 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 
 from globe import __version__
 from globe.service.deps import RegistryDep
 from globe.service.fastjson import FastJSONRoute
-from globe.service.schemas import HEALTH_RESPONSES, HealthOut
+from globe.service.schemas import HEALTH_RESPONSES, HealthOut, MqttHealth
 
 router = APIRouter(route_class=FastJSONRoute)
 
 
 @router.get("/health", responses=HEALTH_RESPONSES)
-def health(registry: RegistryDep) -> HealthOut:
+def health(registry: RegistryDep, request: Request) -> HealthOut:
     problem = registry.store.problem()
     failed = registry.failures()
-    degraded = problem is not None or bool(failed)
+    bridge = getattr(request.app.state, "mqtt", None)  # the MQTT bridge, when [mqtt] is enabled
+    mqtt = bridge.health() if bridge is not None else MqttHealth()
+    degraded = problem is not None or bool(failed) or mqtt.state == "disconnected"
     llm = "none" if registry.backend is None else registry.backend.status
     return HealthOut(status="degraded" if degraded else "ok", version=__version__, database=problem or "ok",
-                     households=len(registry.names()), built=registry.built(), failed=failed, llm=llm)
+                     households=len(registry.names()), built=registry.built(), failed=failed, llm=llm, mqtt=mqtt)

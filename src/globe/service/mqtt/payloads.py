@@ -1,0 +1,115 @@
+"""What GLOBE publishes for Home Assistant, as pure functions of the configuration and a
+prediction: the topics, one device-based discovery payload per household, and its state.
+
+Home Assistant's device-based discovery (``<prefix>/device/<object_id>/config``) takes one JSON
+object per device: a ``device`` block (``identifiers`` required), an ``origin`` block (``name``
+required) and ``components``, each with its ``platform`` and a ``unique_id``. Full key names are
+used, not their abbreviations, so the payloads read like the documentation. Every entity reads
+the household's one retained state message (the prediction as ``GET .../prediction`` returns it)
+through a value template, and is available while GLOBE's status topic says ``online``."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from typing import Any
+
+from globe import __version__
+from globe.config import MqttConfig
+from globe.service.schemas import Prediction
+
+ONLINE, OFFLINE = "online", "offline"
+_SAFE_ID = re.compile(r"^[A-Za-z0-9_-]+$")  # what Home Assistant accepts as a discovery object id
+
+
+def object_id(household: str) -> str:
+    """The household's id in discovery topics and unique ids: ``globe_<name>``, made of
+    ``[A-Za-z0-9_-]`` as Home Assistant requires (a name with a '.' gets a hash of the name, so two
+    households never share an id)."""
+    if _SAFE_ID.match(household):
+        return f"globe_{household}"
+    digest = hashlib.sha256(household.encode()).hexdigest()[:8]
+    return f"globe_{re.sub(r'[^A-Za-z0-9_-]', '_', household)}_{digest}"
+
+
+def availability_topic(config: MqttConfig) -> str:
+    """GLOBE's status: ``online`` while connected, ``offline`` (its last will) otherwise."""
+    return f"{config.topic_prefix}/status"
+
+
+def state_topic(config: MqttConfig, household: str) -> str:
+    return f"{config.topic_prefix}/{household}/state"
+
+
+def discovery_topic(config: MqttConfig, household: str) -> str:
+    return f"{config.discovery_prefix}/device/{object_id(household)}/config"
+
+
+def _percent(field: str) -> str:
+    return f"{{{{ (value_json.{field} * 100) | round(1) if value_json.{field} is not none else none }}}}"
+
+
+# component key -> (platform, name, value template, extra options)
+_COMPONENTS: dict[str, tuple[str, str, str, dict[str, Any]]] = {
+    "activity": ("sensor", "Next activity", "{{ value_json.activity }}",
+                 {"icon": "mdi:human", "json_attributes_template":
+                  '{{ {"probability": value_json.activity_probability, "day": value_json.day, '
+                  '"step": value_json.step} | tojson }}'}),
+    "activity_probability": ("sensor", "Next activity probability", _percent("activity_probability"),
+                             {"unit_of_measurement": "%", "state_class": "measurement", "icon": "mdi:percent"}),
+    "object": ("sensor", "Object needed next", "{{ value_json.object }}",
+               {"icon": "mdi:cup", "json_attributes_template":
+                '{{ {"probability": value_json.object_probability} | tojson }}'}),
+    "object_probability": ("sensor", "Object probability", _percent("object_probability"),
+                           {"unit_of_measurement": "%", "state_class": "measurement", "icon": "mdi:percent"}),
+    "fetch_object": ("sensor", "Object to fetch", "{{ value_json.fetch_object }}", {"icon": "mdi:robot"}),
+    "fetch_to": ("sensor", "Fetch to", "{{ value_json.fetch_to }}", {"icon": "mdi:map-marker"}),
+    "fetch_probability": ("sensor", "Fetch probability", _percent("fetch_probability"),
+                          {"unit_of_measurement": "%", "state_class": "measurement", "icon": "mdi:percent"}),
+    "status": ("sensor", "Status", "{{ value_json.status }}",
+               {"device_class": "enum", "options": ["learning", "ready"], "entity_category": "diagnostic"}),
+    "days_learned": ("sensor", "Days learned", "{{ value_json.days_learned }}",
+                     {"state_class": "measurement", "icon": "mdi:calendar-check", "entity_category": "diagnostic"}),
+    "fetch": ("binary_sensor", "Fetch now", "{{ 'ON' if value_json.act else 'OFF' }}",
+              {"payload_on": "ON", "payload_off": "OFF", "icon": "mdi:robot-excited",
+               "json_attributes_template": '{{ {"object": value_json.fetch_object, "to": value_json.fetch_to, '
+                                           '"probability": value_json.fetch_probability} | tojson }}'}),
+}
+COMPONENTS = tuple(_COMPONENTS)
+"""The component keys of a household's device (``fetch`` is the binary sensor the robot acts on)."""
+
+
+def discovery_payload(config: MqttConfig, household: str) -> dict[str, Any]:
+    """The household as one Home Assistant device (published retained on :func:`discovery_topic`)."""
+    ident = object_id(household)
+    topic = state_topic(config, household)
+    components: dict[str, dict[str, Any]] = {}
+    for key, (platform, name, template, extra) in _COMPONENTS.items():
+        component: dict[str, Any] = {"platform": platform, "name": name, "unique_id": f"{ident}_{key}",
+                                     "state_topic": topic, "value_template": template, **extra}
+        if "json_attributes_template" in extra:
+            component["json_attributes_topic"] = topic
+        components[key] = component
+    return {
+        "device": {"identifiers": [ident], "name": f"GLOBE {household}", "manufacturer": "GLOBE",
+                   "model": "Household assistant", "sw_version": __version__},
+        "origin": {"name": "GLOBE", "sw_version": __version__},
+        "availability": [{"topic": availability_topic(config), "payload_available": ONLINE,
+                          "payload_not_available": OFFLINE}],
+        "qos": 1,
+        "components": components,
+    }
+
+
+def state_payload(prediction: Prediction) -> str:
+    """The household's state: the prediction as the HTTP API returns it (JSON)."""
+    return prediction.model_dump_json()
+
+
+def encode(payload: dict[str, Any]) -> str:
+    return json.dumps(payload, separators=(",", ":"), ensure_ascii=False)
+
+
+__all__ = ["COMPONENTS", "ONLINE", "OFFLINE", "object_id", "availability_topic", "state_topic", "discovery_topic",
+           "discovery_payload", "state_payload", "encode"]

@@ -1,0 +1,83 @@
+"""Regression test: a fresh main job on HOMER+ gives the committed reference results.
+
+The LLM-free half of ``globe reproduce`` (the model selections, the persistence, n-gram, smoothed
+and routine rows of Table I, calibration, activity anticipation, the lookahead, the fetch policy
+and missing labels) is run and compared row by row with ``reference/homer_plus``: choices exactly,
+figures to the third decimal. Ties in every selection are broken by an explicit order, so a changed
+last bit cannot flip a row; a row that moves is a change to explain (and to commit with new
+reference results).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REFERENCE = Path(__file__).resolve().parents[2] / "reference" / "homer_plus"
+METHODS = ("persistence", "ngram", "ngram_smoothed", "routine")
+#: file -> the columns that name a row (every other column is a result)
+KEYS = {
+    "selection.csv": ("method", "household", "part", "params", "criterion"),
+    "table1.csv": ("method", "household", "average"),
+    "details.csv": ("method", "household"),
+    "calibration.csv": ("method",),
+    "activity_anticipation.csv": ("household", "method", "horizon_min"),
+    "next_activity.csv": ("household", "method"),
+    "lookahead.csv": ("method", "household", "horizon_min"),
+    "lookahead_selection.csv": ("method", "household", "run_end", "run_memory", "run_next", "horizon_min",
+                                "threshold"),
+    "fetch_policy.csv": ("household", "cost_ratio", "configured"),
+    "fetch_lead_times.csv": ("household", "lead_min"),
+    "missing_labels.csv": ("method", "household", "labels_pct"),
+    "missing_labels_selection.csv": ("household", "params"),
+}
+IGNORED = {"seconds"}  # wall-clock figures
+TOLERANCE = 5e-4 + 1e-9  # the files keep four decimals: equal to the third decimal
+
+
+def _rows(path: Path, keys: tuple[str, ...]) -> dict[tuple[str, ...], dict[str, str]]:
+    with path.open(newline="") as fh:
+        return {tuple(row[k] for k in keys): row for row in csv.DictReader(fh)}
+
+
+def _differences(name: str, fresh: dict, reference: dict, keys: tuple[str, ...]) -> list[str]:
+    out, compared = [], 0
+    for key, ref in reference.items():
+        method = dict(zip(keys, key)).get("method", METHODS[0]).split(" ")[0]
+        if method not in METHODS and not method.startswith("chosen") and method != "time_of_day":
+            continue  # an LLM method's row: not run here
+        row = fresh.get(key)
+        compared += 1
+        if row is None:
+            out.append(f"{name}: row {key} missing")
+            continue
+        for column, want in ref.items():
+            if column in keys or column in IGNORED:
+                continue
+            got = row.get(column)
+            try:
+                same = math.isclose(float(got), float(want), rel_tol=0.0, abs_tol=TOLERANCE)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                same = got == want
+            if not same:
+                out.append(f"{name} {key} {column}: {want} -> {got}")
+    return out if compared else [f"{name}: no reference row compared"]
+
+
+@pytest.mark.slow
+def test_main_job_matches_the_reference_results(tmp_path: Path) -> None:
+    config = tmp_path / "globe.toml"
+    config.write_text("[evaluation]\nmethods = [" + ", ".join(f'"{m}"' for m in METHODS) + "]\n")
+    out = tmp_path / "results"
+    done = subprocess.run([sys.executable, "-m", "globe", "reproduce", "--out", str(out), "--config", str(config),
+                           "--backend", "none", "--no-robustness"], capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    differences = []
+    for name, keys in KEYS.items():
+        differences += _differences(name, _rows(out / name, keys), _rows(REFERENCE / name, keys), keys)
+    assert not differences, "results moved against reference/homer_plus:\n" + "\n".join(differences[:40])

@@ -1,0 +1,162 @@
+"""What GLOBE publishes for Home Assistant and how it reads Home Assistant's states, without a
+broker: the discovery payload against the documented schema, the entities' states rendered from
+a prediction, statestream messages (good, unknown, malformed), and the [mqtt] section's checks."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from globe.config import GlobeConfig, MqttConfig, load_config
+from globe.errors import ConfigError
+from globe.service.mqtt import payloads
+from globe.service.mqtt.bridge import broker_address
+from globe.service.mqtt.statestream import MalformedMessage, StateBook, decode_state
+from globe.service.schemas import Prediction
+from tests.service.ha_discovery_schema import discovery_problems, entity_states
+
+MAPPED = MqttConfig.model_validate({
+    "households": {"home": {"activity": "input_select.activity", "activities": {"Making tea": "breakfast"},
+                            "objects": {"binary_sensor.kettle_in_use": {"object": "kettle",
+                                                                        "locations": {"on": "in_use#4",
+                                                                                      "off": "counter#3"}}}}},
+})
+
+
+def prediction(**kw) -> Prediction:
+    base = dict(status="ready", days_learned=12, day="2026-11-24", step=30, activity="breakfast",
+                activity_probability=0.8125, object="kettle", object_probability=0.5, llm_consulted=False,
+                llm_fallback=None, act=True, fetch_object="kettle", fetch_to="in_use#4", fetch_probability=0.7)
+    return Prediction(**{**base, **kw})
+
+
+@pytest.mark.parametrize("name", ["A", "home-1", "flat.2"])
+def test_the_discovery_payload_follows_home_assistants_schema(name):
+    config = MqttConfig()
+    topic = payloads.discovery_topic(config, name)
+    payload = json.loads(payloads.encode(payloads.discovery_payload(config, name)))
+    assert discovery_problems(topic, payload) == []
+    assert topic.startswith("homeassistant/device/globe_")
+    assert payload["availability"] == [{"topic": "globe/status", "payload_available": "online",
+                                        "payload_not_available": "offline"}]
+    assert {c["state_topic"] for c in payload["components"].values()} == {f"globe/{name}/state"}
+    assert {c["platform"] for c in payload["components"].values()} == {"sensor", "binary_sensor"}
+
+
+def test_the_checker_finds_what_home_assistant_would_refuse():
+    payload = payloads.discovery_payload(MqttConfig(), "A")
+    broken = json.loads(json.dumps(payload))
+    del broken["origin"]
+    broken["components"]["fetch"]["platfrom"] = broken["components"]["fetch"].pop("platform")
+    broken["components"]["status"]["unique_id"] = broken["components"]["activity"]["unique_id"]
+    problems = discovery_problems("homeassistant/device/a.b/config", broken)
+    assert len(problems) == 4, problems
+
+
+def test_dotted_household_names_get_distinct_valid_ids():
+    ids = {payloads.object_id(n) for n in ("a.b", "a_b", "a-b", "a.b.")}
+    assert len(ids) == 4
+    assert all(i.replace("_", "").replace("-", "").isalnum() for i in ids)
+
+
+def test_the_entities_follow_a_prediction():
+    payload = payloads.discovery_payload(MqttConfig(), "A")
+    states = entity_states(payload, json.loads(payloads.state_payload(prediction())))
+    assert states["activity"] == ("breakfast", {"probability": 0.8125, "day": "2026-11-24", "step": 30})
+    assert states["activity_probability"][0] == "81.2"
+    assert states["fetch"] == ("ON", {"object": "kettle", "to": "in_use#4", "probability": 0.7})
+    assert states["fetch_to"][0] == "in_use#4"
+    assert states["status"][0] == "ready" and states["days_learned"][0] == "12"
+    idle = entity_states(payload, json.loads(payloads.state_payload(
+        prediction(status="learning", act=False, fetch_object=None, fetch_to=None, fetch_probability=None))))
+    assert idle["fetch"][0] == "OFF"
+    assert idle["fetch_object"][0] == idle["fetch_probability"][0] == "None"  # Home Assistant's unknown
+    assert idle["status"][0] in payload["components"]["status"]["options"]
+
+
+def test_statestream_states_make_a_snapshot():
+    book = StateBook(MAPPED)
+    assert book.topics() == ["homeassistant/binary_sensor/kettle_in_use/state", "homeassistant/input_select/activity/state"]
+    assert not book.snapshot("home").seen
+    assert book.receive("homeassistant/input_select/activity/state", b"Making tea") == 1
+    assert book.receive("homeassistant/binary_sensor/kettle_in_use/state", b'"on"') == 1  # older, JSON-quoted states
+    snap = book.snapshot("home")
+    assert (snap.seen, snap.activity, snap.locations) == (True, "breakfast", {"kettle": "in_use#4"})
+    book.receive("homeassistant/binary_sensor/kettle_in_use/state", b"unavailable")  # the kettle stays put
+    book.receive("homeassistant/input_select/activity/state", b"  dinner ")
+    assert (book.snapshot("home").activity, book.snapshot("home").locations) == ("dinner", {"kettle": "in_use#4"})
+    book.receive("homeassistant/input_select/activity/state", b"unknown")
+    assert book.snapshot("home").activity is None
+    assert book.receive("homeassistant/light/other/state", b"on") == 0
+
+
+@pytest.mark.parametrize("payload", [b"\xff\xfe", b"tea\x00time", b"x" * 2000, b'"unterminated\\"', "a\u202eb".encode()])
+def test_malformed_states_are_refused_and_change_nothing(payload):
+    book = StateBook(MAPPED)
+    book.receive("homeassistant/input_select/activity/state", b"relax")
+    with pytest.raises(MalformedMessage):
+        book.receive("homeassistant/input_select/activity/state", payload)
+    assert book.snapshot("home").activity == "relax"
+
+
+def test_decode_state_limits_the_length():
+    assert decode_state(b"x" * 10, 10) == "x" * 10
+    with pytest.raises(MalformedMessage, match="longer than 10"):
+        decode_state(b"x" * 11, 10)
+
+
+def test_mqtt_is_off_by_default_and_its_section_is_checked(tmp_path):
+    assert GlobeConfig().mqtt.enabled is False
+    bad = {"broker": "http://broker", "discovery_prefix": "home/+", "status_topic": "ha/status/",
+           "households": {"A": {"activity": "Activity"}}}
+    for key, value in bad.items():
+        with pytest.raises(ConfigError, match=f"mqtt.{key}"):
+            load_config(overrides={f"mqtt.{key}": value}, environ={})
+    with pytest.raises(ConfigError, match="password or password_file"):
+        load_config(overrides={"mqtt.password": "x", "mqtt.password_file": str(tmp_path / "p")}, environ={})
+    assert broker_address("mqtts://broker.lan") == ("broker.lan", 8883, True)
+    assert broker_address("mqtt://[::1]:1884") == ("::1", 1884, False)
+    with pytest.raises(ConfigError, match="port"):
+        broker_address("mqtt://broker:99999")
+    assert "secret" not in repr(MqttConfig(password="secret"))
+
+
+def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():
+    """docs/home-assistant.md: each yaml block parses, each toml block is a valid GLOBE
+    configuration, each bash line is a globe command, and the entity ids it names are those the
+    discovery makes (Home Assistant joins the device's and the entity's names)."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    import yaml
+
+    text = (Path(__file__).parents[2] / "docs" / "home-assistant.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```(\w*)\n(.*?)```", text, flags=re.S)
+    assert {lang for lang, _ in blocks} == {"yaml", "toml", "bash"}
+    for lang, body in blocks:
+        if lang == "yaml":
+            assert isinstance(yaml.safe_load(body), dict)
+        elif lang == "toml":
+            config = GlobeConfig.model_validate(tomllib.loads(body))
+            assert config.mqtt.enabled and config.mqtt.households
+        else:
+            assert all(line.startswith("globe ") for line in body.strip().splitlines())
+    payload = payloads.discovery_payload(MqttConfig(), "home")
+    slug = lambda s: re.sub(r"[^a-z0-9]+", "_", s.lower()).strip("_")  # noqa: E731
+    made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}" for c in payload["components"].values()}
+    named = set(re.findall(r"`((?:binary_)?sensor\.globe_home_\w+)`", text))
+    assert named == made
+
+
+def test_a_missing_broker_program_skips_here_and_fails_in_ci(monkeypatch, tmp_path):
+    from tests.service.mosquitto import system_binary
+
+    missing = str(tmp_path / "no-such-mosquitto")
+    monkeypatch.delenv("CI", raising=False)
+    with pytest.raises(pytest.skip.Exception, match="apt-get install mosquitto"):
+        system_binary(missing, "mosquitto")
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="apt-get install mosquitto"):
+        system_binary(missing, "mosquitto")
