@@ -197,6 +197,12 @@ class ServiceConfig(_Section):
     max_built_households: int = Field(
         64, ge=1, le=1_000_000, description="households kept built in memory; the least recently used are rebuilt from the database on demand"
     )
+    session_minutes: int = Field(
+        480, ge=1, le=60 * 24 * 30, description="a dashboard login lasts this long (then the token is asked again)"
+    )
+    dashboard_refresh_s: int = Field(
+        30, ge=0, le=3600, description="how often an open dashboard page refreshes its live part (0: never)"
+    )
 
 
 class EvaluationConfig(_Section):

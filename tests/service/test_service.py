@@ -53,11 +53,12 @@ def test_state_survives_a_killed_server(server, households):
         upload(c, "A", h)
         post_day(c, "A", h, h.test[0], 0)
         post_day(c, "A", h, h.test[1], 1, steps=40)
-        before_stats, before_pred = c.stats("A"), c.prediction("A")
+        # the prediction first: a fetch it decides is recorded and scored (the stats then include it)
+        before_pred, before_stats = c.prediction("A"), c.stats("A")
     server.kill()  # SIGKILL: no shutdown hook runs
     server.start()
     with server.client() as c:
-        after_stats, after_pred = c.stats("A"), c.prediction("A")
+        after_pred, after_stats = c.prediction("A"), c.stats("A")
         assert after_stats == before_stats
         assert (after_pred.activity, after_pred.object, after_pred.object_probability) == (
             before_pred.activity, before_pred.object, before_pred.object_probability)
@@ -133,6 +134,8 @@ def test_concurrent_clients_are_serialised(server, households):
 def test_simulated_robot_reports_assistance_metrics(client, households):
     h = households["A"]
     upload(client, "A", h)
+    assert client.prediction("A").shadow  # a new household starts in shadow mode: the robot would never act
+    client.set_shadow("A", False)
     report = replay_days(client, "A", h, h.test[:2], SimulatedRobot(), base_date=BASE.date())
     s = report.summary()
     assert s["steps"] == 2 * 109 and s["days"] == 2

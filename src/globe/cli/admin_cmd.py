@@ -129,6 +129,26 @@ def household_delete(
     console.print(f"deleted household {name!r} and everything stored about it")
 
 
+@household_app.command("shadow")
+def household_shadow(
+    db: DbOption,
+    name: Annotated[str, typer.Option("--name", help="household id in the service")],
+    on: Annotated[bool, typer.Option("--on/--off", help="--on: predict and score, never act; --off: the robot acts")],
+) -> None:
+    """Switch a household's shadow mode (new households start in it); a running service follows at
+    its next prediction. Switch it off once the online scores (globe serve's dashboard, /stats) are good enough."""
+    from globe.service.store import Store
+
+    store = Store(db)
+    try:
+        if store.household(name) is None:
+            raise DataError(f"no household {name!r} in {db}", field="name")
+        store.set_shadow(name, on)
+    finally:
+        store.close()
+    console.print(f"household {name!r}: shadow mode {'on (GLOBE predicts and scores, the robot is never told to act)' if on else 'off (the robot acts on predictions)'}")
+
+
 @household_app.command("export")
 def household_export(
     db: DbOption,

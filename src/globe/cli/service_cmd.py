@@ -83,6 +83,7 @@ def robot(
             if err.status != 409:
                 raise
             console.print(f"household {ident!r} exists in the service: continuing with its state")
+        client.set_shadow(ident, False)  # a simulated robot: it acts when told to (new households start in shadow)
         test_days = h.test[:days]
         with progress_bar(len(test_days), "replaying days") as advance:
             report = replay_days(client, ident, h, test_days, SimulatedRobot(), progress=advance)

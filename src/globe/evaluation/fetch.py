@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import statistics
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Callable, Mapping, Sequence
 
 from globe.data.records import Day, Household
 from globe.inference.fetch_policy import FetchCandidate, FetchPolicy
@@ -70,8 +70,29 @@ def use_steps(household: Household, day: Day) -> dict[str, list[int]]:
 def replay_day(policy: FetchPolicy, household: Household, day: Day, candidates: Sequence[Sequence[FetchCandidate]],
                report: FetchReport | None = None) -> FetchReport:
     """Replay one day with ``policy``'s decision rule over precomputed ``candidates``."""
+
+    def decide(t: int, pending: Mapping[str, int]) -> list[str]:
+        return [c.obj for c in policy.choose(candidates[t], exclude=pending)] if t < len(candidates) else []
+
+    return _score(household, day, decide, len(candidates), policy.min_lead_steps, policy.window_steps, report)
+
+
+def score_fetches(household: Household, day: Day, fetched: Mapping[int, Sequence[str]], min_lead_steps: int,
+                  window_steps: int, report: FetchReport | None = None) -> FetchReport:
+    """Score fetches already decided (``fetched``: step -> objects; an online service's decisions)
+    over ``day`` as it then happened, by the same rule as :func:`replay_day` (a fetch of an object
+    still pending, fetched and not yet used within its window, is not counted again)."""
+
+    def decide(t: int, pending: Mapping[str, int]) -> list[str]:
+        return [o for o in fetched.get(t, ()) if o not in pending]
+
+    return _score(household, day, decide, len(day), max(1, min_lead_steps), window_steps, report)
+
+
+def _score(household: Household, day: Day, decide: Callable[[int, Mapping[str, int]], Sequence[str]], decided_steps: int,
+           lo: int, hi: int, report: FetchReport | None) -> FetchReport:
+    """The module's rule: fetches decided after each step t < ``decided_steps``, uses as the day moved."""
     report = report or FetchReport()
-    lo, hi = policy.min_lead_steps, policy.window_steps
     uses = use_steps(household, day)
     used_at: dict[int, list[str]] = {}
     for obj, steps in uses.items():
@@ -87,13 +108,13 @@ def replay_day(policy: FetchPolicy, household: Household, day: Day, candidates: 
                 report.lead_minutes.append(day.minutes[t] - day.minutes[fetched])
         for obj in [o for o, f in pending.items() if t - f >= hi]:
             del pending[obj]
-        if t >= len(candidates):
+        if t >= decided_steps:
             continue
         report.steps += 1
-        for c in policy.choose(candidates[t], exclude=pending):
+        for obj in decide(t, pending):
             report.fetches += 1
-            pending[c.obj] = t
-            report.useful_fetches += any(lo <= u - t <= hi for u in uses.get(c.obj, ()))
+            pending[obj] = t
+            report.useful_fetches += any(lo <= u - t <= hi for u in uses.get(obj, ()))
     return report
 
 

@@ -109,6 +109,7 @@ class OnlineAssistant:
             self._count_targets(self._runs(household.train))
         self.days_learned = len(household.train)
         self._last_instant: dt.datetime | None = None
+        self._belief: tuple[tuple, dict[str, float]] | None = None  # (state key, belief): predict and observe share it
         self._reset_day(None)
 
     # -- validation ------------------------------------------------------------------------
@@ -212,6 +213,14 @@ class OnlineAssistant:
         """The next-activity distribution given the day so far. With every label known, the
         activity model's own; otherwise a forward filter over the activities the unknown steps
         may have had, given the time and the objects seen moving (never a guess taken as truth)."""
+        key = (self._day_key, len(self._slots), self.observations, self.days_learned)
+        if self._belief is not None and self._belief[0] == key:
+            return self._belief[1]
+        belief = self._compute_belief()
+        self._belief = (key, belief)
+        return belief
+
+    def _compute_belief(self) -> dict[str, float]:
         if self._new_filter is None or all(a is not None for a in self._activities):
             return self.activity_model.predict_proba(tuple(self.activity_history()))
         flt = self._new_filter()
@@ -245,6 +254,54 @@ class OnlineAssistant:
         self._fetched[best.obj] = now
         return best.obj, best.to_location, best.probability
 
+    # -- what the dashboard and the online scores read ---------------------------------------
+    @property
+    def day(self) -> str | None:
+        """The day the last observation belongs to (None before any)."""
+        return self._day_key
+
+    @property
+    def steps_today(self) -> int:
+        return len(self._slots)
+
+    def next_activity(self) -> tuple[str, float] | None:
+        """The top next activity and its probability (what :meth:`predict` says), or None while
+        learning; computed once per state (:meth:`predict` reuses it)."""
+        if self.days_learned == 0:
+            return None
+        belief = self.activity_belief()
+        ranked = self.activity_model.ranked(belief)
+        return (ranked[0], float(belief[ranked[0]])) if ranked else None
+
+    def observed_activity(self, step: int) -> str | None:
+        """Today's activity at ``step`` as observed (None: unknown)."""
+        return self._activities[step] if 0 <= step < len(self._activities) else None
+
+    def step_minute(self, step: int) -> int:
+        """Minute since the day's midnight of today's ``step``."""
+        return self.day_start_minute + self._slots[step] * self.step_minutes
+
+    def today(self) -> list[tuple[int, str | None]]:
+        """(minute since midnight, observed activity or None) of each step today."""
+        return [(self.day_start_minute + slot * self.step_minutes, a) for slot, a in zip(self._slots, self._activities)]
+
+    def lead_window(self, policy_minutes: tuple[int, int]) -> tuple[int, int]:
+        """(min lead, window) in steps: the fetch policy's, else ``policy_minutes`` converted as it would be."""
+        if self.fetch_policy is not None:
+            return self.fetch_policy.min_lead_steps, self.fetch_policy.window_steps
+        lead, window = policy_minutes
+        return max(1, -(-lead // self.step_minutes)), max(1, window // self.step_minutes)
+
+    def next_hour(self, steps: int) -> list[tuple[str, list[float], str | None]]:
+        """Per object, P(first used at each of the next ``steps`` steps) and where it would most
+        likely be taken, from the fetch policy's forecaster; [] without a policy or a basis."""
+        history = self.activity_history()
+        if self.fetch_policy is None or not self._states or len(history) != len(self._states) or self.days_learned == 0:
+            return []
+        forecast = self.fetch_policy.forecaster.forecast(history, self._states, max(0, steps - 1))
+        targets = forecast.likely_target(1, steps)
+        return [(obj, [float(x) for x in forecast.departure[:steps, j]], targets[j]) for j, obj in enumerate(forecast.objects)]
+
     # -- prediction ------------------------------------------------------------------------
     @property
     def status(self) -> str:
@@ -259,11 +316,11 @@ class OnlineAssistant:
                              llm_fallback=None, act=False)
         if self.days_learned == 0:
             return nothing
-        belief = self.activity_belief()
-        ranked = self.activity_model.ranked(belief)
-        if not ranked:
+        top = self.next_activity()
+        if top is None:
             return nothing
-        nxt = ranked[0]
+        nxt = top[0]
+        belief = self.activity_belief()
         choice = self.chooser.choose_given(nxt, belief, run_context(*self._current_run()))
         if choice.fallback:
             self.fallbacks[choice.fallback] += 1
@@ -279,6 +336,8 @@ class OnlineAssistant:
     # -- internals ---------------------------------------------------------------------------
     def _reset_day(self, key: str | None) -> None:
         self._day_key = key
+        self.step_predictions: dict[int, tuple[str, float]] = {}  # today's one-step predictions (by the registry)
+        self.fetches_today: dict[int, list[str]] = {}  # step -> objects GLOBE decided to fetch after it
         self._fetched: dict[str, int] = {}  # object -> step it was last fetched (not again within the window)
         self._slots: list[int] = []
         self._activities: list[str | None] = []

@@ -86,6 +86,10 @@ class GlobeClient:
             body["timezone"] = timezone
         return self._call("POST", "/households", json=body)
 
+    def set_shadow(self, name: str, shadow: bool) -> dict:
+        """Shadow mode on (predict and score, never act) or off (admin)."""
+        return self._call("PUT", f"/households/{name}/shadow", json={"shadow": shadow})
+
     def delete_household(self, name: str) -> None:
         self._call("DELETE", f"/households/{name}")
 

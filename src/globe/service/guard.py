@@ -21,6 +21,9 @@ from globe.service import auth
 
 PUBLIC_PATHS = frozenset({"/health", "/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
 """Paths answered without a token (none reads a body or tells anything about a household)."""
+DASHBOARD = "/dashboard"
+"""The dashboard's paths: a browser sends no Authorization header, its session cookie is checked by
+:mod:`globe.service.routes.dashboard` (the Host allow-list and the body limits still apply here)."""
 
 
 def printable(text: str) -> str:
@@ -69,7 +72,8 @@ class Guard:
         if not self.any_host and host not in self.hosts:
             await refuse(400, f"host {host[:64]!r} is not allowed (service.allowed_hosts)", "host")
             return
-        if scope["method"] != "OPTIONS" and scope["path"] not in PUBLIC_PATHS:
+        dashboard = scope["path"] == DASHBOARD or scope["path"].startswith(DASHBOARD + "/")
+        if scope["method"] != "OPTIONS" and scope["path"] not in PUBLIC_PATHS and not dashboard:
             try:
                 scope.setdefault("state", {})["caller"] = auth.authenticate(scope["app"].state.registry.store,
                                                                             headers.get("authorization"))

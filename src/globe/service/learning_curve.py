@@ -157,6 +157,7 @@ def _fresh_household(client: GlobeClient, name: str, nodes: list[dict[str, Any]]
             raise
         client.delete_household(name)
         client.create_household(name, nodes=nodes, timezone=timezone)
+    client.set_shadow(name, False)  # the simulated robot acts when told to: what the curve measures
 
 
 def curve_point(client: GlobeClient, household: Household, days_learned: int, *, name_prefix: str | None = None,

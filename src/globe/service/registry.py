@@ -10,6 +10,7 @@ stop the service.
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import datetime as dt
 import json
 import logging
@@ -37,7 +38,7 @@ from globe.errors import (
 )
 from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
-from globe.service import timepolicy
+from globe.service import scoring, timepolicy
 from globe.service.assistant import Observation, OnlineAssistant, build_assistant
 from globe.service.schemas import (
     FeedbackCounts,
@@ -45,7 +46,9 @@ from globe.service.schemas import (
     ModelOut,
     ModelSettings,
     ObservationAck,
+    OnlineScores,
     Prediction,
+    ShadowOut,
     StatsOut,
     check_household_name,
 )
@@ -184,6 +187,7 @@ class Registry:
         assistant.pending = len(pending)
         for accepted in self.store.feedback(row.name):
             assistant.record_feedback(accepted)
+        scoring.restore(assistant, self.store, row.name)
         return assistant, pending
 
     def check_labels(self, obs: Observation) -> None:
@@ -449,13 +453,15 @@ class Registry:
                                 field="time")
             place = a.placement(zoned)
             ack = {"day": place.day, "step": place.step}
+            settled = scoring.Settled() if held_back else scoring.before_observe(name, a, place, self.config.policy)
             stored = self._write(name, held, lambda: self.store.add_observation(name, zoned, activity, dict(locations),
-                                                                               client_id, ack))
+                                                                               client_id, ack, settled.statements))
             if held_back:
                 bisect.insort(held.pending, Pending(instant, obs), key=lambda p: p.instant)
                 a.pending = len(held.pending)
             else:
                 a.observe(obs)
+                scoring.after_observe(a, settled)
             return ObservationAck(id=client_id if client_id is not None else str(stored), duplicate=False,
                                   pending=held_back, **ack)
 
@@ -475,8 +481,39 @@ class Registry:
             raise
 
     def predict(self, name: str) -> Prediction:
-        with self.locked(name) as a:
-            return a.predict()
+        """The next step's prediction; in shadow mode ``act`` stays false (the fetch decided is
+        still recorded and scored)."""
+        with self._held(name) as held:
+            a = held.assistant
+            assert a is not None
+            p = a.predict()
+            shadow = self.store.shadow(name)
+            if p.fetch_object is not None:
+                step = scoring.record_fetch(a, p.fetch_object, self.config.policy)
+                if step is not None and a.day is not None:
+                    try:
+                        self.store.add_fetch(name, a.day, step, p.fetch_object, p.fetch_to, p.fetch_probability,
+                                             shadow)
+                    except StoreError as err:  # the prediction stands; only its score is lost
+                        log.warning("household %s: the fetch decision was not stored: %s", name, err)
+            if shadow:
+                p = p.model_copy(update={"act": False, "shadow": True})
+            return p
+
+    def set_shadow(self, name: str, shadow: bool) -> ShadowOut:
+        """Switch the household's shadow mode (stored: it outlives a restart)."""
+        with self._held(name) as held:
+            self._write(name, held, lambda: self.store.set_shadow(name, shadow))
+            with self._lock:
+                held.row = dataclasses.replace(held.row, shadow=shadow)
+            return ShadowOut(household=name, shadow=shadow)
+
+    def scores(self, name: str, days: int = 28) -> OnlineScores:
+        """The online scores of the last ``days`` days (today's so far included)."""
+        with self._held(name) as held:
+            a = held.assistant
+            assert a is not None
+            return online_scores(self.store, name, a, self.config, days)
 
     def feedback(self, name: str, obj: str, accepted: bool) -> FeedbackCounts:
         """What the person said about a fetched object: stored, then counted."""
@@ -497,7 +534,8 @@ class Registry:
             built = assembly.describe(a.activity_model, a.chooser)
             return StatsOut(**a.stats(), timezone=held.row.timezone, created_at=held.row.created_at.isoformat(),
                             chooser=built["chooser"], models=ModelSettings(activity=built["activity"],
-                                                                           objects=built["objects"]))
+                                                                           objects=built["objects"]),
+                            shadow=self.store.shadow(name), scores=online_scores(self.store, name, a, self.config))
 
     def export_model(self, name: str) -> ModelOut:
         """Both models as :func:`globe.models.io.model_to_dict` writes them."""
@@ -517,6 +555,18 @@ class Registry:
     def built(self) -> int:
         with self._lock:
             return sum(s.assistant is not None for s in self._served.values())
+
+
+def online_scores(store: Store, name: str, a: OnlineAssistant, config: GlobeConfig, days: int = 28) -> OnlineScores:
+    """The per-day online scores of the last ``days`` days before the household's current day
+    (today's so far included), and their totals."""
+    today = a.day
+    since = (dt.date.fromisoformat(today) - dt.timedelta(days=days - 1)).isoformat() if today else "0000"
+    rows = [r for r in store.day_scores(name, since) if r.day != today]
+    now = scoring.today_score(a, store, name, config.policy)
+    if now is not None:
+        rows.append(now)
+    return OnlineScores.from_days(rows)
 
 
 def _locations(value: Any) -> dict[str, str]:

@@ -110,11 +110,13 @@ class Prediction(BaseModel):
     object_probability: float
     llm_consulted: bool
     llm_fallback: str | None
-    act: bool = Field(..., description="fetch now (never while learning): see fetch_object")
+    act: bool = Field(..., description="fetch now (never while learning, never in shadow mode): see fetch_object")
     fetch_object: str | None = Field(None, description="what to fetch now, when act is true")
     fetch_to: str | None = Field(None, description="where to bring it: where it is most likely used")
     fetch_probability: float | None = Field(
         None, description="the fetch policy's probability that the object is used within the lead window")
+    shadow: bool = Field(False, description="the household is in shadow mode: GLOBE decided fetch_object (and scores "
+                                            "that decision) but act stays false until an admin switches shadow off")
 
 
 class FeedbackIn(_Body):
@@ -130,6 +132,55 @@ class FeedbackCounts(_Body):
 class ModelSettings(_Body):
     activity: dict[str, Any] = Field(..., description="the activity model's kind and parameters, as built")
     objects: dict[str, Any] = Field(..., description="the object model's kind and parameters, as built")
+
+
+class ShadowIn(_Body):
+    shadow: StrictBool = Field(..., description="true: predict and score, never act; false: act")
+
+
+class ShadowOut(_Body):
+    household: str
+    shadow: bool
+
+
+class DayScoreOut(_Body):
+    """One day's online scores (counts, and the rates they give; a rate is null without its counts)."""
+
+    day: str
+    predictions: int = Field(..., description="steps whose one-step-ahead activity prediction was scored")
+    correct: int = Field(..., description="of those, steps whose predicted top activity was the observed one")
+    accuracy: float | None
+    fetches: int = Field(..., description="fetches GLOBE decided (in shadow mode too)")
+    useful_fetches: int = Field(..., description="fetches whose object was then used within the lead window")
+    precision: float | None
+    uses: int = Field(..., description="times an object was used (moved)")
+    uses_fetched: int = Field(..., description="uses that a fetch within the lead window before had anticipated")
+    recall: float | None
+
+
+def _rate(hits: int, total: int) -> float | None:
+    return round(hits / total, 4) if total else None
+
+
+class OnlineScores(_Body):
+    """How well GLOBE does in this home, scored online against what then happened, per day (the
+    current day so far last) and in total."""
+
+    days: list[DayScoreOut]
+    accuracy: float | None = Field(..., description="activity accuracy one step ahead over these days")
+    precision: float | None = Field(..., description="fetch precision over these days")
+    recall: float | None = Field(..., description="fetch recall over these days")
+
+    @classmethod
+    def from_days(cls, rows: list[Any]) -> "OnlineScores":
+        """From :class:`globe.service.store.DayScore` rows."""
+        days = [DayScoreOut(day=r.day, predictions=r.predictions, correct=r.correct, accuracy=_rate(r.correct, r.predictions),
+                            fetches=r.fetches, useful_fetches=r.useful_fetches, precision=_rate(r.useful_fetches, r.fetches),
+                            uses=r.uses, uses_fetched=r.uses_fetched, recall=_rate(r.uses_fetched, r.uses)) for r in rows]
+        total = {k: sum(getattr(d, k) for d in days) for k in ("predictions", "correct", "fetches", "useful_fetches",
+                                                               "uses", "uses_fetched")}
+        return cls(days=days, accuracy=_rate(total["correct"], total["predictions"]),
+                   precision=_rate(total["useful_fetches"], total["fetches"]), recall=_rate(total["uses_fetched"], total["uses"]))
 
 
 class StatsOut(_Body):
@@ -150,6 +201,8 @@ class StatsOut(_Body):
     created_at: str
     chooser: dict[str, Any] = Field(..., description="the object chooser's kind and settings, as built")
     models: ModelSettings
+    shadow: bool = Field(..., description="shadow mode: predictions never ask the robot to act")
+    scores: OnlineScores = Field(..., description="online scores of the last 28 days")
 
 
 class ModelFile(_Body):

@@ -22,7 +22,7 @@ import threading
 import zlib
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 from globe.data.records import Day, Household, Node
 from globe.errors import DamagedDatabaseError, StoreError, StoreUnavailableError
@@ -96,6 +96,47 @@ MIGRATIONS: list[str] = [
     );
     PRAGMA application_id = {APPLICATION_ID};
     """,
+    # 4: shadow mode, online scores (one-step predictions, fetch decisions, per-day scores), the
+    # dashboard's session secret. Households stored before keep acting (shadow 0); new ones start in shadow.
+    """
+    ALTER TABLE households ADD COLUMN shadow INTEGER NOT NULL DEFAULT 0;
+    CREATE TABLE step_predictions (
+        household TEXT NOT NULL REFERENCES households(name),
+        day TEXT NOT NULL,
+        step INTEGER NOT NULL,
+        activity TEXT NOT NULL,
+        probability REAL NOT NULL,
+        observed TEXT,
+        PRIMARY KEY (household, day, step)
+    );
+    CREATE TABLE fetches (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        household TEXT NOT NULL REFERENCES households(name),
+        day TEXT NOT NULL,
+        step INTEGER NOT NULL,
+        object TEXT NOT NULL,
+        to_location TEXT,
+        probability REAL,
+        shadow INTEGER NOT NULL,
+        made_at TEXT NOT NULL
+    );
+    CREATE INDEX fetches_by_day ON fetches(household, day, step);
+    CREATE TABLE day_scores (
+        household TEXT NOT NULL REFERENCES households(name),
+        day TEXT NOT NULL,
+        predictions INTEGER NOT NULL DEFAULT 0,
+        correct INTEGER NOT NULL DEFAULT 0,
+        fetches INTEGER NOT NULL DEFAULT 0,
+        useful_fetches INTEGER NOT NULL DEFAULT 0,
+        uses INTEGER NOT NULL DEFAULT 0,
+        uses_fetched INTEGER NOT NULL DEFAULT 0,
+        PRIMARY KEY (household, day)
+    );
+    CREATE TABLE settings (
+        key TEXT PRIMARY KEY,
+        value TEXT NOT NULL
+    );
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -113,6 +154,7 @@ class HouseholdRow:
     timezone: str
     created_at: dt.datetime  # aware (UTC)
     problem: str | None = None  # why the stored row cannot be read (the household is then served as failed)
+    shadow: bool = False  # predicts and scores itself, but never tells the robot to act
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,6 +175,45 @@ class StoredObservation:
     activity: str | None
     locations: str  # JSON
     received_at: str
+
+
+@dataclass(frozen=True, slots=True)
+class StepPrediction:
+    """GLOBE's one-step-ahead prediction for a step, made before the step was observed."""
+
+    step: int
+    activity: str
+    probability: float
+    observed: str | None  # the step's activity once the step closed (None: not yet, or unknown)
+
+
+@dataclass(frozen=True, slots=True)
+class FetchRow:
+    """A fetch GLOBE decided (in shadow mode too: then the robot was not told)."""
+
+    day: str
+    step: int
+    object: str
+    to_location: str | None
+    probability: float | None
+    shadow: bool
+    made_at: str
+
+
+@dataclass(frozen=True, slots=True)
+class DayScore:
+    """One day's online scores: counts, so that days add up."""
+
+    day: str
+    predictions: int = 0
+    correct: int = 0
+    fetches: int = 0
+    useful_fetches: int = 0
+    uses: int = 0
+    uses_fetched: int = 0
+
+
+SCORE_COLUMNS = ("predictions", "correct", "fetches", "useful_fetches", "uses", "uses_fetched")
 
 
 @dataclass(frozen=True, slots=True)
@@ -370,26 +451,27 @@ class Store:
         return [_encode_day(text) for text in day_texts]
 
     def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
-                      encoded: Sequence[bytes] | None = None) -> None:
+                      encoded: Sequence[bytes] | None = None, shadow: bool = True) -> None:
         """Store the map and the training days (as their CSV text: compact, re-validated on load);
         ``encoded`` is :meth:`encode_days` of ``day_texts`` when the caller has it already."""
         blobs = self.encode_days(day_texts) if encoded is None else encoded
         if len(blobs) != len(day_texts):
             raise ValueError(f"{len(blobs)} encoded days for {len(day_texts)} day texts")
         stmts: list[tuple[str, tuple]] = [
-            ("INSERT INTO households (name, nodes, objects, created_at, timezone) VALUES (?, ?, ?, ?, ?)",
-             (household.name, json.dumps([{f: getattr(n, f) for f in _NODE_FIELDS} for n in household.nodes]), json.dumps(household.objects), _now(), timezone)),
+            ("INSERT INTO households (name, nodes, objects, created_at, timezone, shadow) VALUES (?, ?, ?, ?, ?, ?)",
+             (household.name, json.dumps([{f: getattr(n, f) for f in _NODE_FIELDS} for n in household.nodes]),
+              json.dumps(household.objects), _now(), timezone, int(shadow))),
         ]
         stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
                   for i, blob in enumerate(blobs)]
         self._transaction(f"store household {household.name!r}", stmts)
 
     def households(self) -> list[HouseholdRow]:
-        rows = self._read("SELECT name, timezone, created_at FROM households ORDER BY created_at, name")
+        rows = self._read("SELECT name, timezone, created_at, shadow FROM households ORDER BY created_at, name")
         return [_household_row(*r) for r in rows]
 
     def household(self, name: str) -> HouseholdRow | None:
-        rows = self._read("SELECT name, timezone, created_at FROM households WHERE name = ?", (name,))
+        rows = self._read("SELECT name, timezone, created_at, shadow FROM households WHERE name = ?", (name,))
         return _household_row(*rows[0]) if rows else None
 
     def count_households(self) -> int:
@@ -440,15 +522,36 @@ class Store:
         """Everything about a household, in one transaction (the right to be forgotten)."""
         self._transaction(f"delete household {name!r}", [
             (f"DELETE FROM {table} WHERE household = ?", (name,))
-            for table in ("tokens", "feedback", "observations", "training_days")
+            for table in ("tokens", "feedback", "observations", "training_days", "step_predictions", "fetches",
+                          "day_scores")
         ] + [("DELETE FROM households WHERE name = ?", (name,))])
 
     # -- observations and feedback ----------------------------------------------------------
     def add_observation(self, household: str, time: dt.datetime, activity: str | None, locations: dict[str, str],
-                        client_id: str | None, ack: dict) -> int:
-        return self._transaction("store the observation", [(
-            "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) VALUES (?, ?, ?, ?, ?, ?, ?)",
-            (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id, json.dumps(ack)))])
+                        client_id: str | None, ack: dict, also: Sequence[tuple[str, tuple]] = ()) -> int:
+        """Store an observation, with ``also`` (the scores it settles) in the same transaction;
+        returns the observation's row id."""
+        with self._lock:
+            self._writable()
+            db = self._db
+            try:
+                db.execute("BEGIN IMMEDIATE")
+                row = db.execute(
+                    "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                    (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id,
+                     json.dumps(ack))).lastrowid
+                for sql, params in also:
+                    db.execute(sql, params)
+                db.execute("COMMIT")
+            except sqlite3.Error as err:
+                if db.in_transaction:
+                    db.execute("ROLLBACK")
+                self._note_failure("store the observation", err)
+                raise StoreError(f"cannot store the observation: {err}") from err
+            self._failed_write = None
+            self._written("store the observation")
+            return row or 0
 
     def find_observation(self, household: str, client_id: str) -> FoundObservation | None:
         rows = self._read("SELECT id, ack, time, activity, locations FROM observations "
@@ -484,6 +587,78 @@ class Store:
     def feedback(self, household: str) -> list[bool]:
         return [bool(r[0]) for r in self._read("SELECT accepted FROM feedback WHERE household = ? ORDER BY id", (household,))]
 
+    # -- shadow mode and online scores -------------------------------------------------------
+    def set_shadow(self, household: str, shadow: bool) -> int:
+        return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
+                                                  (int(shadow), household))])
+
+    def shadow(self, household: str) -> bool:
+        """Whether the household is in shadow mode (read per prediction: the CLI may switch it under a
+        running service)."""
+        rows = self._read("SELECT shadow FROM households WHERE name = ?", (household,))
+        return bool(rows[0][0]) if rows else True
+
+    @staticmethod
+    def step_prediction_statement(household: str, day: str, step: int, activity: str,
+                                  probability: float) -> tuple[str, tuple]:
+        return ("INSERT OR REPLACE INTO step_predictions (household, day, step, activity, probability) "
+                "VALUES (?, ?, ?, ?, ?)", (household, day, step, activity, probability))
+
+    @staticmethod
+    def observed_statement(household: str, day: str, step: int, observed: str) -> tuple[str, tuple]:
+        return ("UPDATE step_predictions SET observed = ? WHERE household = ? AND day = ? AND step = ?",
+                (observed, household, day, step))
+
+    @staticmethod
+    def score_statement(household: str, day: str, **counts: int) -> tuple[str, tuple]:
+        """Add ``counts`` (columns of :data:`SCORE_COLUMNS`) to the day's scores."""
+        names = [c for c in SCORE_COLUMNS if counts.get(c)] or ["predictions"]
+        return (f"INSERT INTO day_scores (household, day, {', '.join(names)}) VALUES (?, ?{', ?' * len(names)}) "
+                f"ON CONFLICT (household, day) DO UPDATE SET {', '.join(f'{c} = {c} + excluded.{c}' for c in names)}",
+                (household, day, *(counts[c] for c in names)))
+
+    def add_fetch(self, household: str, day: str, step: int, obj: str, to_location: str | None,
+                  probability: float | None, shadow: bool) -> None:
+        self._transaction("store the fetch decision", [(
+            "INSERT INTO fetches (household, day, step, object, to_location, probability, shadow, made_at) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)", (household, day, step, obj, to_location, probability, int(shadow), _now()))])
+
+    def settle(self, what: str, statements: Sequence[tuple[str, tuple]]) -> None:
+        """Write derived rows (scores) in one transaction."""
+        if statements:
+            self._transaction(what, statements)
+
+    def step_predictions(self, household: str, day: str) -> list[StepPrediction]:
+        rows = self._read("SELECT step, activity, probability, observed FROM step_predictions "
+                          "WHERE household = ? AND day = ? ORDER BY step", (household, day))
+        return [StepPrediction(*r) for r in rows]
+
+    def fetches(self, household: str, day: str) -> list[FetchRow]:
+        rows = self._read("SELECT day, step, object, to_location, probability, shadow, made_at FROM fetches "
+                          "WHERE household = ? AND day = ? ORDER BY id", (household, day))
+        return [FetchRow(d, s, o, t, p, bool(sh), m) for d, s, o, t, p, sh, m in rows]
+
+    def day_scores(self, household: str, since: str) -> list[DayScore]:
+        """The per-day scores of days from ``since`` (ISO date) on, oldest first."""
+        rows = self._read(f"SELECT day, {', '.join(SCORE_COLUMNS)} FROM day_scores WHERE household = ? AND day >= ? "
+                          "ORDER BY day", (household, since))
+        return [DayScore(*r) for r in rows]
+
+    def feedback_since(self, household: str, since: str) -> list[tuple[str, bool, str]]:
+        """(object, accepted, received_at) of the feedback received from ``since`` (ISO time, UTC) on."""
+        rows = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? AND received_at >= ? "
+                          "ORDER BY id", (household, since))
+        return [(o, bool(a), r) for o, a, r in rows]
+
+    def secret(self, key: str, make: Callable[[], str]) -> str:
+        """A server secret kept in the database (made by ``make`` the first time)."""
+        found = self._read("SELECT value FROM settings WHERE key = ?", (key,))
+        if found:
+            return found[0][0]
+        self._transaction("store a server secret", [("INSERT OR IGNORE INTO settings (key, value) VALUES (?, ?)",
+                                                     (key, make()))])
+        return self._read("SELECT value FROM settings WHERE key = ?", (key,))[0][0]
+
     # -- tokens ------------------------------------------------------------------------------
     def add_token(self, token_id: str, digest: str, household: str | None, admin: bool) -> None:
         self._transaction("store the token", [(
@@ -496,6 +671,16 @@ class Store:
             try:
                 rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens "
                                               "WHERE hash = ?", (digest,)).fetchall()
+            except sqlite3.Error as err:
+                raise StoreError(f"database read failed: {err}") from err
+        return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
+
+    def token_by_id(self, token_id: str) -> TokenRow | None:
+        """The token with this id (a dashboard session names its token by id, never by the token)."""
+        with self._token_lock:
+            try:
+                rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens "
+                                              "WHERE id = ?", (token_id,)).fetchall()
             except sqlite3.Error as err:
                 raise StoreError(f"database read failed: {err}") from err
         return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
@@ -530,15 +715,15 @@ def _aware(text: str) -> dt.datetime:
     return t if t.tzinfo else t.replace(tzinfo=dt.timezone.utc)
 
 
-def _household_row(name: str, timezone: object, created_at: object) -> HouseholdRow:
+def _household_row(name: str, timezone: object, created_at: object, shadow: object = 0) -> HouseholdRow:
     """A stored household's row; one whose creation time cannot be read says so in ``problem``
     (it is then served as failed) instead of stopping whoever lists the households."""
     try:
         created = _aware(created_at)  # type: ignore[arg-type]
     except (TypeError, ValueError) as err:
         return HouseholdRow(name, str(timezone), dt.datetime.fromtimestamp(0, dt.timezone.utc),
-                            f"its stored creation time {str(created_at)[:40]!r} cannot be read ({err})")
-    return HouseholdRow(name, str(timezone), created)
+                            f"its stored creation time {str(created_at)[:40]!r} cannot be read ({err})", bool(shadow))
+    return HouseholdRow(name, str(timezone), created, shadow=bool(shadow))
 
 
 def _encode_day(text: str) -> bytes:

@@ -1,4 +1,5 @@
-"""``/households`` (admin): list, create from a map and day logs, export or delete with all its data."""
+"""``/households`` (admin): list, create from a map and day logs, export or delete with all its data, switch
+shadow mode."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from fastapi import APIRouter, Response
 
 from globe.service.deps import AdminDep, RegistryDep
 from globe.service.fastjson import FastJSONRoute
-from globe.service.schemas import ERROR_RESPONSES, HouseholdCreate, HouseholdExport, HouseholdInfo
+from globe.service.schemas import ERROR_RESPONSES, HouseholdCreate, HouseholdExport, HouseholdInfo, ShadowIn, ShadowOut
 
 router = APIRouter(route_class=FastJSONRoute)
 
@@ -32,3 +33,10 @@ def delete_household(name: str, registry: RegistryDep, caller: AdminDep) -> Resp
 def export_household(name: str, registry: RegistryDep, caller: AdminDep) -> HouseholdExport:
     """Everything stored about the household, as stored (also when it cannot be built)."""
     return HouseholdExport.model_validate(registry.export(name))
+
+
+@router.put("/households/{name}/shadow", responses=ERROR_RESPONSES)
+def set_shadow(name: str, body: ShadowIn, registry: RegistryDep, caller: AdminDep) -> ShadowOut:
+    """Shadow mode on (GLOBE predicts and scores itself, ``act`` stays false) or off (the robot acts).
+    New households start in shadow mode."""
+    return registry.set_shadow(name, body.shadow)

@@ -1,0 +1,212 @@
+"""What each dashboard page shows, read from the registry under the household's lock (so a page
+never sees half an observation) and rendered with the package's Jinja2 templates.
+
+Reading a page changes nothing: the next hour is read from the fetch policy's forecaster, not
+from a prediction (a prediction records the fetch it decides)."""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import jinja2
+
+from globe import __version__, assembly
+from globe.errors import GlobeError
+from globe.service import scoring, timepolicy
+from globe.service.assistant import OnlineAssistant
+from globe.service.dashboard import svg
+from globe.service.registry import Registry, online_scores
+from globe.service.schemas import OnlineScores
+
+ACTOGRAM_DAYS = 28
+RECENT_STEPS = 12
+
+
+@lru_cache(maxsize=1)
+def environment() -> jinja2.Environment:
+    """The templates shipped in the package (autoescaped)."""
+    env = jinja2.Environment(loader=jinja2.PackageLoader("globe.service.dashboard", "templates"),
+                             autoescape=jinja2.select_autoescape(default=True, default_for_string=True),
+                             undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    env.filters["pct"] = lambda v: "–" if v is None else f"{100 * v:.0f}%"
+    env.filters["prob"] = lambda v: "–" if v is None else f"{v:.2f}"
+    return env
+
+
+def render(template: str, **context: Any) -> str:
+    return environment().get_template(template).render(version=__version__, **context)
+
+
+def _clock(minute: int) -> str:
+    return f"{(minute % 1440) // 60:02d}:{minute % 60:02d}"
+
+
+@dataclass(frozen=True, slots=True)
+class HouseholdLine:
+    name: str
+    status: str
+    days_learned: int | None
+    shadow: bool
+    last_seen: str
+    accuracy: float | None
+    problem: str | None = None
+
+
+def household_lines(registry: Registry, names: list[str]) -> list[HouseholdLine]:
+    """One line per household for the admin's list (a household that cannot be built says why)."""
+    out = []
+    for name in names:
+        shadow = registry.store.shadow(name)
+        try:
+            with registry.locked(name) as a:
+                tz = timepolicy.zone(registry.row(name).timezone)
+                scores = online_scores(registry.store, name, a, registry.config, 7)
+                out.append(HouseholdLine(name, a.status, a.days_learned, shadow, _last_seen(a, tz), scores.accuracy))
+        except GlobeError as err:
+            out.append(HouseholdLine(name, "unavailable", None, shadow, "–", None, str(err)))
+    return out
+
+
+def _last_seen(a: OnlineAssistant, tz: dt.tzinfo) -> str:
+    last = a.last_instant
+    return "never" if last is None else last.astimezone(tz).strftime("%Y-%m-%d %H:%M")
+
+
+def _colours(a: OnlineAssistant) -> dict[str, str]:
+    labels = set(getattr(a.activity_model, "classes_", ()))
+    labels.update(x for _, x in a.today() if x is not None)
+    return svg.colours(sorted(labels))
+
+
+def status(registry: Registry, name: str, a: OnlineAssistant) -> dict[str, Any]:
+    row = registry.row(name)
+    tz = timepolicy.zone(row.timezone)
+    return {"name": name, "status": a.status, "days_learned": a.days_learned, "last_seen": _last_seen(a, tz),
+            "timezone": row.timezone, "shadow": registry.store.shadow(name), "day": a.day, "steps_today": a.steps_today,
+            "observations": a.observations}
+
+
+def today(registry: Registry, name: str) -> dict[str, Any]:
+    """The "today" page: status, timeline, next hour, fetches with feedback, scores."""
+    with registry.locked(name) as a:
+        cfg = registry.config
+        colour = _colours(a)
+        steps = []
+        for i, (minute, observed) in enumerate(a.today()):
+            predicted = a.step_predictions.get(i)
+            steps.append(svg.TimelineStep(minute, observed, predicted[0] if predicted else None,
+                                          predicted[1] if predicted else None))
+        top = a.next_activity()
+        recent = [{"time": _clock(s.minute), "observed": s.observed, "predicted": s.predicted, "probability": s.probability,
+                   "hit": None if s.predicted is None or s.observed is None else s.predicted == s.observed}
+                  for s in steps[-RECENT_STEPS:]][::-1]
+        scores = online_scores(registry.store, name, a, cfg)
+        return {
+            **status(registry, name, a),
+            "timeline": svg.timeline(steps, day_start=cfg.service.day_start_minute, step_minutes=a.step_minutes,
+                                     colour=colour),
+            "legend": _legend(colour, [s.observed for s in steps] + [s.predicted for s in steps]),
+            "recent": recent,
+            "next_activity": top,
+            "next_hour": next_hour(registry, a),
+            "fetches": fetches_today(registry, name, a),
+            "scores": scores,
+            "today_score": scores.days[-1] if scores.days and scores.days[-1].day == a.day else None,
+        }
+
+
+def _legend(colour: dict[str, str], used: list[str | None]) -> list[tuple[str, str]]:
+    seen = sorted({u for u in used if u is not None})
+    return [(label, colour[label]) for label in seen if label in colour]
+
+
+def next_hour(registry: Registry, a: OnlineAssistant) -> list[dict[str, Any]]:
+    """The objects GLOBE expects to be used within the next hour: when (the most likely step),
+    how likely, and where the robot would take them; whether the policy would fetch now."""
+    steps = max(1, 60 // a.step_minutes)
+    lo, hi = scoring.lead_window(a, registry.config.policy)
+    threshold = a.fetch_policy.threshold if a.fetch_policy is not None else a.action_threshold
+    now = a.step_minute(a.steps_today - 1) if a.steps_today else None
+    out = []
+    for obj, probs, target in a.next_hour(steps):
+        total = sum(probs)
+        if total < 0.02:
+            continue
+        peak = max(range(len(probs)), key=probs.__getitem__)
+        useful = sum(probs[max(lo - 1, 0):hi])
+        out.append({"object": obj, "probability": min(total, 1.0), "when": _clock(now + (peak + 1) * a.step_minutes)
+                    if now is not None else "–", "to": target, "bars": svg.step_bars(probs),
+                    "fetch": useful > threshold})
+    out.sort(key=lambda r: -r["probability"])  # type: ignore[operator]
+    return out[:8]
+
+
+def fetches_today(registry: Registry, name: str, a: OnlineAssistant) -> list[dict[str, Any]]:
+    """Today's fetch decisions, each with the person's first feedback on that object after it."""
+    day = a.day
+    if day is None:
+        return []
+    rows = registry.store.fetches(name, day)
+    tz = timepolicy.zone(registry.row(name).timezone)
+    start = dt.datetime.combine(dt.date.fromisoformat(day), dt.time()) + dt.timedelta(minutes=a.day_start_minute)
+    since = start.replace(tzinfo=tz).astimezone(dt.timezone.utc).isoformat()
+    feedback = registry.store.feedback_since(name, since)
+    used: set[int] = set()
+    out = []
+    for f in rows:
+        said = None
+        for i, (obj, accepted, at) in enumerate(feedback):
+            if i not in used and obj == f.object and at >= f.made_at:
+                used.add(i)
+                said = "accepted" if accepted else "refused"
+                break
+        out.append({"time": _clock(a.day_start_minute + f.step * a.step_minutes), "object": f.object, "to": f.to_location,
+                    "probability": f.probability, "shadow": f.shadow, "feedback": said})
+    return out
+
+
+def routine(registry: Registry, name: str) -> dict[str, Any]:
+    """The "routine" page: the actogram of the last days and the online scores per day."""
+    with registry.locked(name) as a:
+        cfg = registry.config
+        colour = _colours(a)
+        learned = list(a.activity_model.training_data_)[-(ACTOGRAM_DAYS - 1):]
+        rows: list[tuple[str, list[str | None]]] = []
+        if a.today():
+            first = (a.today()[0][0] - cfg.service.day_start_minute) // a.step_minutes
+            padding: list[str | None] = [None] * first
+            rows.append(("today", padding + [x for _, x in a.today()]))
+        rows += [(f"-{i + 1} d", list(seq)) for i, seq in enumerate(reversed(learned))]
+        scores: OnlineScores = online_scores(registry.store, name, a, cfg)
+        return {
+            **status(registry, name, a),
+            "actogram": svg.actogram(rows, day_start=cfg.service.day_start_minute, step_minutes=a.step_minutes,
+                                     colour=colour),
+            "legend": _legend(colour, [x for _, seq in rows for x in seq]),
+            "actogram_days": len(rows),
+            "score_chart": svg.score_chart([(d.day, d.accuracy, d.precision, d.recall) for d in scores.days]),
+            "scores": scores,
+        }
+
+
+def settings(registry: Registry, name: str) -> dict[str, Any]:
+    """The "settings" page: the built models and chooser as they run, and the service's decision settings."""
+    with registry.locked(name) as a:
+        built = assembly.describe(a.activity_model, a.chooser)
+        s, p = registry.config.service, registry.config.policy
+        lo, hi = scoring.lead_window(a, p)
+        decision: dict[str, Any] = {"fetch decision": s.fetch_decision, "step": f"{s.step_minutes} min",
+                    "day starts at": _clock(s.day_start_minute)}
+        if a.fetch_policy is not None:
+            decision |= {"cost of a useless fetch": p.cost_useless, "cost of a missed need": p.cost_missed,
+                         "fetch when P(useful) >": round(a.fetch_policy.threshold, 3),
+                         "lead window": f"{lo}..{hi} steps", "most fetches per step": p.max_fetches_per_step}
+        else:
+            decision |= {"action threshold": s.action_threshold}
+        return {**status(registry, name, a), "models": built, "decision": decision}
+
+
+__all__ = ["household_lines", "render", "routine", "settings", "today"]

@@ -1,0 +1,126 @@
+"""Shadow mode and the online scores: a new household predicts without ever asking the robot to
+act until an admin switches shadow off (HTTP or CLI); the scores follow the offline definitions
+and survive a restart; a database of the previous schema migrates with its households acting."""
+
+import json
+import sqlite3
+
+import pytest
+from typer.testing import CliRunner
+
+from globe.cli.main import app
+from globe.config import PolicyConfig
+from globe.evaluation.fetch import score_fetches, use_steps
+from globe.service.store import MIGRATIONS, SCHEMA_VERSION, Store
+from tests.service.dashboard_helpers import app_client, create, observe_days, tokens
+
+pytestmark = pytest.mark.service
+
+
+@pytest.fixture(scope="module")
+def scored(tmp_path_factory, households):
+    """Household A: day 0 observed in full and 30 steps of day 1, with a prediction after each step."""
+    db = tmp_path_factory.mktemp("shadow") / "globe.sqlite3"
+    admin, member = tokens(db, "A")
+    h = households["A"]
+    with app_client(db, admin) as c:
+        create(c, "A", h)
+        predictions = observe_days(c, "A", h, h.test[:2], steps=30)
+        stats = c.get("/households/A/stats").json()
+    return db, admin, member, predictions, stats
+
+
+def test_a_new_household_is_in_shadow_mode_and_never_told_to_act(scored):
+    predictions = scored[3]
+    assert all(p["shadow"] and not p["act"] for p in predictions)
+    assert sum(p["fetch_object"] is not None for p in predictions) > 5  # GLOBE still decided fetches
+
+
+def test_an_admin_switches_shadow_off_and_the_robot_is_told_to_act(scored, households):
+    db, admin, member, _, _ = scored
+    h = households["A"]
+    with app_client(db, member["A"]) as robot:
+        refused = robot.put("/households/A/shadow", json={"shadow": False})
+        assert refused.status_code == 403
+    with app_client(db, admin) as c:
+        assert c.put("/households/A/shadow", json={"shadow": "no"}).status_code == 422
+        assert c.put("/households/nope/shadow", json={"shadow": False}).status_code == 404
+        assert c.put("/households/A/shadow", json={"shadow": False}).json() == {"household": "A", "shadow": False}
+        after = observe_days(c, "A", h, [h.test[2]], first_index=2, steps=40)
+        assert all(p["act"] == (p["fetch_object"] is not None) and not p["shadow"] for p in after)
+        assert any(p["act"] for p in after)
+        c.put("/households/A/shadow", json={"shadow": True})
+        assert c.get("/households/A/prediction").json()["act"] is False
+
+
+def test_the_cli_switches_shadow_mode(tmp_path, households):
+    db = tmp_path / "globe.sqlite3"
+    admin, _ = tokens(db)
+    with app_client(db, admin) as c:
+        create(c, "A", households["A"])
+    runner = CliRunner()
+    off = runner.invoke(app, ["household", "shadow", "--db", str(db), "--name", "A", "--off"])
+    assert off.exit_code == 0 and "shadow mode off" in off.output
+    store = Store(db)
+    assert store.household("A").shadow is False
+    store.close()
+    missing = runner.invoke(app, ["household", "shadow", "--db", str(db), "--name", "nope", "--on"])
+    assert missing.exit_code != 0
+
+
+def test_activity_accuracy_is_the_prediction_before_each_step_against_the_step(scored, households):
+    """Each step t >= 1 of a day is predicted from the steps before it (what GET /prediction said
+    after step t-1) and scored once the step closes; the last step of day 1 is still open."""
+    db, _, _, predictions, stats = scored
+    h = households["A"]
+    day0, day1 = h.test[0], h.test[1]
+    said = [p["activity"] for p in predictions]  # after step t: the prediction for step t+1
+    expected0 = sum(said[t - 1] == day0.activities[t] for t in range(1, len(day0)))
+    expected1 = sum(said[len(day0) + t - 1] == day1.activities[t] for t in range(1, 29))
+    days = stats["scores"]["days"]
+    assert [d["predictions"] for d in days] == [len(day0) - 1, 28]
+    assert [d["correct"] for d in days] == [expected0, expected1]
+    assert days[0]["accuracy"] == round(expected0 / (len(day0) - 1), 4)
+
+
+def test_fetch_precision_and_recall_follow_the_offline_rule(scored, households):
+    db, _, _, predictions, stats = scored
+    h = households["A"]
+    day0 = h.test[0]
+    decided = {t: [p["fetch_object"]] for t, p in enumerate(predictions[:len(day0)]) if p["fetch_object"]}
+    cfg = PolicyConfig()
+    report = score_fetches(h, day0, decided, -(-cfg.min_lead_minutes // 10), cfg.lead_window_minutes // 10)
+    d0 = stats["scores"]["days"][0]
+    assert (d0["fetches"], d0["useful_fetches"]) == (report.fetches, report.useful_fetches)
+    assert d0["uses"] == sum(len(v) for v in use_steps(h, day0).values()) == report.used_objects
+    assert d0["uses_fetched"] == report.used_fetched_in_advance and 0 < d0["precision"] <= 1 and 0 < d0["recall"] <= 1
+
+
+def test_the_scores_survive_a_restart(scored):
+    db, admin, _, _, stats = scored
+    with app_client(db, admin) as c:
+        again = c.get("/households/A/stats").json()["scores"]["days"]
+    assert again[0] == stats["scores"]["days"][0]  # the settled day, as stored
+    assert again[1]["predictions"] >= stats["scores"]["days"][1]["predictions"]
+
+
+def test_a_schema_3_database_migrates_with_its_households_acting(tmp_path, households):
+    path = tmp_path / "old.sqlite3"
+    db = sqlite3.connect(path, isolation_level=None)
+    for number, script in enumerate(MIGRATIONS[:3], start=1):
+        for statement in filter(str.strip, script.split(";")):
+            db.execute(statement)
+        db.execute(f"PRAGMA user_version = {number}")
+    h = households["B"]
+    db.execute("INSERT INTO households (name, nodes, objects, created_at, timezone) VALUES (?, ?, ?, ?, ?)",
+               ("B", json.dumps([{"node": n.node, "cls": n.cls, "category": n.category, "movable": n.movable,
+                                  "start_location": n.start_location} for n in h.nodes]), json.dumps(h.objects),
+                "2026-01-01T00:00:00+00:00", "UTC"))
+    db.close()
+    store = Store(path)
+    assert store.version == SCHEMA_VERSION == 4
+    assert store.household("B").shadow is False and store.shadow("B") is False  # it acted before: it still does
+    store.add_household(h.__class__("C", h.nodes, h.objects, (), (), ""), "UTC", [])
+    assert store.household("C").shadow is True  # a new home starts in shadow
+    assert store.day_scores("B", "0000") == []
+    store.close()
