@@ -24,20 +24,26 @@ def enumerate_paths(model, history, steps: int) -> list[tuple[float, tuple[str, 
     return out
 
 
-def require_system(*names: str, install: str) -> None:
-    """Skip the test, saying what to install, when a system program it drives is missing, but fail
-    under ``CI=true`` (CI installs them: their absence there is a broken set-up, not a skip)."""
+def absent(message: str) -> None:
+    """What a test does when something it needs outside Python is missing: skip, saying what to
+    install, on a developer's machine; fail under ``CI=true`` (CI installs everything: its absence
+    there is a broken set-up, not a skip)."""
     import os
-    import shutil
 
     import pytest
 
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+def require_system(*names: str, install: str) -> None:
+    """:func:`absent` unless every system program in ``names`` is on the PATH."""
+    import shutil
+
     missing = [n for n in names if shutil.which(n) is None]
     if missing:
-        message = f"{', '.join(missing)} not found: install {install}"
-        if os.environ.get("CI") == "true":
-            pytest.fail(message)
-        pytest.skip(message)
+        absent(f"{', '.join(missing)} not found: install {install}")
 
 
 def results_folder(*parts: str):

@@ -12,7 +12,6 @@ written beside it first). Other languages (``text``) are data, not code.
 from __future__ import annotations
 
 import json
-import os
 import re
 import shlex
 import tomllib
@@ -27,6 +26,7 @@ from globe.config import GlobeConfig
 from globe.data.locate import resolve_data_root
 from globe.errors import DataError
 from globe.evaluation import docs_tables
+from tests.helpers import absent
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "reference" / "homer_plus"
@@ -50,13 +50,6 @@ def _cases() -> list:
                 rel = page.relative_to(ROOT)
                 cases.append(pytest.param(page, lang, body, id=f"{rel}:{line}:{lang}"))
     return cases
-
-
-def _absent(message: str) -> None:
-    """Skip on a developer's machine; fail in CI, where everything must be there."""
-    if os.environ.get("CI", "").lower() == "true":
-        pytest.fail(message)
-    pytest.skip(message)
 
 
 def _titled_files(page: Path, folder: Path) -> None:
@@ -114,7 +107,7 @@ def test_every_code_block_runs(page, lang, body, tmp_path, monkeypatch, capsys):
             try:
                 resolve_data_root(None)
             except DataError as err:
-                _absent(f"the HOMER+ data this block reads is absent ({err}); set GLOBE_DATA")
+                absent(f"the HOMER+ data this block reads is absent ({err}); set GLOBE_DATA")
         exec(compile(body, f"{page.name}-block", "exec"), {"__name__": "__docs__"})
         capsys.readouterr()
     elif lang == "toml":
