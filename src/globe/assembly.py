@@ -53,6 +53,11 @@ def common_step(households: Sequence[Household], config: GlobeConfig) -> int:
     return next(iter(found.values()), config.service.step_minutes)
 
 
+def lookahead_steps(config: GlobeConfig, household: Household) -> int:
+    """The lookahead's horizons (steps 1..n ahead) for ``household``: ``lookahead.horizon_minutes``."""
+    return steps(config.lookahead.horizon_minutes, step_minutes(household, config))
+
+
 def steps(minutes: int, step_minutes: int) -> int:
     """A duration configured in minutes as a number of steps (at least one): configuration speaks
     minutes, the models count steps, so a 1-, 5- or 10-minute grid means the same routine."""

@@ -221,9 +221,11 @@ class EvaluationConfig(_Section):
 
 
 class LookaheadConfig(_Section):
-    horizons: int = Field(6, ge=1, le=36, description="lookahead horizons s = 0..horizons-1 (10 to 60 minutes)")
-    first_reference: int = Field(1, ge=1, le=10_000, description="first reference step r of the lookahead evaluation")
-    last_reference: int = Field(102, ge=1, le=10_000, description="last reference step r (r + horizons must stay in the day)")
+    horizon_minutes: int = Field(
+        60, ge=1, le=1440, description="how far ahead the lookahead looks: every step up to this many minutes")
+    first_reference: int = Field(1, ge=1, le=100_000, description="first reference step r of the lookahead evaluation")
+    last_reference: int | None = Field(
+        None, ge=1, le=100_000, description="last reference step r; None = the last that keeps the horizon inside the day")
     min_path_probability: float = Field(
         1e-3, ge=0.0, lt=1.0, description="activity paths less likely than this are pruned from the forward pass"
     )

@@ -117,8 +117,8 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
 
     def fake_runs(household, cfg, models, settings, memo):
         pairs = [HorizonPairs([np.array([0.9, 0.45])], [np.array([True, True])], [np.array([True, True])])
-                 for _ in range(cfg.lookahead.horizons)]
-        return {s: LookaheadRun(cfg.lookahead.horizons, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}
+                 for _ in range(6)]
+        return {s: LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}
 
     monkeypatch.setattr(lk, "cv_runs", fake_runs)
     cfg = config.with_overrides({"lookahead.run_end": (False, True), "lookahead.run_memory": (False, True),

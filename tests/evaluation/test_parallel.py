@@ -86,7 +86,7 @@ def test_missing_labels_on_other_processes_equal_one_process(households):
     base = {"selection.folds": 3, "selection.routine_orders": (2,), "selection.time_weights": (1.0,),
             "filter.fractions": (0.0, 1.0), "filter.emission_weights": (0.5, 1.0),
             "filter.emission_previous_shares": (0.5,), "filter.emission_boundaries": (False,),
-            "lookahead.horizons": 2, "lookahead.thresholds": (0.3, 0.5)}
+            "lookahead.horizon_minutes": 20, "lookahead.thresholds": (0.3, 0.5)}
     one = run_missing_labels(GlobeConfig().with_overrides({**base, "evaluation.workers": 1}), small)
     two = run_missing_labels(GlobeConfig().with_overrides({**base, "evaluation.workers": 2}), small)
     def numbers(rows):  # everything but the time each part took

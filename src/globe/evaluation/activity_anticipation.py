@@ -158,8 +158,6 @@ def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[Counter
     return {m: (len(events), h / len(events)) for m, h in hits.items()}
 
 
-HORIZON_MINUTES = 60
-"""How far ahead the activity is scored (each step up to this many minutes)."""
 BLEND_WEIGHTS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.9)
 """Weights of the time of day tried per horizon (the first wins ties: the model alone)."""
 
@@ -205,7 +203,7 @@ def run_activity_anticipation(config: GlobeConfig, households: Sequence[Househol
         models, _ = tuned_models(h, config, "routine", memo)
         step = assembly.step_minutes(h, config)
         model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
-        steps = max(1, HORIZON_MINUTES // step)
+        steps = assembly.lookahead_steps(config, h)  # every step up to lookahead.horizon_minutes
         blend = blend_weights(h, models, step, steps, config.selection.folds)
         out.append(score_anticipation(h.name, model, h.train, h.test, steps, step,
                                       f"chosen ({models.activity_estimator})", blend))

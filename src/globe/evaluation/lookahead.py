@@ -116,12 +116,13 @@ class LookaheadRun:
         return [c / t if t else 0.0 for c, t in zip(self.activity_correct, self.activity_total)]
 
 
-def reference_steps(day: Day, horizons: int, first: int, last: int, stride: int = 1) -> range:
+def reference_steps(day: Day, horizons: int, first: int, last: int | None, stride: int = 1) -> range:
     """r = first..last (every ``stride``-th), cut so that r + horizons stays inside the day."""
-    return range(max(first, 1), min(last, len(day) - 1 - horizons) + 1, stride)
+    end = len(day) - 1 - horizons
+    return range(max(first, 1), (end if last is None else min(last, end)) + 1, stride)
 
 
-def reference_queries(days: Sequence[Day], horizons: int, first: int = 1, last: int = 102,
+def reference_queries(days: Sequence[Day], horizons: int, first: int = 1, last: int | None = None,
                       stride: int = 1) -> list[tuple[Day, int]]:
     """Every (day, reference step r) scored, in order."""
     return [(day, r) for day in days for r in reference_steps(day, horizons, first, last, stride)]
@@ -210,7 +211,7 @@ def top_activities(dense: np.ndarray, names: Sequence[str], model: ActivityModel
     return np.where(candidate.any(axis=2), out, -1)
 
 
-def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, first: int = 1, last: int = 102,
+def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, first: int = 1, last: int | None = None,
                   stride: int = 1, chunk: int = 256) -> LookaheadRun:
     """Forecast every reference step of ``days`` and collect the pairs of each horizon."""
     run = LookaheadRun.empty(horizons)
@@ -271,25 +272,25 @@ def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, sett
     """Pairs of every held-out *training* day (contiguous folds, every ``cv_stride``-th reference)
     for each movement setting (run end, run memory, next activity): each fold's activity model is
     fitted once and its activity paths are shared by every setting. Kept in ``memo``."""
-    la = config.lookahead
+    la, horizons = config.lookahead, assembly.lookahead_steps(config, household)
     todo = [s for s in dict.fromkeys(settings) if cv_key(household, config, models, s) not in memo]
     runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting in todo}
     for fold in data_folds(household, config.selection.folds) if todo else ():
         train, held_out = fold_days(household, fold)
         step = assembly.step_minutes(household, config)
         activity = assembly.activity_model(models, step).fit([d.activities for d in train])
-        refs = reference_queries(held_out, la.horizons, la.first_reference, la.last_reference, la.cv_stride)
+        refs = reference_queries(held_out, horizons, la.first_reference, la.last_reference, la.cv_stride)
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
         trees = None
         for setting in todo:
-            fc = assembly.forecaster_over(activity, movements_on(household, la, fold, setting, memo, assembly.step_minutes(household, config)), la)
+            fc = assembly.forecaster_over(activity, movements_on(household, la, fold, setting, memo, step), la)
             if trees is None:
-                trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs]), la.horizons - 1)
-            run = LookaheadRun.empty(la.horizons)
-            score_forecasts(run, fc.forecast_many(queries, la.horizons - 1, trees=trees), refs, activity, {})
+                trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs]), horizons - 1)
+            run = LookaheadRun.empty(horizons)
+            score_forecasts(run, fc.forecast_many(queries, horizons - 1, trees=trees), refs, activity, {})
             runs[setting].append(run)
     for setting in todo:
-        memo.put(cv_key(household, config, models, setting), pool(runs[setting], la.horizons))
+        memo.put(cv_key(household, config, models, setting), pool(runs[setting], horizons))
     return {s: memo.get(cv_key(household, config, models, s), lambda: None) for s in settings}  # type: ignore[misc]
 
 
@@ -367,7 +368,8 @@ def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelC
     fits = [assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory,
                                 run_next=run_next) for _ in range(TIMING_FITS)]
     fitted = fits[0]
-    run = forecast_days(fitted.forecaster, household.test, la.horizons, la.first_reference, la.last_reference)
+    run = forecast_days(fitted.forecaster, household.test, assembly.lookahead_steps(config, household),
+                        la.first_reference, la.last_reference)
     ts = tuple(float(t) for t in chosen.best["thresholds"])
     return LookaheadResult(method, household.name, ts, tuple(p.counts(t) for p, t in zip(run.pairs, ts)),
                            tuple(run.activity_accuracy()), min(f.train_s for f in fits), chosen, run_end, run_memory,

@@ -269,7 +269,8 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
     if lookahead:
         thresholds = label_share_thresholds(setup, config, memo, fraction)
         la = config.lookahead
-        run = filtered_lookahead(forecaster_of(setup, config, memo), setup, config.filter, days, masks, la.horizons,
+        run = filtered_lookahead(forecaster_of(setup, config, memo), setup, config.filter, days, masks,
+                                 assembly.lookahead_steps(config, h),
                                  la.first_reference, la.last_reference)
         res.lookahead_f1 = tuple(p.counts(t).f1 for p, t in zip(run.pairs, thresholds))
         res.lookahead_accuracy = tuple(float(a) for a in run.activity_accuracy())
@@ -293,7 +294,7 @@ class Reference:
 
 
 def filtered_references(setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day], masks: dict[str, list[bool]],
-                        horizons: int, first: int, last: int, stride: int = 1) -> list[Reference]:
+                        horizons: int, first: int, last: int | None, stride: int = 1) -> list[Reference]:
     """:class:`Reference` of every reference step of ``days`` (filtered all at once), in order."""
     flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
     moved = [moved_objects(day, setup.household.objects) for day in days]
@@ -326,7 +327,7 @@ def _reference(day: Day, r: int, peek: Belief, before: Belief, q: int, most: int
 
 
 def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
-                       masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int = 102,
+                       masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int | None = None,
                        chunk: int = 512, stride: int = 1) -> lk.LookaheadRun:
     """The lookahead's pairs when labels are partly hidden: the forecast at reference r mixes
     ``forecaster``'s forecasts from the filter's most probable histories
@@ -410,6 +411,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
     activity model, movement model (of ``setting``: run end, run memory, next activity) and
     emission (the chosen evidence) are fitted on the other folds."""
     h, la = setup.household, config.lookahead
+    horizons = assembly.lookahead_steps(config, h)
     runs = []
     for fold in data_folds(h, config.selection.folds):
         train, held_out = fold_days(h, fold)
@@ -419,9 +421,9 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
         fold_setup = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0, setup.alignment)
         forecaster = assembly.forecaster_over(activity, lk.movements_on(h, la, fold, setting, memo, assembly.step_minutes(h, config)), la)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in held_out}
-        runs.append(filtered_lookahead(forecaster, fold_setup, config.filter, held_out, masks, la.horizons,
+        runs.append(filtered_lookahead(forecaster, fold_setup, config.filter, held_out, masks, horizons,
                                        la.first_reference, la.last_reference, stride=la.cv_stride))
-    return lk.pool(runs, la.horizons)
+    return lk.pool(runs, horizons)
 
 
 def _fold_filter(setup: FilterSetup, config: GlobeConfig,
@@ -481,7 +483,8 @@ def run_missing_labels(config: GlobeConfig, households: Sequence[Household], pro
     weights = [2.0 - fraction for _, fraction in tasks]  # fewer labels, more hypotheses
     results = run_forked(lambda i: evaluate_fraction(tasks[i][0], config, tasks[i][1], memo, lookahead=lookahead),
                          len(tasks), workers, weights)
-    rows = missing_label_rows(results, config.lookahead.horizons, assembly.common_step(households, config))
+    step = assembly.common_step(households, config)
+    rows = missing_label_rows(results, assembly.steps(config.lookahead.horizon_minutes, step), step)
     return MissingLabelResults(rows, selection_rows, results)
 
 
