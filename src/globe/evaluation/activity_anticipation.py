@@ -163,14 +163,15 @@ BLEND_WEIGHTS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.9)
 
 
 def blend_weights(household: Household, models: ModelConfig, step_minutes: int, steps: int,
-                  k: int) -> tuple[float, ...]:
+                  k: int, stride: int = 1) -> tuple[float, ...]:
     """Per horizon 1..``steps``, the weight of the time of day (:data:`BLEND_WEIGHTS`) whose mix
-    with the model has the lowest log loss on held-out blocks of training days."""
+    with the model has the lowest log loss on held-out blocks of training days (every
+    ``stride``-th reference step: ``lookahead.cv_stride``, as the lookahead's own search)."""
     losses = np.zeros((steps, len(BLEND_WEIGHTS)))
     weights = np.array(BLEND_WEIGHTS)
     for fold in data_folds(household, k):
         train, held_out = fold_days(household, fold)
-        refs = [(day, r) for day in held_out for r in range(len(day) - steps)]
+        refs = [(day, r) for day in held_out for r in range(0, len(day) - steps, stride)]
         if not refs:
             continue
         space = state_space(assembly.activity_model(models, step_minutes).fit([d.activities for d in train]))
@@ -204,7 +205,7 @@ def run_activity_anticipation(config: GlobeConfig, households: Sequence[Househol
         step = assembly.step_minutes(h, config)
         model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
         steps = assembly.lookahead_steps(config, h)  # every step up to lookahead.horizon_minutes
-        blend = blend_weights(h, models, step, steps, config.selection.folds)
+        blend = blend_weights(h, models, step, steps, config.selection.folds, config.lookahead.cv_stride)
         out.append(score_anticipation(h.name, model, h.train, h.test, steps, step,
                                       f"chosen ({models.activity_estimator})", blend))
     return out
