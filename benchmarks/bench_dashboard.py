@@ -43,7 +43,8 @@ def free_port() -> int:
 
 
 def start(db: Path, port: int) -> subprocess.Popen:
-    env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D", GLOBE_SERVICE__PRELOAD="false")
+    env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D",
+               GLOBE_SERVICE__PRELOAD="false")
     proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(db), "--port", str(port)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     while True:
@@ -105,8 +106,8 @@ def main() -> None:
                 runs = [timed(browser, path) for _ in range(args.repeat)]
                 times = [r[0] for r in runs]
                 worst = max(worst, max(times)) if path != "/dashboard/households" else worst
-                print(f"{path:36s} median {1000 * statistics.median(times):7.1f} ms   max {1000 * max(times):7.1f} ms   "
-                      f"{runs[0][1] / 1024:6.1f} KiB")
+                print(f"{path:36s} median {1000 * statistics.median(times):7.1f} ms   "
+                      f"max {1000 * max(times):7.1f} ms   {runs[0][1] / 1024:6.1f} KiB")
             browser.close()
         finally:
             stop(proc)

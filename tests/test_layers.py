@@ -48,8 +48,9 @@ def _default(cls: type, name: str):
 
 
 @pytest.mark.parametrize("cls_path, params, section", [
-    ("globe.models.activity:ActivityModel", {"estimator": "activity_estimator", "max_order": "activity_max_order",
-                                             "time_weight": "time_weight", "time_window": "time_window_minutes"}, "models"),
+    ("globe.models.activity:ActivityModel",
+     {"estimator": "activity_estimator", "max_order": "activity_max_order", "time_weight": "time_weight",
+      "time_window": "time_window_minutes"}, "models"),
     ("globe.models.routine:RoutineModel",
      {"order": "routine_order", "time_weight": "routine_time_weight", "time_window": "routine_time_window_minutes",
       "shrinkage": "routine_shrinkage", "duration_cap": "routine_duration_cap_minutes"}, "models"),
@@ -60,8 +61,9 @@ def _default(cls: type, name: str):
       "boundary": "emission_boundary", "switch": "emission_switch"}, "filter"),
     ("globe.inference.activity_filter:ActivityFilter", {"max_hypotheses": "max_hypotheses", "min_weight": "min_weight"},
      "filter"),
-    ("globe.inference.movements:MovementModel", {"hazard_shrinkage": "hazard_shrinkage", "duration_cap": "duration_cap_minutes",
-                                                 "destination_shrinkage": "destination_shrinkage"}, "lookahead"),
+    ("globe.inference.movements:MovementModel",
+     {"hazard_shrinkage": "hazard_shrinkage", "duration_cap": "duration_cap_minutes",
+      "destination_shrinkage": "destination_shrinkage"}, "lookahead"),
     ("globe.inference.forecast:Forecaster", {"min_path_probability": "min_path_probability", "max_paths": "max_paths"},
      "lookahead"),
     ("globe.inference.fetch_policy:FetchPolicy", {"cost_useless": "cost_useless", "cost_missed": "cost_missed",

@@ -33,7 +33,8 @@ class DataConfig(_Section):
         None, ge=1, le=1440, description="minutes between a day's rows; None = the household's most common gap"
     )
     resample: Literal["none", "locf"] = Field(
-        "none", description="rows off the step: 'none' = an error; 'locf' = resample to the step grid, last observation carried forward"
+        "none", description="rows off the step: 'none' = an error; 'locf' = resample to the step grid, last "
+        "observation carried forward"
     )
 
 
@@ -45,7 +46,8 @@ class SequenceConfig(_Section):
 
 class ModelConfig(_Section):
     activity_estimator: ActivityEstimator = Field(
-        "longest", description="'longest' = the paper's longest-context backoff; 'persistence' = the activity stays the same"
+        "longest",
+        description="'longest' = the paper's longest-context backoff; 'persistence' = the activity stays the same",
     )
     activity_max_order: int | None = Field(
         None, ge=1, le=10_000, description="maximum n of the activity n-gram; None = the longest training day "
@@ -64,7 +66,8 @@ class ModelConfig(_Section):
         30, ge=1, le=1440, description="routine model: minutes pooled for the start prior (at least one step)")
     routine_duration_cap_minutes: int = Field(
         300, ge=1, le=1440, description="routine model: run durations longer than this share one stay hazard")
-    routine_shrinkage: float = Field(1.0, gt=0.0, le=1000.0, description="routine model: pseudo-count of the stay hazard")
+    routine_shrinkage: float = Field(
+        1.0, gt=0.0, le=1000.0, description="routine model: pseudo-count of the stay hazard")
     clock_slot_minutes: int = Field(60, ge=1, le=1440, description="clock model: width of a time-of-day slot (minutes)")
     clock_shrinkage: float = Field(
         5.0, gt=0.0, le=1000.0, description="clock model: pseudo-count pulling a slot toward the time-free bigram"
@@ -77,16 +80,18 @@ class ModelConfig(_Section):
 class SelectionConfig(_Section):
     folds: int = Field(5, ge=2, le=65, description="cross-validation folds over training days")
     criterion: Literal["log_loss", "f1"] = Field(
-        "log_loss", description="what chooses the routine family's activity model (routine, clock, persistence): held-out log loss (a proper scoring rule: a model sure "
-        "of what does not happen pays for it, as persistence does at every change) or weighted F1; both are reported"
+        "log_loss", description="what chooses the routine family's activity model (routine, clock, persistence): "
+        "held-out log loss (a proper scoring rule: a model sure of what does not happen pays for it, as persistence "
+        "does at every change) or weighted F1; both are reported"
     )
     ngram_criterion: Literal["log_loss", "f1"] = Field(
-        "f1", description="what chooses the smoothed n-gram's settings (row ngram_smoothed, compared with the paper's F1 "
-        "rows): weighted F1 by default; the routine family (the models for real homes) follows 'criterion'"
+        "f1", description="what chooses the smoothed n-gram's settings (row ngram_smoothed, compared with the paper's "
+        "F1 rows): weighted F1 by default; the routine family (the models for real homes) follows 'criterion'"
     )
     object_criterion: Literal["log_loss", "f1"] = Field(
         "f1", description="what chooses the object model: weighted F1 of the object picked (the protocol scores a pick "
-        "among the predicted activity's objects, so its log loss mostly counts the activity's mistakes); both are reported"
+        "among the predicted activity's objects, so its log loss mostly counts the activity's mistakes); both are "
+        "reported"
     )
     activity_orders: tuple[int, ...] = Field((2, 3, 4, 6), description="n-gram orders tried (witten_bell)")
     routine_orders: tuple[int, ...] = Field((2, 3, 4), description="run n-gram orders tried (routine)")
@@ -110,7 +115,9 @@ class GateConfig(_Section):
         "replace", description="'replace' = LLM picks; 'combine' = LLM score + n-gram log p"
     )
     combine_weight: float = Field(1.0, ge=0.0, le=100.0, description="weight of n-gram log p in 'combine'")
-    examples: int = Field(0, ge=0, le=50, description="recent runs of the activity shown to the LLM (0 = the paper's prompt)")
+    examples: int = Field(
+        0, ge=0, le=50, description="recent runs of the activity shown to the LLM (0 = the paper's prompt)"
+    )
 
 
 class LLMConfig(_Section):
@@ -136,7 +143,9 @@ class NoiseConfig(_Section):
     )
     rate: float = Field(0.35, ge=0.0, le=5.0, description="proposed disturbances per activity run")
     temperature: float = Field(2.0, gt=0.0, le=10.0, description="sampling temperature over LLM scores")
-    types: tuple[Literal["person", "pet", "toddler"], ...] = Field(("person", "pet", "toddler"), description="noise types")
+    types: tuple[Literal["person", "pet", "toddler"], ...] = Field(
+        ("person", "pet", "toddler"), description="noise types"
+    )
     train_level: float = Field(0.5, gt=0.0, le=1.0, description="noise level of the training days")
     test_level: float = Field(1.0, gt=0.0, le=1.0, description="noise level of the test days")
     thresholds: tuple[float, ...] = Field((0.25, 0.5, 0.75), description="gate thresholds d of the ablation")
@@ -147,15 +156,19 @@ class ServiceConfig(_Section):
     port: int = Field(8765, ge=0, le=65535, description="TCP port")
     database: Path = Field(Path("globe.sqlite3"), description="SQLite file")
     fetch_decision: Literal["policy", "threshold"] = Field(
-        "policy", description="'policy': fetch when the expected value is positive (see [policy]); 'threshold': when p >= action_threshold"
+        "policy", description="'policy': fetch when the expected value is positive (see [policy]); 'threshold': when "
+        "p >= action_threshold"
     )
-    action_threshold: float = Field(0.5, ge=0.0, le=1.0, description="fetch when object p >= this ('threshold' decision)")
+    action_threshold: float = Field(
+        0.5, ge=0.0, le=1.0, description="fetch when object p >= this ('threshold' decision)"
+    )
     day_start_minute: int = Field(360, ge=0, lt=1440, description="minute at which a new day begins")
     step_minutes: int = Field(10, ge=1, le=1440, description="minutes between observations (one step)")
     max_gap_steps: int = Field(36, ge=0, le=1000, description="longer gaps restart the day's history")
     max_clock_skew: dt.timedelta = Field(
         dt.timedelta(days=1), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
-        description="ISO 8601 duration (P1D, PT6H): times this far ahead of the server clock or before creation minus this are refused",
+        description="ISO 8601 duration (P1D, PT6H): times this far ahead of the server clock or before creation "
+                    "minus this are refused",
     )
     max_ahead: dt.timedelta = Field(
         dt.timedelta(minutes=10), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
@@ -189,13 +202,16 @@ class ServiceConfig(_Section):
     max_nodes: int = Field(5000, ge=1, le=1_000_000, description="most nodes in a household's map")
     max_days: int = Field(1000, ge=0, le=100_000, description="most training days uploaded with a household")
     max_households: int = Field(1000, ge=1, le=1_000_000, description="most households one service holds")
-    preload: bool = Field(True, description="build stored households in the background after start-up (else on first use)")
+    preload: bool = Field(
+        True, description="build stored households in the background after start-up (else on first use)"
+    )
     llm_timeout_s: float = Field(
         5.0, gt=0, le=600, description="time limit of the embedded LLM's answer to one prediction (past it, and while "
                                        "the model loads in the background after start-up, the n-gram choice is used)",
     )
     max_built_households: int = Field(
-        64, ge=1, le=1_000_000, description="households kept built in memory; the least recently used are rebuilt from the database on demand"
+        64, ge=1, le=1_000_000, description="households kept built in memory; the least recently used are rebuilt "
+        "from the database on demand"
     )
     session_minutes: int = Field(
         480, ge=1, le=60 * 24 * 30, description="a dashboard login lasts this long (then the token is asked again)"
@@ -213,10 +229,12 @@ class EvaluationConfig(_Section):
     )
     calibration_bins: int = Field(10, ge=2, le=100, description="bins of the reliability diagrams")
     personal_examples: int = Field(
-        4, ge=1, le=50, description="recent runs shown to the LLM by the personalised rows (globe_personal, globe_routine)"
+        4, ge=1, le=50,
+        description="recent runs shown to the LLM by the personalised rows (globe_personal, globe_routine)",
     )
     workers: int | None = Field(
-        None, ge=1, le=256, description="processes for the LLM-free work of the main job: cross-validations, lookahead, missing labels (None = one per core)"
+        None, ge=1, le=256, description="processes for the LLM-free work of the main job: cross-validations, "
+        "lookahead, missing labels (None = one per core)"
     )
 
 
@@ -225,7 +243,8 @@ class LookaheadConfig(_Section):
         60, ge=1, le=1440, description="how far ahead the lookahead looks: every step up to this many minutes")
     first_reference: int = Field(1, ge=1, le=100_000, description="first reference step r of the lookahead evaluation")
     last_reference: int | None = Field(
-        None, ge=1, le=100_000, description="last reference step r; None = the last that keeps the horizon inside the day")
+        None, ge=1, le=100_000,
+        description="last reference step r; None = the last that keeps the horizon inside the day")
     min_path_probability: float = Field(
         1e-3, ge=0.0, lt=1.0, description="activity paths less likely than this are pruned from the forward pass"
     )
@@ -236,7 +255,8 @@ class LookaheadConfig(_Section):
     duration_cap_minutes: int = Field(
         80, ge=1, le=1440, description="minutes into an activity run told apart by the movement hazard")
     destination_shrinkage: float = Field(
-        1.0, gt=0.0, le=1000.0, description="pseudo-count shrinking P(target | activity, object, source) to coarser levels"
+        1.0, gt=0.0, le=1000.0,
+        description="pseudo-count shrinking P(target | activity, object, source) to coarser levels",
     )
     thresholds: tuple[float, ...] = Field(
         (0.5, 0.4, 0.3, 0.25, 0.2, 0.15),
@@ -244,7 +264,8 @@ class LookaheadConfig(_Section):
     )
     methods: tuple[str, ...] = Field(("persistence", "ngram", "routine"), description="activity models forecast with")
     run_end: tuple[bool, ...] = Field(
-        (False, True), description="condition movement hazards on the activity ending there: settings tried by CV (first wins ties)"
+        (False, True),
+        description="condition movement hazards on the activity ending there: settings tried by CV (first wins ties)",
     )
     run_memory: tuple[bool, ...] = Field(
         (False, True), description="also on the object having moved earlier in the run (with run_end only): tried by CV"
@@ -252,14 +273,20 @@ class LookaheadConfig(_Section):
     run_next: tuple[bool, ...] = Field(
         (False, True), description="at a run's end also on the activity that starts (with run_end only): tried by CV"
     )
-    cv_stride: int = Field(3, ge=1, le=100, description="cross-validation scores every n-th reference step (it only sets a threshold)")
+    cv_stride: int = Field(
+        3, ge=1, le=100, description="cross-validation scores every n-th reference step (it only sets a threshold)"
+    )
 
 
 class PolicyConfig(_Section):
-    cost_useless: float = Field(3.0, ge=0.0, le=1e6, description="cost of fetching an object that is not used in the window")
+    cost_useless: float = Field(
+        3.0, ge=0.0, le=1e6, description="cost of fetching an object that is not used in the window"
+    )
     cost_missed: float = Field(1.0, ge=0.0, le=1e6, description="cost of a need the robot did not anticipate")
     min_lead_minutes: int = Field(10, ge=0, le=1440, description="a fetch must come at least this long before the use")
-    lead_window_minutes: int = Field(60, ge=10, le=1440, description="a fetch counts for uses within this long after it")
+    lead_window_minutes: int = Field(
+        60, ge=10, le=1440, description="a fetch counts for uses within this long after it"
+    )
     max_fetches_per_step: int = Field(2, ge=1, le=100, description="most fetches the robot starts in one step")
     method: Literal["persistence", "ngram", "routine"] = Field(
         "routine", description="activity model the policy forecasts with ('routine': chosen by CV on training days)"
@@ -275,7 +302,8 @@ Share = Annotated[float, Field(ge=0.0, le=1.0)]
 
 class FilterConfig(_Section):
     fractions: tuple[Share, ...] = Field(
-        (0.0, 0.25, 0.5, 0.75, 1.0), description="shares of history steps whose activity label is visible (missing-label runs)"
+        (0.0, 0.25, 0.5, 0.75, 1.0),
+        description="shares of history steps whose activity label is visible (missing-label runs)",
     )
     seed: int = Field(0, description="seed of which steps hide their label (combined with the household and day names)")
     max_hypotheses: int = Field(32, ge=1, le=10_000, description="most activity histories the filter keeps per step")
@@ -287,7 +315,8 @@ class FilterConfig(_Section):
         (0.5, 1.0), description="exponents of the movement likelihood tried by cross-validation on training days"
     )
     emission_previous_shares: tuple[Share, ...] = Field(
-        (0.5, 0.0, 1.0), description="share of a movement's likelihood credited to the activity at t-1 (the rest: at t), tried by CV"
+        (0.5, 0.0, 1.0),
+        description="share of a movement's likelihood credited to the activity at t-1 (the rest: at t), tried by CV",
     )
     emission_boundaries: tuple[bool, ...] = Field(
         (False, True), description="whether move rates also depend on the activity changing at the step, tried by CV"
@@ -297,20 +326,23 @@ class FilterConfig(_Section):
         "starts (with the change flag and a share credited to a_{s-1}), tried by CV"
     )
     emission_weight: float = Field(
-        0.5, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the service; "
-        "the emission_* defaults are what cross-validation chose on every HOMER+ household's training days)"
+        0.5, ge=0.0, le=10.0, description="exponent of the movement likelihood where no cross-validation runs (the "
+        "service; the emission_* defaults are what cross-validation chose on every HOMER+ household's training days)"
     )
     emission_previous_share: float = Field(
-        1.0, ge=0.0, le=1.0, description="share of a movement credited to the activity at t-1 where no cross-validation runs"
+        1.0, ge=0.0, le=1.0,
+        description="share of a movement credited to the activity at t-1 where no cross-validation runs",
     )
     emission_boundary: bool = Field(
         True, description="move rates depend on the activity changing, where no cross-validation runs"
     )
     emission_switch: bool = Field(
-        True, description="at a change, move rates also depend on the activity that starts, where no cross-validation runs"
+        True,
+        description="at a change, move rates also depend on the activity that starts, where no cross-validation runs",
     )
     forecast_hypotheses: int = Field(
-        4, ge=1, le=1000, description="most probable filtered histories mixed in a lookahead forecast with missing labels"
+        4, ge=1, le=1000,
+        description="most probable filtered histories mixed in a lookahead forecast with missing labels",
     )
     threshold_per_fraction: bool = Field(
         False, description="choose the missing-label lookahead's change threshold by CV on training days with the same "
@@ -357,10 +389,13 @@ class MqttConfig(_Section):
     )
     username: str | None = Field(None, description="broker user name (None: connect anonymously)")
     password: str | None = Field(
-        None, repr=False, description="broker password (prefer password_file or GLOBE_MQTT__PASSWORD to a file in clear)",
+        None, repr=False,
+        description="broker password (prefer password_file or GLOBE_MQTT__PASSWORD to a file in clear)",
     )
     password_file: Path | None = Field(None, description="file whose first line is the broker password")
-    ca_file: Path | None = Field(None, description="CA certificates (PEM) the mqtts:// broker is checked with; None = the system's")
+    ca_file: Path | None = Field(
+        None, description="CA certificates (PEM) the mqtts:// broker is checked with; None = the system's"
+    )
     client_id: str = Field("globe", min_length=1, max_length=64, description="MQTT client id (unique on the broker)")
     keepalive_s: int = Field(60, ge=5, le=3600, description="seconds between keep-alive pings")
     reconnect_min_s: int = Field(1, ge=1, le=3600, description="first wait before reconnecting to a lost broker")
@@ -368,17 +403,19 @@ class MqttConfig(_Section):
     discovery_prefix: str = Field("homeassistant", pattern=_TOPIC, description="Home Assistant's MQTT discovery prefix")
     status_topic: str = Field(
         "homeassistant/status", pattern=_TOPIC,
-        description="where Home Assistant says 'online' (discovery is sent again) or 'offline' (no observation meanwhile)",
+        description="where Home Assistant says 'online' (discovery is sent again) or 'offline' (no observation "
+                    "meanwhile)",
     )
     statestream_topic: str = Field(
         "homeassistant", pattern=_TOPIC, description="base_topic of Home Assistant's mqtt_statestream integration",
     )
     topic_prefix: str = Field(
-        "globe", pattern=_TOPIC, description="GLOBE's own topics: <prefix>/status (online/offline) and <prefix>/<household>/state",
+        "globe", pattern=_TOPIC,
+        description="GLOBE's own topics: <prefix>/status (online/offline) and <prefix>/<household>/state",
     )
     observe_interval_s: int | None = Field(
-        None, ge=1, le=86400, description="seconds between observations made from Home Assistant's states; None = one per "
-        "step of the household (observations inside one step update that step)",
+        None, ge=1, le=86400, description="seconds between observations made from Home Assistant's states; None = "
+        "one per step of the household (observations inside one step update that step)",
     )
     households: dict[str, MqttHousehold] = Field({}, description="household name -> the entities it learns from")
 

@@ -22,10 +22,11 @@ DEVICE_KEYS = {"identifiers", "connections", "name", "manufacturer", "model", "m
                "serial_number", "suggested_area", "via_device", "configuration_url"}
 ORIGIN_KEYS = {"name", "sw_version", "support_url"}
 AVAILABILITY_KEYS = {"topic", "payload_available", "payload_not_available", "value_template"}
-_COMMON = {"platform", "availability", "availability_mode", "availability_template", "availability_topic", "device_class",
-           "enabled_by_default", "encoding", "entity_category", "entity_picture", "expire_after", "force_update", "icon",
-           "json_attributes_template", "json_attributes_topic", "name", "object_id", "default_entity_id",
-           "payload_available", "payload_not_available", "qos", "state_topic", "unique_id", "value_template"}
+_COMMON = {"platform", "availability", "availability_mode", "availability_template", "availability_topic",
+           "device_class", "enabled_by_default", "encoding", "entity_category", "entity_picture", "expire_after",
+           "force_update", "icon", "json_attributes_template", "json_attributes_topic", "name", "object_id",
+           "default_entity_id", "payload_available", "payload_not_available", "qos", "state_topic", "unique_id",
+           "value_template"}
 PLATFORM_KEYS = {
     "sensor": _COMMON | {"last_reset_value_template", "options", "state_class", "suggested_display_precision",
                          "unit_of_measurement"},
@@ -58,7 +59,8 @@ def discovery_problems(topic: str, payload: dict[str, Any], prefix: str = "homea
         ids = device.get("identifiers")
         if not ids and not device.get("connections"):
             problems.append("device needs identifiers (or connections)")
-        if ids is not None and not (isinstance(ids, str) or (isinstance(ids, list) and all(isinstance(i, str) for i in ids))):
+        strings = isinstance(ids, str) or (isinstance(ids, list) and all(isinstance(i, str) for i in ids))
+        if ids is not None and not strings:
             problems.append("device identifiers: a string or a list of strings")
     origin = payload.get("origin")
     if not isinstance(origin, dict) or not isinstance(origin.get("name"), str):

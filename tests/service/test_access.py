@@ -31,7 +31,8 @@ def test_every_endpoint_but_health_needs_a_token(server, households):
         upload(admin, "B", households["B"])
     token_a, token_b = server.token("A"), server.token("B")
     for method, path, body in endpoints("A"):
-        for headers in ({}, {"Authorization": "Bearer globe_not-a-real-token"}, {"Authorization": "Basic YWRtaW46YWRtaW4="}):
+        for headers in ({}, {"Authorization": "Bearer globe_not-a-real-token"},
+                        {"Authorization": "Basic YWRtaW46YWRtaW4="}):
             r = httpx.request(method, server.url + path, json=body, headers=headers)
             assert r.status_code == 401, (method, path, headers, r.text)
             assert r.json()["field"] == "authorization" and r.json()["detail"]
@@ -75,7 +76,8 @@ def test_host_header_is_checked_and_no_cors_by_default(server):
         assert r.status_code == 400 and r.json()["field"] == "host", host
     r = httpx.get(server.url + "/health", headers={"Host": f"localhost:{server.port}", "Origin": "http://evil.example"})
     assert r.status_code == 200 and "access-control-allow-origin" not in r.headers
-    pre = httpx.options(server.url + "/households", headers={"Origin": "http://evil.example", "Access-Control-Request-Method": "GET"})
+    pre = httpx.options(server.url + "/households",
+                        headers={"Origin": "http://evil.example", "Access-Control-Request-Method": "GET"})
     assert "access-control-allow-origin" not in pre.headers
 
 
@@ -85,11 +87,12 @@ def test_limits_are_4xx_naming_the_field(make_server, households):
     h = households["A"]
     with srv.client() as c:
         upload(c, "A", h, days=False)
+        too_many = dict(zip(h.objects[:4], [h.nodes[0].node] * 4))
         cases = [
             (lambda: c._call("POST", "/households/A/observations", content=b'{"time": "' + b"x" * (2 << 20) + b'"}',
                              headers={"Content-Type": "application/json"}), 413, "body"),
             (lambda: c.observe("A", at(0, 400), "a" * 41, {}), 422, "activity"),
-            (lambda: c.observe("A", at(0, 400), "idle", dict(zip(h.objects[:4], [h.nodes[0].node] * 4))), 422, "locations"),
+            (lambda: c.observe("A", at(0, 400), "idle", too_many), 422, "locations"),
             (lambda: c.observe("A", at(0, 400), "idle", {}, id="i" * 41), 422, "id"),
             (lambda: upload(c, "B", households["B"], days=False), 422, "name"),  # one household per service here
             (lambda: c._call("GET", "/no/such/route"), 404, None),
@@ -112,7 +115,8 @@ def test_uploaded_maps_and_days_are_validated_like_files(server, households):
     h = households["B"]
     payload = household_payload(h)
     nodes, days = payload["nodes"], payload["days"]
-    bad_day = days[0].replace("\n" + days[0].split("\n")[5].split(",")[0] + ",", "\n1,", 1)  # minutes no longer increase
+    minute = days[0].split("\n")[5].split(",")[0]
+    bad_day = days[0].replace(f"\n{minute},", "\n1,", 1)  # minutes no longer increase
     cases = [
         ({"nodes": nodes[:1] + [dict(nodes[1], start_location="nowhere#0")] + nodes[2:]}, "nodes[1].start_location"),
         ({"nodes": [dict(n, movable=False) for n in nodes]}, "nodes"),
@@ -155,8 +159,9 @@ def test_client_raises_a_typed_error_for_non_json_errors():
 
 
 @pytest.mark.parametrize("body", [
-    b'{"name": "A", "days": ["x\\ny"]}', b'{"a": 1, "a": 2}', b"[NaN, Infinity, 1e400]", b'"\\ud800"', b"\xef\xbb\xbf{}",
-    b" {} ", b"123456789012345678901234567890", b"[1,]", b'{"a": 1,}', b"[1 2]", b"{}x", b'{"a": "\x01"}', b"\xff", b"[" * 5000,
+    b'{"name": "A", "days": ["x\\ny"]}', b'{"a": 1, "a": 2}', b"[NaN, Infinity, 1e400]", b'"\\ud800"',
+    b"\xef\xbb\xbf{}", b" {} ", b"123456789012345678901234567890", b"[1,]", b'{"a": 1,}', b"[1 2]", b"{}x",
+    b'{"a": "\x01"}', b"\xff", b"[" * 5000,
 ])
 def test_request_json_is_parsed_and_refused_as_the_standard_library_does(body):
     """The service parses JSON bodies with pydantic-core (faster on a 6 MB upload), and gives
@@ -185,5 +190,6 @@ def test_request_json_is_parsed_and_refused_as_the_standard_library_does(body):
     for parts in ([body], pieces):
         request = _FastJSONRequest({"type": "http", "method": "POST", "headers": []}, receiver(parts))
         ours = parse(lambda r=request: asyncio.run(r.json()))
-        assert ours[0] == expected[0] and (repr(ours[1]) == repr(expected[1]) if ours[0] == "ok" else ours[1] is expected[1])
+        assert ours[0] == expected[0] and (repr(ours[1]) == repr(expected[1]) if ours[0] == "ok"
+                                           else ours[1] is expected[1])
         assert asyncio.run(request.body()) == body

@@ -24,7 +24,8 @@ def test_tokens_and_import_from_the_command_line(tmp_path, homer_root):
     admin = created.stdout.strip().splitlines()[-1]
     assert created.exit_code == 0 and admin.startswith("globe_")
     assert admin not in db.read_bytes().decode("latin-1")  # only the hash is kept
-    cli("household", "import", "--db", str(db), "--name", "home-b", "--timezone", "Europe/Paris", str(homer_root / "HouseholdB"))
+    cli("household", "import", "--db", str(db), "--name", "home-b", "--timezone", "Europe/Paris",
+        str(homer_root / "HouseholdB"))
     robot = cli("token", "create", "--db", str(db), "--household", "home-b").stdout.strip().splitlines()[-1]
     with pytest.raises(DataError):
         cli("token", "create", "--db", str(db), "--admin", "--household", "home-b")

@@ -92,7 +92,8 @@ def fuzz_service(tmp_path_factory, households):
             client.create_household(HOME, nodes=payload["nodes"], days=payload["days"][:2])
             client.create_household(OTHER, nodes=payload["nodes"])
         tokens = {name: create_token(db, household=name) for name in (HOME, OTHER)}
-        assert httpx.get(url + "/openapi.json", timeout=30).json() == OPENAPI, "the served schema differs from the fuzzed one"
+        served = httpx.get(url + "/openapi.json", timeout=30).json()
+        assert served == OPENAPI, "the served schema differs from the fuzzed one"
         with httpx.Client(base_url=url, headers={"Authorization": f"Bearer {admin}"}, timeout=30) as http:
             yield FuzzService(url, db, admin, tokens, h.objects, tuple(sorted(h.locations)),
                               tuple(sorted({a for d in h.train[:2] for a in d.activities})), payload["nodes"],
@@ -198,7 +199,8 @@ def test_api_fuzz(case, data, fuzz_service):
         assert status >= 400, f"a household token got {status} on an admin-only endpoint"
     if status >= 400:
         check_error_body(response)
-        assert snapshot(svc) == before, f"{case.method} {case.path} was rejected ({status}) but changed the stored state"
+        rejected = f"{case.method} {case.path} was rejected ({status})"
+        assert snapshot(svc) == before, f"{rejected} but changed the stored state"
 
 
 def test_prediction_after_a_day_opened_with_an_unknown_activity(fuzz_service):
@@ -206,7 +208,8 @@ def test_prediction_after_a_day_opened_with_an_unknown_activity(fuzz_service):
     kept as a plain regression test."""
     svc = fuzz_service
     name = "opened-unknown"
-    assert svc.http.post("/households", json={"name": name, "nodes": svc.nodes, "days": [svc.day_csv]}).status_code == 201
+    body = {"name": name, "nodes": svc.nodes, "days": [svc.day_csv]}
+    assert svc.http.post("/households", json=body).status_code == 201
     try:
         now = dt.datetime.now(dt.timezone.utc).isoformat()
         r = svc.http.post(f"/households/{name}/observations", json={"time": now, "activity": None,

@@ -23,9 +23,9 @@ def at(minute, day=0):
 
 
 def test_a_whole_day_including_midnight_is_one_day(assistant, households):
-    day = households["A"].test[0]
+    day, objects = households["A"].test[0], assistant.household.objects
     for t in range(len(day)):
-        assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(assistant.household.objects, day.locations[t]))))
+        assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(objects, day.locations[t]))))
     live = assistant.current_day()
     assert live.minutes == day.minutes and live.activities == day.activities and live.locations == day.locations
     assistant.observe(Observation(at(360, 1), "wake_up", {}))  # 06:00 next day: roll over and learn
@@ -55,9 +55,9 @@ def test_validation_names_the_field(assistant):
 
 
 def test_prediction_has_an_action_decision(assistant, households):
-    day = households["A"].test[1]
+    day, objects = households["A"].test[1], assistant.household.objects
     for t in range(30):
-        assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(assistant.household.objects, day.locations[t]))))
+        assistant.observe(Observation(at(day.minutes[t]), day.activities[t], dict(zip(objects, day.locations[t]))))
     p = assistant.predict()
     assert p.activity is not None and 0 < p.activity_probability <= 1
     # without a fetch policy: fetch the chosen object when its probability reaches the threshold
@@ -103,7 +103,8 @@ def test_observations_inside_one_step_update_it(assistant):
     assert dict(zip(assistant.household.objects, day.locations[0]))["bowl"] == "table#114"
     assert assistant.observations == 51
     assistant.observe(Observation(at(371), None, {}))  # next step, unknown activity: carried forward
-    assert assistant.current_day().minutes == (360, 370) and assistant.current_day().activities == ("breakfast", "breakfast")
+    today = assistant.current_day()
+    assert today.minutes == (360, 370) and today.activities == ("breakfast", "breakfast")
 
 
 def test_unknown_activities_are_filled_from_known_ones():

@@ -22,7 +22,8 @@ def home(tmp_path_factory, households):
         create(c, "A", households["A"])
         create(c, "B", households["B"])
         payload = household_payload(households["C"])
-        assert c.post("/households", json={"name": "C", "timezone": "Europe/Paris", "nodes": payload["nodes"]}).status_code == 201
+        body = {"name": "C", "timezone": "Europe/Paris", "nodes": payload["nodes"]}
+        assert c.post("/households", json=body).status_code == 201
         observe_days(c, "A", households["A"], households["A"].test[:2], steps=13)  # to 08:00, before breakfast
     return db, admin, member
 
@@ -147,7 +148,8 @@ def test_logout_ends_the_session_and_needs_the_csrf_token(browser, home):
     assert browser.post("/dashboard/logout", data={"csrf": "forged"}).status_code == 403
     r = browser.post("/dashboard/logout", data={"csrf": csrf})
     assert r.status_code == 303 and r.headers["location"] == "/dashboard/login"
-    assert any(h.startswith(SESSION_COOKIE + '=""') and "max-age=0" in h.lower() for h in r.headers.get_list("set-cookie"))
+    cookies = r.headers.get_list("set-cookie")
+    assert any(h.startswith(SESSION_COOKIE + '=""') and "max-age=0" in h.lower() for h in cookies)
     assert browser.get("/dashboard/households").headers["location"] == "/dashboard/login"
 
 

@@ -16,8 +16,9 @@ from globe.service.learning_curve import CurvePoint, curve_point, learning_curve
 
 
 def _point(household: str, k: int, activity: float | None, fetch_precision: float) -> CurvePoint:
-    return CurvePoint(household=household, days_learned=k, activity_f1=activity, object_f1=0.5, fetch_precision=fetch_precision,
-                      fetch_recall=0.25, activity_steps=10, object_events=4, fetches=2, observations=20, elapsed_s=0.1)
+    return CurvePoint(household=household, days_learned=k, activity_f1=activity, object_f1=0.5,
+                      fetch_precision=fetch_precision, fetch_recall=0.25, activity_steps=10, object_events=4, fetches=2,
+                      observations=20, elapsed_s=0.1)
 
 
 def test_mean_rows_average_each_checkpoint_over_households_skipping_missing_scores():
@@ -61,7 +62,8 @@ def test_curve_point_through_the_service_matches_the_offline_protocol(service, h
     fitted = fit_household(small, config, days=small.train[:2])
     offline = evaluate_days(small, small.test, fitted.activity, ObjectChooser(fitted.objects))
     assert point.activity_steps == len(offline.activity) == sum(len(d) - 1 for d in small.test)
-    assert point.activity_f1 == pytest.approx(f1([r.true for r in offline.activity], [r.predicted for r in offline.activity]))
+    expected = f1([r.true for r in offline.activity], [r.predicted for r in offline.activity])
+    assert point.activity_f1 == pytest.approx(expected)
     assert point.object_events == len(offline.objects)
     streamed = sum(len(d) for d in small.train[:2])  # into each test day's own household
     assert point.observations == len(small.test) * streamed + sum(len(d) for d in small.test)

@@ -77,7 +77,8 @@ def test_the_entities_follow_a_prediction():
 
 def test_statestream_states_make_a_snapshot():
     book = StateBook(MAPPED)
-    assert book.topics() == ["homeassistant/binary_sensor/kettle_in_use/state", "homeassistant/input_select/activity/state"]
+    assert book.topics() == ["homeassistant/binary_sensor/kettle_in_use/state",
+                             "homeassistant/input_select/activity/state"]
     assert not book.snapshot("home").seen
     assert book.receive("homeassistant/input_select/activity/state", b"Making tea") == 1
     assert book.receive("homeassistant/binary_sensor/kettle_in_use/state", b'"on"') == 1  # older, JSON-quoted states
@@ -91,7 +92,8 @@ def test_statestream_states_make_a_snapshot():
     assert book.receive("homeassistant/light/other/state", b"on") == 0
 
 
-@pytest.mark.parametrize("payload", [b"\xff\xfe", b"tea\x00time", b"x" * 2000, b'"unterminated\\"', "a\u202eb".encode()])
+@pytest.mark.parametrize("payload", [b"\xff\xfe", b"tea\x00time", b"x" * 2000, b'"unterminated\\"',
+                                     "a\u202eb".encode()])
 def test_malformed_states_are_refused_and_change_nothing(payload):
     book = StateBook(MAPPED)
     book.receive("homeassistant/input_select/activity/state", b"relax")
@@ -145,7 +147,8 @@ def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():
             assert all(line.startswith("globe ") for line in body.strip().splitlines())
     payload = payloads.discovery_payload(MqttConfig(), "home")
     slug = lambda s: re.sub(r"[^a-z0-9]+", "_", s.lower()).strip("_")  # noqa: E731
-    made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}" for c in payload["components"].values()}
+    made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}"
+            for c in payload["components"].values()}
     named = set(re.findall(r"`((?:binary_)?sensor\.globe_home_\w+)`", text))
     assert named == made
 

@@ -91,10 +91,11 @@ def test_a_poisoned_row_is_quarantined_and_the_rest_loads(server, households):
     server.kill()
     db = sqlite3.connect(server.db)
     row = db.execute("SELECT time FROM observations ORDER BY id DESC LIMIT 1").fetchone()[0]
-    poison = [("0001-01-01T00:00:00", "idle", "{}"), ("9999-12-31T23:00:00", "idle", "{}"), ("not a time", "idle", "{}"),
-              (row, "idle", "{}"), ("2099-01-01T00:00:00", "idle", "[not json"), ("2099-01-01T00:00:00", "idle", '{"book": "roof#1"}'),
-              ("2099-01-01T00:00:00", "x" * 100_000, "{}")]
-    db.executemany("INSERT INTO observations (household, time, activity, locations, received_at) VALUES ('C', ?, ?, ?, ?)",
+    poison = [("0001-01-01T00:00:00", "idle", "{}"), ("9999-12-31T23:00:00", "idle", "{}"),
+              ("not a time", "idle", "{}"), (row, "idle", "{}"), ("2099-01-01T00:00:00", "idle", "[not json"),
+              ("2099-01-01T00:00:00", "idle", '{"book": "roof#1"}'), ("2099-01-01T00:00:00", "x" * 100_000, "{}")]
+    db.executemany("INSERT INTO observations (household, time, activity, locations, received_at) "
+                   "VALUES ('C', ?, ?, ?, ?)",
                    [(t, a, loc, dt.datetime.now(UTC).isoformat()) for t, a, loc in poison])
     db.commit()
     db.close()
@@ -215,7 +216,8 @@ def test_households_beyond_the_memory_bound_are_rebuilt_on_demand(make_server, h
         for t in range(6):  # alternate: each request evicts the other household
             for name in "AB":
                 day = households[name].test[0]
-                c.observe(name, at(0, day.minutes[t]), day.activities[t], dict(zip(households[name].objects, day.locations[t])))
+                c.observe(name, at(0, day.minutes[t]), day.activities[t],
+                          dict(zip(households[name].objects, day.locations[t])))
         for name in "AB":
             assert c.stats(name)["observations"] == 6 and c.stats(name)["steps_today"] == 6
         assert httpx.get(srv.url + "/health").json()["built"] == 1

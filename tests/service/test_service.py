@@ -18,7 +18,8 @@ pytestmark = pytest.mark.service
 
 def post_day(client, name, household, day, index, steps=None):
     for t in range(steps if steps is not None else len(day)):
-        client.observe(name, at(index, day.minutes[t]), day.activities[t], dict(zip(household.objects, day.locations[t])))
+        client.observe(name, at(index, day.minutes[t]), day.activities[t],
+                       dict(zip(household.objects, day.locations[t])))
 
 
 @pytest.fixture()
@@ -78,11 +79,13 @@ def test_bad_input_gets_4xx_naming_the_field_and_changes_nothing(client, househo
     before, pred = client.stats("C"), client.prediction("C")
     cases = [
         (lambda: client.observe("nobody", at(0, 500), "idle", {}), 404, None),
-        (lambda: client._call("POST", "/households/C/observations", json={"time": "yesterday-ish", "activity": "idle"}), 422, "time"),
+        (lambda: client._call("POST", "/households/C/observations",
+                              json={"time": "yesterday-ish", "activity": "idle"}), 422, "time"),
         (lambda: client.observe("C", at(0, 300), "idle", {}), 422, "time"),  # before the last observation
         (lambda: client.observe("C", at(0, 600), "idle", {"book": "attic#1"}), 422, "locations.book"),
         (lambda: client.observe("C", at(0, 600), "idle", {"spaceship": "kitchen#1"}), 422, "locations.spaceship"),
-        (lambda: client._call("POST", "/households/C/observations", json={"time": at(0, 600).isoformat(), "activity": " "}), 422, "activity"),
+        (lambda: client._call("POST", "/households/C/observations",
+                              json={"time": at(0, 600).isoformat(), "activity": " "}), 422, "activity"),
         (lambda: upload(client, "C", h), 409, "name"),
         (lambda: client._call("POST", "/households", json={"name": "D", "nodes": household_payload(h)["nodes"],
                                                                 "source": "/etc"}), 422, "source"),  # no server paths

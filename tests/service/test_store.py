@@ -20,15 +20,18 @@ def test_a_schema_2_database_migrates_and_replays(tmp_path, households):
             db.execute(statement)
         db.execute(f"PRAGMA user_version = {number}")
     created = (dt.datetime.now(dt.timezone.utc) - dt.timedelta(days=30)).isoformat()
-    db.execute("INSERT INTO households VALUES (?, ?, ?, ?)", ("B", json.dumps([asdict(n) for n in h.nodes]), json.dumps(h.objects), created))
+    nodes = json.dumps([asdict(n) for n in h.nodes])
+    db.execute("INSERT INTO households VALUES (?, ?, ?, ?)", ("B", nodes, json.dumps(h.objects), created))
     for i, d in enumerate(h.train[:3]):
         db.execute("INSERT INTO training_days VALUES (?, ?, ?)", ("B", i, json.dumps(asdict(d))))
     base = dt.datetime.now() - dt.timedelta(days=10)
     day = h.test[0]
     for t in range(12):  # naive times, as schema 2 stored them
-        db.execute("INSERT INTO observations (household, time, activity, locations, received_at) VALUES (?, ?, ?, ?, ?)",
-                   ("B", (base.replace(hour=0, minute=0) + dt.timedelta(minutes=day.minutes[t])).isoformat(), day.activities[t],
-                    json.dumps(dict(zip(h.objects, day.locations[t]))), dt.datetime.now(dt.timezone.utc).isoformat()))
+        time = (base.replace(hour=0, minute=0) + dt.timedelta(minutes=day.minutes[t])).isoformat()
+        locations = json.dumps(dict(zip(h.objects, day.locations[t])))
+        db.execute("INSERT INTO observations (household, time, activity, locations, received_at) "
+                   "VALUES (?, ?, ?, ?, ?)",
+                   ("B", time, day.activities[t], locations, dt.datetime.now(dt.timezone.utc).isoformat()))
     db.close()
     store = Store(path)
     assert store.version == SCHEMA_VERSION

@@ -37,8 +37,9 @@ def test_broken_rows_get_the_data_layers_messages(households, seed):
     lines = format_day(h.train[0], objects).split("\n")
     owned = next(iter(owners.values()))
     edits = [lambda c: c.__setitem__(0, "abc"), lambda c: c.__setitem__(0, "9999"), lambda c: c.__setitem__(0, "１２"),
-             lambda c: c.__setitem__(1, ""), lambda c: c.__setitem__(1, "idle\x07"), lambda c: c.__setitem__(2, "moon#1"),
-             lambda c: c.pop(), lambda c: c.append("x"), lambda c: c.__setitem__(2, f" {c[2]}\t"),
+             lambda c: c.__setitem__(1, ""), lambda c: c.__setitem__(1, "idle\x07"),
+             lambda c: c.__setitem__(2, "moon#1"), lambda c: c.pop(), lambda c: c.append("x"),
+             lambda c: c.__setitem__(2, f" {c[2]}\t"),
              lambda c: c.__setitem__(objects.index(next(o for o, lab in owners.items() if lab == owned)) + 2, owned)]
     for edit in edits:
         for _ in range(3):
@@ -93,7 +94,8 @@ def test_blank_lines_get_the_data_layers_answer(households, where):
     objects, locations = h.objects, frozenset(n.node for n in h.nodes)
     owners = {n.cls: n.node for n in h.nodes if n.movable}
     lines = format_day(h.train[1], objects).rstrip("\n").split("\n")
-    text = {"after the header": "\n".join([lines[0], "", *lines[1:]]), "inside": "\n".join([*lines[:5], "", *lines[5:]]),
+    text = {"after the header": "\n".join([lines[0], "", *lines[1:]]),
+            "inside": "\n".join([*lines[:5], "", *lines[5:]]),
             "at the end": "\n".join(lines) + "\n\n", "two at the end": "\n".join(lines) + "\n\n\n",
             "only newlines": lines[0] + "\n\n\n"}[where]
     assert outcome(parse_day, text, objects, locations, "d", owners) == \

@@ -48,7 +48,8 @@ def token_create(
 
 
 @token_app.command("revoke")
-def token_revoke(db: DbOption, token: Annotated[str, typer.Argument(help="the token, or its id from 'globe token list'")]) -> None:
+def token_revoke(db: DbOption,
+                 token: Annotated[str, typer.Argument(help="the token, or its id from 'globe token list'")]) -> None:
     """Revoke a token (effective at once, also in a running service)."""
     from globe.service.auth import revoke
     from globe.service.store import Store
@@ -75,7 +76,8 @@ def token_list(db: DbOption) -> None:
         store.close()
     for r in rows:
         scope = "admin" if r.admin else f"household {r.household}"
-        out.print(f"{r.id}  {scope:30s}  created {r.created_at}" + (f"  revoked {r.revoked_at}" if r.revoked_at else ""))
+        revoked = f"  revoked {r.revoked_at}" if r.revoked_at else ""
+        out.print(f"{r.id}  {scope:30s}  created {r.created_at}{revoked}")
 
 
 @household_app.command("import")
@@ -94,7 +96,8 @@ def household_import(
 
     check_household_name(name)
     nodes = read_nodes(folder / "nodes.csv")
-    texts = [f.read_text(encoding="utf-8-sig") for f in day_files(folder / "train")] if (folder / "train").is_dir() else []
+    train = folder / "train"
+    texts = [f.read_text(encoding="utf-8-sig") for f in day_files(train)] if train.is_dir() else []
     household = household_from(name, nodes, texts)
     objects, days = household.objects, household.train
     tz = check_timezone(timezone)
@@ -146,7 +149,9 @@ def household_shadow(
         store.set_shadow(name, on)
     finally:
         store.close()
-    console.print(f"household {name!r}: shadow mode {'on (GLOBE predicts and scores, the robot is never told to act)' if on else 'off (the robot acts on predictions)'}")
+    state = ("on (GLOBE predicts and scores, the robot is never told to act)" if on
+             else "off (the robot acts on predictions)")
+    console.print(f"household {name!r}: shadow mode {state}")
 
 
 @household_app.command("export")

@@ -29,7 +29,8 @@ from globe.errors import DataError
 console = Console(stderr=True, markup=False, emoji=False, highlight=False)
 out = Console(emoji=False)
 
-DataOption = Annotated[Path | None, typer.Option("--data", help="HOMER+-style data folder (else $GLOBE_DATA, else ../shared/data/homer_plus)")]
+DataOption = Annotated[Path | None, typer.Option(
+    "--data", help="HOMER+-style data folder (else $GLOBE_DATA, else ../shared/data/homer_plus)")]
 ConfigOption = Annotated[Path | None, typer.Option("--config", help="TOML configuration file")]
 HouseholdsOption = Annotated[str | None, typer.Option("--households", help="comma-separated households, e.g. A,B,C")]
 
@@ -91,5 +92,5 @@ def require_test_days(households: list[Household]) -> None:
     empty = [h for h in households if not h.test]
     if empty:
         h = empty[0]
-        raise DataError(f"household {h.name} has no test days (test/*.csv): nothing to score; evaluate households with test "
-                        "days (it can still be trained and served)", source=h.source)
+        raise DataError(f"household {h.name} has no test days (test/*.csv): nothing to score; evaluate households "
+                        "with test days (it can still be trained and served)", source=h.source)

@@ -43,8 +43,8 @@ def validate(data: DataOption = None, households: HouseholdsOption = None, confi
         moves = sum(len(r.events) for d in days for r in activity_runs(d, h.objects, cfg.sequences.alignment))
         acts = {a for d in days for a in d.activities}
         step = cfg.data.step_minutes or household_step(days)
-        table.add_row(plain(h.name), str(len(h.train)), str(len(h.test)), str(step or "-"), str(len(h.objects)), str(len(acts)),
-                      str(moves))
+        table.add_row(plain(h.name), str(len(h.train)), str(len(h.test)), str(step or "-"), str(len(h.objects)),
+                      str(len(acts)), str(moves))
     print_table(table)
     out.print("all files valid", style="green", markup=False)
 

@@ -67,8 +67,8 @@ def timing_table(rows: list[dict], scope: DataScope) -> Table:
     for col in ("method", "household", "train", "inference", "LLM calls", "LLM s", "CV s"):
         table.add_column(col, justify="left" if col in ("method", "household") else "right")
     for r in rows:
-        table.add_row(r["method"], r["household"], f"{r['train_s']:.3f}", f"{r['inference_s']:.3f}", str(r["llm_calls"]),
-                      f"{r['llm_s']:.2f}", f"{r['selection_s']:.2f}" if r["selection_s"] else "")
+        table.add_row(r["method"], r["household"], f"{r['train_s']:.3f}", f"{r['inference_s']:.3f}",
+                      str(r["llm_calls"]), f"{r['llm_s']:.2f}", f"{r['selection_s']:.2f}" if r["selection_s"] else "")
     for method, (tr, inf) in TABLE2.items() if scope.homer_plus else ():
         table.add_row(f"[dim]{method} (published)[/dim]", "", f"{tr:.2f}", f"{inf:.2f}", "", "", "")
     return table
@@ -100,7 +100,8 @@ def print_stages(stages: list[dict]) -> None:
 
 def evaluate(
     out_dir: OutOption = Path("results/evaluate"),
-    methods: Annotated[str, typer.Option("--methods", help=f"comma-separated, from: {', '.join(METHODS)}")] = "persistence,ngram",
+    methods: Annotated[str, typer.Option(
+        "--methods", help=f"comma-separated, from: {', '.join(METHODS)}")] = "persistence,ngram",
     data: DataOption = None,
     households: HouseholdsOption = None,
     config: ConfigOption = None,
@@ -128,8 +129,10 @@ def reproduce(
     data: DataOption = None,
     config: ConfigOption = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
-    robustness: Annotated[bool, typer.Option("--robustness/--no-robustness", help="also generate HOMER-Noise and run the robustness suite")] = True,
-    anticipation: Annotated[bool, typer.Option("--anticipation/--no-anticipation", help="also run lookahead, the fetch policy and missing labels")] = True,
+    robustness: Annotated[bool, typer.Option(
+        "--robustness/--no-robustness", help="also generate HOMER-Noise and run the robustness suite")] = True,
+    anticipation: Annotated[bool, typer.Option(
+        "--anticipation/--no-anticipation", help="also run lookahead, the fetch policy and missing labels")] = True,
 ) -> None:
     """Run every experiment available on the shipped HOMER+ and write the results folder."""
     from globe.evaluation import main_job
@@ -161,8 +164,8 @@ def print_robustness(res: RobustnessResults) -> None:
 
 def robustness(
     out_dir: Annotated[Path, typer.Option("--out", help="results folder")] = Path("results/robustness"),
-    noise_dir: Annotated[Path, typer.Option("--noise-dir", help="HOMER-Noise folder (generated there if missing)")] = Path(
-        "results/homer_noise"),
+    noise_dir: Annotated[Path, typer.Option(
+        "--noise-dir", help="HOMER-Noise folder (generated there if missing)")] = Path("results/homer_noise"),
     data: DataOption = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded or none")] = None,
     config: ConfigOption = None,
@@ -225,7 +228,8 @@ def print_anticipation(out_dir: Path) -> None:
     horizons = list(dict.fromkeys(r["horizon_min"] for r in look))
     scope = _scope(out_dir)
     published = "; SLaTe-PRO published 0.57, 0.60 with queries" if scope and scope.homer_plus else ""
-    table = Table(title=f"Lookahead{' on ' + scope.title if scope else ''}: relocation F1 (mean of households{published})")
+    where = f" on {scope.title}" if scope else ""
+    table = Table(title=f"Lookahead{where}: relocation F1 (mean of households{published})")
     table.add_column("method")
     for h in horizons:
         table.add_column(f"{h} min", justify="right")
@@ -235,8 +239,9 @@ def print_anticipation(out_dir: Path) -> None:
     print_table(table)
     fetch = [r for r in rows("fetch_policy.csv") if r.get("configured") in ("True", "true", "1")]
     for r in fetch:
-        out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, recall {float(r['recall']):.3f}, "
-                  f"median lead {r['median_lead_min']} min, {r['fetches']} fetches", markup=False)
+        out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, "
+                  f"recall {float(r['recall']):.3f}, median lead {r['median_lead_min']} min, {r['fetches']} fetches",
+                  markup=False)
     missing = rows("missing_labels.csv")
     table = Table(title="Missing activity labels (mean of households)")
     for col in ("labels %", "activity F1", "object F1", "lookahead F1 (mean)"):

@@ -52,7 +52,8 @@ def predict(
     history: Annotated[str, typer.Option("--history", help="the day's activities so far, comma-separated")] = "",
     objects: Annotated[str, typer.Option("--objects", help="objects moved so far in the current activity run")] = "",
     top: Annotated[int, typer.Option("--top", min=1, help="how many candidates to list")] = 3,
-    household: Annotated[str | None, typer.Option("--household", help="check that the model was trained for this household's map")] = None,
+    household: Annotated[str | None, typer.Option(
+        "--household", help="check that the model was trained for this household's map")] = None,
     data: DataOption = None,
     config: ConfigOption = None,
 ) -> None:

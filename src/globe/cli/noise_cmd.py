@@ -29,7 +29,8 @@ def print_summary(summary: dict) -> None:
         table.add_column(col)
     for noise_type, e in summary["types"].items():
         table.add_row(noise_type, *[str(e["per_level"][f"{lv:g}"]) for lv in summary["levels"]],
-                      str(sum(e["dropped"].values())), ", ".join(list(e["objects"])[:4]), ", ".join(list(e["destinations"])[:4]))
+                      str(sum(e["dropped"].values())), ", ".join(list(e["objects"])[:4]),
+                      ", ".join(list(e["destinations"])[:4]))
     print_table(table)
 
 
@@ -39,7 +40,8 @@ def noise(
     households: HouseholdsOption = None,
     seed: Annotated[int | None, typer.Option("--seed", help="random seed")] = None,
     types: Annotated[str | None, typer.Option("--types", help="comma-separated: person,pet,toddler")] = None,
-    levels: Annotated[str | None, typer.Option("--levels", help="comma-separated noise levels in (0, 1], e.g. 0.25,0.5,1")] = None,
+    levels: Annotated[str | None, typer.Option(
+        "--levels", help="comma-separated noise levels in (0, 1], e.g. 0.25,0.5,1")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded or none (uniform)")] = None,
     config: ConfigOption = None,
 ) -> None:

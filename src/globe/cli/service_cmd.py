@@ -23,7 +23,8 @@ from globe.errors import MissingExtraError
 
 def serve(
     database: Annotated[Path | None, typer.Option("--db", help="SQLite file (created if missing)")] = None,
-    host: Annotated[str | None, typer.Option("--host", help="bind address (keep loopback; put a TLS reverse proxy in front)")] = None,
+    host: Annotated[str | None, typer.Option(
+        "--host", help="bind address (keep loopback; put a TLS reverse proxy in front)")] = None,
     port: Annotated[int | None, typer.Option("--port", help="TCP port")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
     new_db: Annotated[bool, typer.Option("--new-db", help="if the --db file is empty or truncated, keep it as "
@@ -62,12 +63,14 @@ def serve(
 def robot(
     url: Annotated[str, typer.Option("--url", help="service base URL")] = "http://127.0.0.1:8765",
     household: Annotated[str, typer.Option("--household", help="HOMER+ household to replay, e.g. A")] = "A",
-    name: Annotated[str | None, typer.Option("--name", help="household id in the service (default: the household)")] = None,
+    name: Annotated[str | None, typer.Option(
+        "--name", help="household id in the service (default: the household)")] = None,
     days: Annotated[int, typer.Option("--days", min=1, help="how many test days to replay")] = 10,
     data: DataOption = None,
     config: ConfigOption = None,
     report_file: Annotated[Path | None, typer.Option("--report", help="also write the metrics as JSON")] = None,
-    token: Annotated[str | None, typer.Option("--token", envvar="GLOBE_TOKEN", help="admin token (or $GLOBE_TOKEN)")] = None,
+    token: Annotated[str | None, typer.Option(
+        "--token", envvar="GLOBE_TOKEN", help="admin token (or $GLOBE_TOKEN)")] = None,
 ) -> None:
     """Replay HOMER+ test days through the service as a simulated robot; print assistance metrics."""
     from globe.service.client import GlobeClient, ServiceError, household_payload

@@ -9,8 +9,8 @@ r + k inside the day is scored. Far ahead, what the person did at that hour on t
 say more than where the model's paths lead, so the model is also scored mixed with the time of
 day, ``(1 - w) P_model + w P_time``, with ``w`` chosen per horizon by log loss on held-out
 training days (:func:`blend_weights`; ``w = 0`` wins ties). A change event is a step r whose
-activity differs from the one before; its truth is the first later activity that differs from a_r (events with none left in the
-day are not scored).
+activity differs from the one before; its truth is the first later activity that differs from
+a_r (events with none left in the day are not scored).
 """
 
 from __future__ import annotations

@@ -89,8 +89,8 @@ def score_fetches(household: Household, day: Day, fetched: Mapping[int, Sequence
     return _score(household, day, decide, len(day), max(1, min_lead_steps), window_steps, report)
 
 
-def _score(household: Household, day: Day, decide: Callable[[int, Mapping[str, int]], Sequence[str]], decided_steps: int,
-           lo: int, hi: int, report: FetchReport | None) -> FetchReport:
+def _score(household: Household, day: Day, decide: Callable[[int, Mapping[str, int]], Sequence[str]],
+           decided_steps: int, lo: int, hi: int, report: FetchReport | None) -> FetchReport:
     """The module's rule: fetches decided after each step t < ``decided_steps``, uses as the day moved."""
     report = report or FetchReport()
     uses = use_steps(household, day)

@@ -46,7 +46,14 @@ from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
 from globe.evaluation.selection import DataKey, FitKey, Memo, SearchKey, Selection, best_of, grid
-from globe.evaluation.tuning import chosen_alignment, data_folds, fitted_activity, fitted_objects, fold_days, tuned_models
+from globe.evaluation.tuning import (
+    chosen_alignment,
+    data_folds,
+    fitted_activity,
+    fitted_objects,
+    fold_days,
+    tuned_models,
+)
 from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts, filtered_beliefs, label_mask
 from globe.inference.beam import tie_key
 from globe.inference.emission import MovementEmission, moved_objects
@@ -232,7 +239,8 @@ def setup_household(household: Household, config: GlobeConfig, memo: Memo,
     models, alignment = routine_choice(household, config, memo)
     selection = tune_evidence(household, config, models, memo, alignment) if selection is None else selection
     started = time.perf_counter()
-    cfg = config.model_copy(update={"models": models, "sequences": config.sequences.model_copy(update={"alignment": alignment})})
+    sequences = config.sequences.model_copy(update={"alignment": alignment})
+    cfg = config.model_copy(update={"models": models, "sequences": sequences})
     fitted = memo.get(FitKey("household", DataKey.of(household), None, models, alignment),
                       lambda: assembly.fit_household(household, cfg))
     emission = assembly.movement_emission(config.filter, **selection.best).fit(household.train, household.objects)
@@ -419,7 +427,8 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
         activity, emission = memo.get(FitKey("filter", fold.data, fold, (setup.models, config.filter, evidence)),
                                       _fold_filter, setup, config, train)
         fold_setup = FilterSetup(h, setup.models, activity, emission, None, setup.selection, 0.0, setup.alignment)
-        forecaster = assembly.forecaster_over(activity, lk.movements_on(h, la, fold, setting, memo, assembly.step_minutes(h, config)), la)
+        movements = lk.movements_on(h, la, fold, setting, memo, assembly.step_minutes(h, config))
+        forecaster = assembly.forecaster_over(activity, movements, la)
         masks = {d.name: day_mask(config.filter, h.name, d, fraction) for d in held_out}
         runs.append(filtered_lookahead(forecaster, fold_setup, config.filter, held_out, masks, horizons,
                                        la.first_reference, la.last_reference, stride=la.cv_stride))

@@ -54,7 +54,8 @@ def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: Globe
     md = "\n".join([
         f"# Table I ({scope.title})", "", report.table1_markdown(rows, labels, "weighted", scope),
         report.table1_markdown(rows, labels, "micro", scope), report.table1_markdown(rows, labels, "macro", scope),
-        "# Table II (timing)", "", report.timing_markdown(timing, scope), "# Details", "", report.details_markdown(details),
+        "# Table II (timing)", "", report.timing_markdown(timing, scope),
+        "# Details", "", report.details_markdown(details),
         "# Calibration (expected calibration error)", "", report.rows_markdown(calib),
     ])
     (out_dir / "table1.md").write_text(md, encoding="utf-8")

@@ -39,7 +39,8 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
         def injected(day: str, step: int, obj: str, household: str = h.name) -> bool:
             return (household, day, step, obj) in data.injected
 
-        out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=prepared.alignment or cfg.sequences.alignment,
+        alignment = prepared.alignment or cfg.sequences.alignment
+        out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment,
                                  injected=injected))
     return out
 

@@ -131,8 +131,8 @@ class OnlineAssistant:
             raise DataError("empty activity (send null when it is unknown)", field="activity")
         for obj, loc in obs.locations.items():
             if obj not in self._object_index:
-                raise UnknownLabelError(f"unknown object {obj[:64]!r} (not a movable node of household {self.household.name})",
-                                        field=f"locations.{obj[:64]}")
+                raise UnknownLabelError(f"unknown object {obj[:64]!r} (not a movable node of household "
+                                        f"{self.household.name})", field=f"locations.{obj[:64]}")
             if loc not in self._locations:
                 raise UnknownLabelError(f"unknown location {loc[:64]!r} for {obj!r}", field=f"locations.{obj}")
 
@@ -226,8 +226,9 @@ class OnlineAssistant:
         flt = self._new_filter()
         belief = flt.start()
         previous: tuple[str, ...] | None = None
+        objects = self.household.objects
         for step, (label, state) in enumerate(zip(self._activities, self._states)):
-            moved = None if previous is None else frozenset(o for o, x, y in zip(self.household.objects, previous, state) if x != y)
+            moved = None if previous is None else frozenset(o for o, x, y in zip(objects, previous, state) if x != y)
             belief = flt.update(belief, step, [label], [moved])
             previous = state
         return as_dicts(flt.predictive(belief), flt.labels)[0]
@@ -300,7 +301,8 @@ class OnlineAssistant:
             return []
         forecast = self.fetch_policy.forecaster.forecast(history, self._states, max(0, steps - 1))
         targets = forecast.likely_target(1, steps)
-        return [(obj, [float(x) for x in forecast.departure[:steps, j]], targets[j]) for j, obj in enumerate(forecast.objects)]
+        return [(obj, [float(x) for x in forecast.departure[:steps, j]], targets[j])
+                for j, obj in enumerate(forecast.objects)]
 
     # -- prediction ------------------------------------------------------------------------
     @property

@@ -33,8 +33,8 @@ ServicePrediction = Prediction  # the service's own schema (kept as a name for r
 
 def household_payload(household: Household) -> dict[str, Any]:
     """``nodes`` and ``days`` (the training days as day-file text) of a loaded household."""
-    nodes = [{"node": n.node, "class": n.cls, "category": n.category, "movable": n.movable, "start_location": n.start_location}
-             for n in household.nodes]
+    nodes = [{"node": n.node, "class": n.cls, "category": n.category, "movable": n.movable,
+              "start_location": n.start_location} for n in household.nodes]
     return {"nodes": nodes, "days": [format_day(d, household.objects) for d in household.train]}
 
 

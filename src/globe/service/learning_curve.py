@@ -186,13 +186,14 @@ def curve_point(client: GlobeClient, household: Household, days_learned: int, *,
         _fresh_household(client, name, nodes, timezone)
         try:
             posted += stream_days(client, name, household, train, first_date)
-            posted += _replay_and_score(client, name, household, test_days, first_date + dt.timedelta(days=days_learned),
-                                        scores, lead_window_steps)
+            test_start = first_date + dt.timedelta(days=days_learned)
+            posted += _replay_and_score(client, name, household, test_days, test_start, scores, lead_window_steps)
         finally:
             client.delete_household(name)
     return CurvePoint(
         household=household.name, days_learned=days_learned,
-        activity_f1=f1(scores.activity_true, scores.activity_pred), object_f1=f1(scores.object_true, scores.object_pred),
+        activity_f1=f1(scores.activity_true, scores.activity_pred),
+        object_f1=f1(scores.object_true, scores.object_pred),
         fetch_precision=scores.useful_fetches / scores.fetches if scores.fetches else 0.0,
         fetch_recall=scores.used_fetched_in_advance / scores.used_objects if scores.used_objects else 0.0,
         activity_steps=len(scores.activity_true), object_events=len(scores.object_true), fetches=scores.fetches,

@@ -152,7 +152,8 @@ class Registry:
                 time = timepolicy.to_zone(dt.datetime.fromisoformat(stored.time), tz)
                 received = dt.datetime.fromisoformat(stored.received_at)
                 received = received if received.tzinfo else received.replace(tzinfo=dt.timezone.utc)
-                timepolicy.check_bounds(time, created=row.created_at, now=received, skew=self.config.service.max_clock_skew)
+                timepolicy.check_bounds(time, created=row.created_at, now=received,
+                                        skew=self.config.service.max_clock_skew)
                 activity = stored.activity
                 if activity is not None:
                     activity = labels.get(activity) or labels.setdefault(activity, activity_label(activity))
@@ -196,7 +197,8 @@ class Registry:
         if obs.activity is not None and len(obs.activity) > s.max_label_length:
             raise LimitError(f"activity longer than {s.max_label_length} characters", field="activity")
         if len(obs.locations) > s.max_locations:
-            raise LimitError(f"{len(obs.locations)} locations in one observation (at most {s.max_locations})", field="locations")
+            raise LimitError(f"{len(obs.locations)} locations in one observation (at most {s.max_locations})",
+                             field="locations")
 
     # -- households ------------------------------------------------------------------------------
     def create_uploaded(self, name: str, timezone: str | None, node_rows: Sequence[Mapping[str, Any]],
@@ -230,7 +232,8 @@ class Registry:
                 raise DuplicateHouseholdError(f"household {name!r} exists already")
             limit = self.config.service.max_households
             if self.store.count_households() + len(self._creating) >= limit:
-                raise LimitError(f"this service holds {limit} households already (service.max_households)", field="name")
+                raise LimitError(f"this service holds {limit} households already (service.max_households)",
+                                 field="name")
             self._creating.add(name)
         try:
             # The days are compressed for storage on another core while the models are counted

@@ -64,9 +64,11 @@ class NodeIn(_Body):
 
 class HouseholdCreate(_Body):
     name: str = Field(..., min_length=1, max_length=64, pattern=HOUSEHOLD_NAME_PATTERN, description="household id")
-    timezone: str | None = Field(None, max_length=64, description="IANA time zone, e.g. Europe/Paris (default: the server's)")
+    timezone: str | None = Field(None, max_length=64,
+                                 description="IANA time zone, e.g. Europe/Paris (default: the server's)")
     nodes: list[NodeIn] = Field(..., min_length=1, description="the household's map: the rows of nodes.csv")
-    days: list[str] = Field(default_factory=list, description="optional training logs: the text of day files (minute,activity,...)")
+    days: list[str] = Field(default_factory=list,
+                            description="optional training logs: the text of day files (minute,activity,...)")
 
 
 class HouseholdInfo(_Body):
@@ -80,8 +82,10 @@ class ObservationIn(_Body):
     time: dt.datetime = Field(..., description="ISO 8601; naive = wall time in the household's zone, aware = converted")
     activity: str | None = Field(None, min_length=1, max_length=4096, json_schema_extra=_documented(LABEL_PATTERN),
                                  description="what the person is doing (null: unknown); NFC-normalised")
-    locations: dict[str, str] = Field(default_factory=dict, description="object class -> node label where it is (partial allowed)")
-    id: str | None = Field(None, min_length=1, max_length=4096, description="client-chosen id: a retry with it returns the first answer")
+    locations: dict[str, str] = Field(default_factory=dict,
+                                      description="object class -> node label where it is (partial allowed)")
+    id: str | None = Field(None, min_length=1, max_length=4096,
+                           description="client-chosen id: a retry with it returns the first answer")
 
 
 class ObservationAck(_Body):
@@ -174,13 +178,16 @@ class OnlineScores(_Body):
     @classmethod
     def from_days(cls, rows: list[Any]) -> "OnlineScores":
         """From :class:`globe.service.store.DayScore` rows."""
-        days = [DayScoreOut(day=r.day, predictions=r.predictions, correct=r.correct, accuracy=_rate(r.correct, r.predictions),
-                            fetches=r.fetches, useful_fetches=r.useful_fetches, precision=_rate(r.useful_fetches, r.fetches),
-                            uses=r.uses, uses_fetched=r.uses_fetched, recall=_rate(r.uses_fetched, r.uses)) for r in rows]
+        days = [DayScoreOut(day=r.day, predictions=r.predictions, correct=r.correct,
+                            accuracy=_rate(r.correct, r.predictions), fetches=r.fetches,
+                            useful_fetches=r.useful_fetches, precision=_rate(r.useful_fetches, r.fetches),
+                            uses=r.uses, uses_fetched=r.uses_fetched, recall=_rate(r.uses_fetched, r.uses))
+                for r in rows]
         total = {k: sum(getattr(d, k) for d in days) for k in ("predictions", "correct", "fetches", "useful_fetches",
                                                                "uses", "uses_fetched")}
         return cls(days=days, accuracy=_rate(total["correct"], total["predictions"]),
-                   precision=_rate(total["useful_fetches"], total["fetches"]), recall=_rate(total["uses_fetched"], total["uses"]))
+                   precision=_rate(total["useful_fetches"], total["fetches"]),
+                   recall=_rate(total["uses_fetched"], total["uses"]))
 
 
 class StatsOut(_Body):

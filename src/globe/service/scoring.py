@@ -46,7 +46,8 @@ def before_observe(name: str, a: OnlineAssistant, place: Placement, policy: Poli
         predicted, observed = a.step_predictions.get(last), a.observed_activity(last)
         if predicted is not None and observed is not None:
             out.statements.append(Store.observed_statement(name, day, last, observed))
-            out.statements.append(Store.score_statement(name, day, predictions=1, correct=int(predicted[0] == observed)))
+            correct = int(predicted[0] == observed)
+            out.statements.append(Store.score_statement(name, day, predictions=1, correct=correct))
         if place.step == 0:  # a new day, or a gap long enough to restart it: the day's fetches are settled
             report = fetch_report(a, policy)
             if report.fetches or report.used_objects:

@@ -141,7 +141,8 @@ MIGRATIONS: list[str] = [
 SCHEMA_VERSION = len(MIGRATIONS)
 
 
-_NODE_FIELDS = tuple(f.name for f in fields(Node))  # a node as stored: dataclasses.asdict's keys, without its deep copies
+# a node as stored: dataclasses.asdict's keys, without its deep copies
+_NODE_FIELDS = tuple(f.name for f in fields(Node))
 
 
 def _now() -> str:
@@ -325,8 +326,8 @@ class Store:
         legacy = app_id == 0 and 1 <= version < SCHEMA_VERSION and "households" in tables
         fresh = app_id == 0 and version == 0 and not tables
         if not (legacy or fresh):
-            raise StoreError(f"{self.path}: not a GLOBE database (application id {app_id:#x}, schema version {version}, "
-                             f"{len(tables)} tables); refusing to change it")
+            raise StoreError(f"{self.path}: not a GLOBE database (application id {app_id:#x}, schema version "
+                             f"{version}, {len(tables)} tables); refusing to change it")
 
     @property
     def version(self) -> int:
@@ -403,7 +404,8 @@ class Store:
     def _writable(self) -> None:
         reason = self._check_files()
         if reason:
-            raise StoreUnavailableError(f"{reason}; restart the service (writes are refused so nothing is lost silently)")
+            raise StoreUnavailableError(
+                f"{reason}; restart the service (writes are refused so nothing is lost silently)")
 
     def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]]) -> int:
         with self._lock:
@@ -574,10 +576,12 @@ class Store:
     def quarantine(self, ids: Sequence[int]) -> None:
         """Set rows aside that cannot be replayed (kept for inspection, never replayed again)."""
         if ids:
-            self._transaction("quarantine observations", [("UPDATE observations SET quarantined = 1 WHERE id = ?", (i,)) for i in ids])
+            self._transaction("quarantine observations",
+                              [("UPDATE observations SET quarantined = 1 WHERE id = ?", (i,)) for i in ids])
 
     def quarantined(self, household: str) -> int:
-        return self._read("SELECT COUNT(*) FROM observations WHERE household = ? AND quarantined = 1", (household,))[0][0]
+        return self._read("SELECT COUNT(*) FROM observations WHERE household = ? AND quarantined = 1",
+                          (household,))[0][0]
 
     def add_feedback(self, household: str, obj: str, accepted: bool) -> int:
         return self._transaction("store the feedback", [(
@@ -585,7 +589,8 @@ class Store:
             (household, obj, int(accepted), _now()))])
 
     def feedback(self, household: str) -> list[bool]:
-        return [bool(r[0]) for r in self._read("SELECT accepted FROM feedback WHERE household = ? ORDER BY id", (household,))]
+        rows = self._read("SELECT accepted FROM feedback WHERE household = ? ORDER BY id", (household,))
+        return [bool(r[0]) for r in rows]
 
     # -- shadow mode and online scores -------------------------------------------------------
     def set_shadow(self, household: str, shadow: bool) -> int:
@@ -621,7 +626,8 @@ class Store:
                   probability: float | None, shadow: bool) -> None:
         self._transaction("store the fetch decision", [(
             "INSERT INTO fetches (household, day, step, object, to_location, probability, shadow, made_at) "
-            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)", (household, day, step, obj, to_location, probability, int(shadow), _now()))])
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (household, day, step, obj, to_location, probability, int(shadow), _now()))])
 
     def settle(self, what: str, statements: Sequence[tuple[str, tuple]]) -> None:
         """Write derived rows (scores) in one transaction."""
@@ -767,4 +773,5 @@ def _text(stored: bytes | str) -> str:
 def legacy_day(payload: str) -> Day:
     """A day stored by schema 1-2 (a JSON-encoded :class:`Day`)."""
     d = json.loads(payload)
-    return Day(d["name"], tuple(d["minutes"]), tuple(d["activities"]), tuple(tuple(s) for s in d["locations"]), d.get("source", ""))
+    locations = tuple(tuple(s) for s in d["locations"])
+    return Day(d["name"], tuple(d["minutes"]), tuple(d["activities"]), locations, d.get("source", ""))

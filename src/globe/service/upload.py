@@ -60,7 +60,8 @@ def parse_nodes(rows: Sequence[Mapping[str, Any]], *, max_label: int = 128) -> t
         raise _renamed(err) from None
     if not any(n.movable for n in nodes):  # a home the robot could fetch nothing in
         raise DataError("no movable node (every node has movable false)", field=NODES)
-    return tuple(Node(sys.intern(n.node), sys.intern(n.cls), n.category, n.movable, sys.intern(n.start_location)) for n in nodes)
+    return tuple(Node(sys.intern(n.node), sys.intern(n.cls), n.category, n.movable, sys.intern(n.start_location))
+                 for n in nodes)
 
 
 def check_nodes(nodes: Sequence[Node]) -> None:
@@ -115,7 +116,8 @@ class DayParser:
     would reject, goes through :func:`parse_day_text` itself, so the result and the message are
     the data layer's."""
 
-    def __init__(self, objects: tuple[str, ...], locations: frozenset[str], owners: dict[str, str] | None = None) -> None:
+    def __init__(self, objects: tuple[str, ...], locations: frozenset[str],
+                 owners: dict[str, str] | None = None) -> None:
         self.objects, self.locations, self.owners = objects, locations, owners or {}
         self._shared = {loc: loc for loc in locations}  # one string per label, whatever text it came from
         self._column_of = {label: k for k, label in enumerate(self.owners.get(o, "") for o in objects) if label}
@@ -194,6 +196,7 @@ def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str],
     for i, d in enumerate(days):
         if max(map(len, set(d.activities)), default=0) > max_label:  # which line: only when one is too long
             lineno = next(n for n, a in zip(parsed[i][1], d.activities) if len(a) > max_label)
-            raise LimitError(f"activity longer than {max_label} characters", source=f"days[{i}]", line=lineno, field="activity")
+            raise LimitError(f"activity longer than {max_label} characters", source=f"days[{i}]", line=lineno,
+                             field="activity")
     days = tuple(Day(d.name, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source) for d in days)
     return Household(name, nodes, objects, days, (), "upload")

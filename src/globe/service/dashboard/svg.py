@@ -30,7 +30,8 @@ def _clock(minute: int) -> str:
     return f"{m // 60:02d}:{m % 60:02d}"
 
 
-def _hour_ticks(x0: float, width: float, start: int, span: int, top: float, bottom: float, every: int = 120) -> list[str]:
+def _hour_ticks(x0: float, width: float, start: int, span: int, top: float, bottom: float,
+                every: int = 120) -> list[str]:
     parts = []
     first = -(-start // every) * every
     for m in range(first, start + span + 1, every):
@@ -75,7 +76,8 @@ def timeline(steps: Sequence[TimelineStep], *, day_start: int, step_minutes: int
         x = x0 + (s.minute - day_start) / span * width
         when = _clock(s.minute)
         if s.observed is not None:
-            parts.append(f'<rect x="{x:.1f}" y="{rows[0][1]}" width="{w:.2f}" height="{lane}" fill="{colour.get(s.observed, UNKNOWN)}">'
+            parts.append(f'<rect x="{x:.1f}" y="{rows[0][1]}" width="{w:.2f}" height="{lane}" '
+                         f'fill="{colour.get(s.observed, UNKNOWN)}">'
                          f'<title>{when} observed {escape(s.observed)}</title></rect>')
         if s.predicted is not None and s.probability is not None:
             miss = s.observed is not None and s.observed != s.predicted
@@ -106,8 +108,9 @@ def actogram(rows: Sequence[tuple[str, Sequence[str | None]]], *, day_start: int
             if value is None:
                 continue
             x = x0 + start * w
+            when = _clock(day_start + start * step_minutes)
             parts.append(f'<rect x="{x:.1f}" y="{y:.1f}" width="{length * w:.2f}" height="{h - 1}" '
-                         f'fill="{colour.get(value, UNKNOWN)}"><title>{escape(label)} {_clock(day_start + start * step_minutes)}'
+                         f'fill="{colour.get(value, UNKNOWN)}"><title>{escape(label)} {when}'
                          f' {escape(value)}</title></rect>')
     parts += _hour_ticks(x0, width, day_start, span, top, top + h * len(rows) + 4)
     parts.append("</svg>")
@@ -129,15 +132,18 @@ def score_chart(days: Sequence[tuple[str, float | None, float | None, float | No
         return x0 + (i + 0.5) * width / n
 
     for k, name in ((1, "accuracy"), (2, "precision"), (3, "recall")):
-        points = [(x(i), y0 + (1 - d[k]) * height, d[0], d[k]) for i, d in enumerate(days) if d[k] is not None]  # type: ignore[operator]
+        points = [(x(i), y0 + (1 - d[k]) * height, d[0], d[k])  # type: ignore[operator]
+                  for i, d in enumerate(days) if d[k] is not None]
         if len(points) > 1:
-            parts.append(f'<polyline class="score {name}" points="{" ".join(f"{px:.1f},{py:.1f}" for px, py, _, _ in points)}"/>')
+            line = " ".join(f"{px:.1f},{py:.1f}" for px, py, _, _ in points)
+            parts.append(f'<polyline class="score {name}" points="{line}"/>')
         for px, py, day, value in points:
             parts.append(f'<circle class="score {name}" cx="{px:.1f}" cy="{py:.1f}" r="3"><title>{escape(day)} {name} '
                          f'{value:.2f}</title></circle>')
     step = max(1, n // 7)
     for i in range(0, len(days), step):
-        parts.append(f'<text x="{x(i):.1f}" y="{y0 + height + 18}" class="tick" text-anchor="middle">{escape(days[i][0][5:])}</text>')
+        parts.append(f'<text x="{x(i):.1f}" y="{y0 + height + 18}" class="tick" text-anchor="middle">'
+                     f'{escape(days[i][0][5:])}</text>')
     parts.append("</svg>")
     return "".join(parts)
 

@@ -100,7 +100,8 @@ def today(registry: Registry, name: str) -> dict[str, Any]:
             steps.append(svg.TimelineStep(minute, observed, predicted[0] if predicted else None,
                                           predicted[1] if predicted else None))
         top = a.next_activity()
-        recent = [{"time": _clock(s.minute), "observed": s.observed, "predicted": s.predicted, "probability": s.probability,
+        recent = [{"time": _clock(s.minute), "observed": s.observed, "predicted": s.predicted,
+                   "probability": s.probability,
                    "hit": None if s.predicted is None or s.observed is None else s.predicted == s.observed}
                   for s in steps[-RECENT_STEPS:]][::-1]
         scores = online_scores(registry.store, name, a, cfg)
@@ -163,7 +164,8 @@ def fetches_today(registry: Registry, name: str, a: OnlineAssistant) -> list[dic
                 used.add(i)
                 said = "accepted" if accepted else "refused"
                 break
-        out.append({"time": _clock(a.day_start_minute + f.step * a.step_minutes), "object": f.object, "to": f.to_location,
+        when = _clock(a.day_start_minute + f.step * a.step_minutes)
+        out.append({"time": when, "object": f.object, "to": f.to_location,
                     "probability": f.probability, "shadow": f.shadow, "feedback": said})
     return out
 

@@ -113,7 +113,8 @@ class MqttBridge:
         self.registry.subscribe(self._observed)
         missing = sorted(set(self.config.households) - set(self.registry.names()))
         if missing:
-            log.warning("[mqtt.households] maps %s, not in the database (yet): observed once created", ", ".join(missing))
+            log.warning("[mqtt.households] maps %s, not in the database (yet): observed once created",
+                        ", ".join(missing))
         for target, name in ((self._publish_loop, "globe-mqtt-publish"), (self._step_loop, "globe-mqtt-step")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()

@@ -102,7 +102,8 @@ async def form(request: Request) -> dict[str, str]:
     return {k: v[0] for k, v in parse_qs(body.decode("utf-8", "replace"), max_num_fields=8).items()}
 
 
-def _cookie(response: Response, request: Request, name: str, value: str, max_age: int, path: str = "/dashboard") -> None:
+def _cookie(response: Response, request: Request, name: str, value: str, max_age: int,
+            path: str = "/dashboard") -> None:
     response.set_cookie(name, value, max_age=max_age, path=path, httponly=True, samesite="strict",
                         secure=request.url.scheme == "https")
 
@@ -177,7 +178,8 @@ async def households(v: ViewerDep, registry: RegistryDep) -> Response:
     return page(views.render("households.html", lines=lines, **v.context(registry)))
 
 
-async def _household_page(v: Viewer, registry: Registry, name: str, template: str, read: Any, page_name: str) -> Response:
+async def _household_page(v: Viewer, registry: Registry, name: str, template: str, read: Any,
+                          page_name: str) -> Response:
     if not v.caller.admin and v.caller.household != name:
         return failure(403, "Not yours", f"this login does not give access to household {name!r}",
                        **v.context(registry))
