@@ -88,3 +88,12 @@ def test_estimator_defaults_are_the_configuration_defaults(cls_path, params, sec
         if field.endswith("_minutes"):  # the estimators count steps: the default is 10 minutes' worth
             value = steps(value, 10)
         assert _default(cls, param) == value, f"{name}({param}=...) vs {section}.{field}"
+
+
+def test_no_source_file_is_over_600_lines():
+    """Small modules with one job: a file past 600 lines is split (issue 22's rule)."""
+    root = Path(__file__).resolve().parents[1] / "src" / "globe"
+    sizes = {str(p.relative_to(root)): len(p.read_text(encoding="utf-8").splitlines()) for p in root.rglob("*.py")}
+    long = {name: n for name, n in sizes.items() if n > 600}
+    assert not long, long
+    assert len(sizes) > 50

@@ -114,7 +114,8 @@ def test_a_poisoned_row_is_quarantined_and_the_rest_loads(server, households):
 
 def test_foreign_and_newer_databases_are_refused(tmp_path):
     from globe.errors import StoreError
-    from globe.service.store import APPLICATION_ID, SCHEMA_VERSION, Store
+    from globe.service.schema import APPLICATION_ID, SCHEMA_VERSION
+    from globe.service.store import Store
 
     text = tmp_path / "notes.sqlite3"
     text.write_text("my shopping list\n" * 100)

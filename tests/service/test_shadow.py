@@ -11,7 +11,8 @@ from typer.testing import CliRunner
 from globe.cli.main import app
 from globe.config import PolicyConfig
 from globe.evaluation.fetch import score_fetches, use_steps
-from globe.service.store import MIGRATIONS, SCHEMA_VERSION, Store
+from globe.service.schema import MIGRATIONS, SCHEMA_VERSION
+from globe.service.store import Store
 from tests.service.dashboard_helpers import app_client, create, observe_days, tokens
 
 pytestmark = pytest.mark.service

@@ -8,7 +8,8 @@ from dataclasses import asdict
 
 from globe.config import GlobeConfig
 from globe.service.registry import Registry
-from globe.service.store import APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION, Store
+from globe.service.schema import APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION
+from globe.service.store import Store
 
 
 def test_a_schema_2_database_migrates_and_replays(tmp_path, households):

@@ -89,9 +89,9 @@ def household_import(
 ) -> None:
     """Import a household folder from this machine's disk into the database."""
     from globe.data.csv_logs import day_files, read_nodes
-    from globe.service.registry import check_timezone
     from globe.service.schemas import check_household_name
     from globe.service.store import Store
+    from globe.service.timepolicy import check_timezone
     from globe.service.upload import household_from
 
     check_household_name(name)

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from globe.errors import AuthenticationError, DataError, PermissionDeniedError
-from globe.service.store import Store, TokenRow
+from globe.service.schema import TokenRow
+from globe.service.store import Store
 
 PREFIX = "globe_"
 

@@ -40,6 +40,7 @@ from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import scoring, timepolicy
 from globe.service.assistant import Observation, OnlineAssistant, build_assistant
+from globe.service.schema import FoundObservation, HouseholdRow
 from globe.service.schemas import (
     FeedbackCounts,
     HouseholdInfo,
@@ -52,7 +53,7 @@ from globe.service.schemas import (
     StatsOut,
     check_household_name,
 )
-from globe.service.store import DayEncoding, FoundObservation, HouseholdRow, Store, legacy_day
+from globe.service.store import DayEncoding, Store, legacy_day
 from globe.service.upload import DayParser, household_from, parse_nodes
 
 log = logging.getLogger(__name__)
@@ -211,7 +212,7 @@ class Registry:
             raise LimitError(f"{len(node_rows)} nodes (at most {s.max_nodes})", field="nodes")
         if len(day_texts) > s.max_days:
             raise LimitError(f"{len(day_texts)} days (at most {s.max_days})", field="days")
-        zone = check_timezone(timezone or s.timezone)
+        zone = timepolicy.check_timezone(timezone or s.timezone)
         nodes = parse_nodes(node_rows, max_label=s.max_label_length)
         try:
             household = household_from(name, nodes, day_texts, max_label=s.max_label_length)
@@ -516,7 +517,7 @@ class Registry:
         with self._held(name) as held:
             a = held.assistant
             assert a is not None
-            return online_scores(self.store, name, a, self.config, days)
+            return scoring.online_scores(self.store, name, a, self.config, days)
 
     def feedback(self, name: str, obj: str, accepted: bool) -> FeedbackCounts:
         """What the person said about a fetched object: stored, then counted."""
@@ -535,10 +536,11 @@ class Registry:
             a = held.assistant
             assert a is not None
             built = assembly.describe(a.activity_model, a.chooser)
+            scores = scoring.online_scores(self.store, name, a, self.config)
             return StatsOut(**a.stats(), timezone=held.row.timezone, created_at=held.row.created_at.isoformat(),
                             chooser=built["chooser"], models=ModelSettings(activity=built["activity"],
                                                                            objects=built["objects"]),
-                            shadow=self.store.shadow(name), scores=online_scores(self.store, name, a, self.config))
+                            shadow=self.store.shadow(name), scores=scores)
 
     def export_model(self, name: str) -> ModelOut:
         """Both models as :func:`globe.models.io.model_to_dict` writes them."""
@@ -558,18 +560,6 @@ class Registry:
     def built(self) -> int:
         with self._lock:
             return sum(s.assistant is not None for s in self._served.values())
-
-
-def online_scores(store: Store, name: str, a: OnlineAssistant, config: GlobeConfig, days: int = 28) -> OnlineScores:
-    """The per-day online scores of the last ``days`` days before the household's current day
-    (today's so far included), and their totals."""
-    today = a.day
-    since = (dt.date.fromisoformat(today) - dt.timedelta(days=days - 1)).isoformat() if today else "0000"
-    rows = [r for r in store.day_scores(name, since) if r.day != today]
-    now = scoring.today_score(a, store, name, config.policy)
-    if now is not None:
-        rows.append(now)
-    return OnlineScores.from_days(rows)
 
 
 def _locations(value: Any) -> dict[str, str]:
@@ -596,11 +586,4 @@ def _same_observation(found: FoundObservation, time: dt.datetime, activity: str 
     return same_time and found.activity == activity and stored_locations == dict(locations)
 
 
-def check_timezone(name: str | None) -> str:
-    """A valid IANA name (default: the server's zone)."""
-    name = name or timepolicy.server_timezone()
-    timepolicy.zone(name)
-    return name
-
-
-__all__ = ["Registry", "UnknownHouseholdError", "DuplicateHouseholdError", "DataError", "check_timezone"]
+__all__ = ["Registry", "UnknownHouseholdError", "DuplicateHouseholdError", "DataError"]

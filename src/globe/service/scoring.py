@@ -15,12 +15,15 @@ the same transaction as the observation that settles them: a restart keeps them.
 
 from __future__ import annotations
 
+import datetime as dt
 from dataclasses import dataclass, field
 
-from globe.config import PolicyConfig
+from globe.config import GlobeConfig, PolicyConfig
 from globe.evaluation.fetch import FetchReport, score_fetches
 from globe.service.assistant import OnlineAssistant, Placement
-from globe.service.store import DayScore, Store
+from globe.service.schema import DayScore
+from globe.service.schemas import OnlineScores
+from globe.service.store import Store
 
 
 @dataclass(slots=True)
@@ -113,3 +116,15 @@ def today_score(a: OnlineAssistant, store: Store, name: str, policy: PolicyConfi
 
 
 __all__ = ["Settled", "after_observe", "before_observe", "fetch_report", "record_fetch", "restore", "today_score"]
+
+
+def online_scores(store: Store, name: str, a: OnlineAssistant, config: GlobeConfig, days: int = 28) -> OnlineScores:
+    """The per-day online scores of the last ``days`` days before the household's current day
+    (today's so far included), and their totals."""
+    today = a.day
+    since = (dt.date.fromisoformat(today) - dt.timedelta(days=days - 1)).isoformat() if today else "0000"
+    rows = [r for r in store.day_scores(name, since) if r.day != today]
+    now = today_score(a, store, name, config.policy)
+    if now is not None:
+        rows.append(now)
+    return OnlineScores.from_days(rows)

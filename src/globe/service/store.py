@@ -1,9 +1,9 @@
 """SQLite persistence of the service: households (map, time zone, training logs), every
 observation, feedback, and the hashes of access tokens.
 
-The schema is created and migrated here (``PRAGMA user_version``; ``application_id`` marks the
-file as GLOBE's). A file that is not a GLOBE database, one written by a newer GLOBE, or one that
-is empty or truncated is refused with a clear message instead of being altered or started anew.
+The schema (:mod:`globe.service.schema`) is created and migrated here. A file that is not a
+GLOBE database, one written by a newer GLOBE, or one that is empty or truncated is refused with a
+clear message instead of being altered or started anew.
 Every accepted observation is committed before the service replies. The database file, its
 write-ahead log and the log's index are watched (see :class:`Store`): if one disappears or is
 replaced while the service runs, what was acknowledged stays durable and later writes fail with
@@ -20,210 +20,33 @@ import os
 import sqlite3
 import threading
 import zlib
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 from globe.data.records import Day, Household, Node
 from globe.errors import DamagedDatabaseError, StoreError, StoreUnavailableError
+from globe.service.schema import (
+    APPLICATION_ID,
+    MIGRATIONS,
+    SCHEMA_VERSION,
+    SCORE_COLUMNS,
+    DayScore,
+    FetchRow,
+    FoundObservation,
+    HouseholdRow,
+    StepPrediction,
+    StoredObservation,
+    TokenRow,
+)
 
 log = logging.getLogger(__name__)
 
-APPLICATION_ID = 0x474C4F42  # "GLOB"
-
-MIGRATIONS: list[str] = [
-    # 1: the first schema
-    """
-    CREATE TABLE households (
-        name TEXT PRIMARY KEY,
-        nodes TEXT NOT NULL,
-        objects TEXT NOT NULL,
-        created_at TEXT NOT NULL
-    );
-    CREATE TABLE training_days (
-        household TEXT NOT NULL REFERENCES households(name),
-        position INTEGER NOT NULL,
-        day TEXT NOT NULL,
-        PRIMARY KEY (household, position)
-    );
-    CREATE TABLE observations (
-        id INTEGER PRIMARY KEY AUTOINCREMENT,
-        household TEXT NOT NULL REFERENCES households(name),
-        time TEXT NOT NULL,
-        activity TEXT NOT NULL,
-        locations TEXT NOT NULL,
-        received_at TEXT NOT NULL
-    );
-    CREATE INDEX observations_by_household ON observations(household, id);
-    """,
-    # 2: what the person said about fetched objects
-    """
-    CREATE TABLE feedback (
-        id INTEGER PRIMARY KEY AUTOINCREMENT,
-        household TEXT NOT NULL REFERENCES households(name),
-        object TEXT NOT NULL,
-        accepted INTEGER NOT NULL,
-        received_at TEXT NOT NULL
-    );
-    """,
-    # 3: time zones, unknown activities, client ids (idempotent retries), quarantine, tokens
-    f"""
-    ALTER TABLE households ADD COLUMN timezone TEXT NOT NULL DEFAULT 'UTC';
-    CREATE TABLE observations_v3 (
-        id INTEGER PRIMARY KEY AUTOINCREMENT,
-        household TEXT NOT NULL REFERENCES households(name),
-        time TEXT NOT NULL,
-        activity TEXT,
-        locations TEXT NOT NULL,
-        received_at TEXT NOT NULL,
-        client_id TEXT,
-        ack TEXT,
-        quarantined INTEGER NOT NULL DEFAULT 0
-    );
-    INSERT INTO observations_v3 (id, household, time, activity, locations, received_at)
-        SELECT id, household, time, activity, locations, received_at FROM observations;
-    DROP TABLE observations;
-    ALTER TABLE observations_v3 RENAME TO observations;
-    CREATE INDEX observations_by_household ON observations(household, id);
-    CREATE UNIQUE INDEX observations_by_client_id ON observations(household, client_id) WHERE client_id IS NOT NULL;
-    CREATE TABLE tokens (
-        id TEXT PRIMARY KEY,
-        hash TEXT NOT NULL UNIQUE,
-        household TEXT,
-        admin INTEGER NOT NULL,
-        created_at TEXT NOT NULL,
-        revoked_at TEXT
-    );
-    PRAGMA application_id = {APPLICATION_ID};
-    """,
-    # 4: shadow mode, online scores (one-step predictions, fetch decisions, per-day scores), the
-    # dashboard's session secret. Households stored before keep acting (shadow 0); new ones start in shadow.
-    """
-    ALTER TABLE households ADD COLUMN shadow INTEGER NOT NULL DEFAULT 0;
-    CREATE TABLE step_predictions (
-        household TEXT NOT NULL REFERENCES households(name),
-        day TEXT NOT NULL,
-        step INTEGER NOT NULL,
-        activity TEXT NOT NULL,
-        probability REAL NOT NULL,
-        observed TEXT,
-        PRIMARY KEY (household, day, step)
-    );
-    CREATE TABLE fetches (
-        id INTEGER PRIMARY KEY AUTOINCREMENT,
-        household TEXT NOT NULL REFERENCES households(name),
-        day TEXT NOT NULL,
-        step INTEGER NOT NULL,
-        object TEXT NOT NULL,
-        to_location TEXT,
-        probability REAL,
-        shadow INTEGER NOT NULL,
-        made_at TEXT NOT NULL
-    );
-    CREATE INDEX fetches_by_day ON fetches(household, day, step);
-    CREATE TABLE day_scores (
-        household TEXT NOT NULL REFERENCES households(name),
-        day TEXT NOT NULL,
-        predictions INTEGER NOT NULL DEFAULT 0,
-        correct INTEGER NOT NULL DEFAULT 0,
-        fetches INTEGER NOT NULL DEFAULT 0,
-        useful_fetches INTEGER NOT NULL DEFAULT 0,
-        uses INTEGER NOT NULL DEFAULT 0,
-        uses_fetched INTEGER NOT NULL DEFAULT 0,
-        PRIMARY KEY (household, day)
-    );
-    CREATE TABLE settings (
-        key TEXT PRIMARY KEY,
-        value TEXT NOT NULL
-    );
-    """,
-]
-SCHEMA_VERSION = len(MIGRATIONS)
-
-
-# a node as stored: dataclasses.asdict's keys, without its deep copies
 _NODE_FIELDS = tuple(f.name for f in fields(Node))
 
 
 def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat()
-
-
-@dataclass(frozen=True, slots=True)
-class HouseholdRow:
-    name: str
-    timezone: str
-    created_at: dt.datetime  # aware (UTC)
-    problem: str | None = None  # why the stored row cannot be read (the household is then served as failed)
-    shadow: bool = False  # predicts and scores itself, but never tells the robot to act
-
-
-@dataclass(frozen=True, slots=True)
-class FoundObservation:
-    """A stored observation found by its client id: its acknowledgement and what it said."""
-
-    id: int
-    ack: dict
-    time: str
-    activity: str | None
-    locations: str  # JSON, keys sorted
-
-
-@dataclass(frozen=True, slots=True)
-class StoredObservation:
-    id: int
-    time: str
-    activity: str | None
-    locations: str  # JSON
-    received_at: str
-
-
-@dataclass(frozen=True, slots=True)
-class StepPrediction:
-    """GLOBE's one-step-ahead prediction for a step, made before the step was observed."""
-
-    step: int
-    activity: str
-    probability: float
-    observed: str | None  # the step's activity once the step closed (None: not yet, or unknown)
-
-
-@dataclass(frozen=True, slots=True)
-class FetchRow:
-    """A fetch GLOBE decided (in shadow mode too: then the robot was not told)."""
-
-    day: str
-    step: int
-    object: str
-    to_location: str | None
-    probability: float | None
-    shadow: bool
-    made_at: str
-
-
-@dataclass(frozen=True, slots=True)
-class DayScore:
-    """One day's online scores: counts, so that days add up."""
-
-    day: str
-    predictions: int = 0
-    correct: int = 0
-    fetches: int = 0
-    useful_fetches: int = 0
-    uses: int = 0
-    uses_fetched: int = 0
-
-
-SCORE_COLUMNS = ("predictions", "correct", "fetches", "useful_fetches", "uses", "uses_fetched")
-
-
-@dataclass(frozen=True, slots=True)
-class TokenRow:
-    id: str
-    household: str | None
-    admin: bool
-    created_at: str
-    revoked_at: str | None
 
 
 SIDE_FILES = ("-wal", "-shm")  # SQLite's write-ahead log and its index, beside the database file

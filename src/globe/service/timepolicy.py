@@ -91,3 +91,10 @@ def check_bounds(time: dt.datetime, *, created: dt.datetime, now: dt.datetime, s
 
 def utcnow() -> dt.datetime:
     return dt.datetime.now(UTC)
+
+
+def check_timezone(name: str | None) -> str:
+    """A valid IANA name (default: the server's zone)."""
+    name = name or server_timezone()
+    zone(name)
+    return name

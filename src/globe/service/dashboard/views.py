@@ -18,8 +18,9 @@ from globe.errors import GlobeError
 from globe.service import scoring, timepolicy
 from globe.service.assistant import OnlineAssistant
 from globe.service.dashboard import svg
-from globe.service.registry import Registry, online_scores
+from globe.service.registry import Registry
 from globe.service.schemas import OnlineScores
+from globe.service.scoring import online_scores
 
 ACTOGRAM_DAYS = 28
 RECENT_STEPS = 12
