@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, field_validator, model_validator
 
 from globe.errors import ConfigError
 
@@ -388,9 +388,10 @@ class MqttConfig(_Section):
         description="broker URL: mqtt://host:port, or mqtts://host:port for TLS (port 1883 / 8883 when left out)",
     )
     username: str | None = Field(None, description="broker user name (None: connect anonymously)")
-    password: str | None = Field(
-        None, repr=False,
-        description="broker password (prefer password_file or GLOBE_MQTT__PASSWORD to a file in clear)",
+    password: SecretStr | None = Field(
+        None,
+        description="broker password (prefer password_file or GLOBE_MQTT__PASSWORD to a file in clear; "
+        "never written out: results' config.json shows it masked)",
     )
     password_file: Path | None = Field(None, description="file whose first line is the broker password")
     ca_file: Path | None = Field(

@@ -185,3 +185,22 @@ def test_the_static_files_are_served_from_the_package(browser):
 def test_dashboard_paths_are_not_in_the_openapi_schema(browser):
     paths = browser.get("/openapi.json").json()["paths"]
     assert "/households/{name}/shadow" in paths and not any(p.startswith("/dashboard") for p in paths)
+
+
+def test_hostile_forms_cookies_and_names_get_a_refusal_never_a_500(browser, home):
+    """Non-ASCII CSRF values and cookies, a form with too many fields, odd static names, a large
+    unauthenticated body and other methods: each is refused in its own words (found in review)."""
+    form = browser.get("/dashboard/login")
+    origin = {"Origin": "http://127.0.0.1"}
+    refused = browser.post("/dashboard/login", data={"csrf": "é", "token": home[2]["A"]}, headers=origin)
+    assert refused.status_code == 403
+    many = {f"f{i}": "x" for i in range(9)} | {"csrf": csrf_of(form.text)}
+    assert browser.post("/dashboard/login", data=many, headers=origin).status_code == 403
+    latin = {"Cookie": SESSION_COOKIE.encode() + b"=\xe9.\xe9"}  # a byte no token or signature has
+    assert browser.get("/dashboard/households/A", headers=latin).status_code == 303  # log in again
+    for name in ("a%00.css", "x" * 300 + ".css", "..%2Fstore.py", "dashboard.html"):
+        assert browser.get(f"/dashboard/static/{name}").status_code == 404, name
+    big = browser.post("/dashboard/login", content=b"token=" + b"x" * 20_000,
+                       headers=origin | {"Content-Type": "application/x-www-form-urlencoded"})
+    assert big.status_code == 413  # refused by its declared length: nothing buffered
+    assert browser.put("/dashboard/login", content=b"x").status_code == 405

@@ -36,14 +36,20 @@ def test_the_first_llm_prediction_after_a_start_does_not_wait_for_the_model(make
     h = households["A"]
     with srv.client() as c:
         upload(c, "A", h)
-        seconds, first, _ = observe_until_consulted(c, h)
+        seconds, first, t = observe_until_consulted(c, h)
         print(f"first LLM-consulting prediction after the start: {seconds * 1000:.0f} ms "
               f"(llm_fallback {first.llm_fallback}, model {httpx.get(srv.url + '/health').json()['llm']})")
         assert seconds < 3.0, seconds
         assert first.llm_fallback in (None, "LLMUnavailableError")
+        assert c.prediction("A") == first  # a step's prediction is decided once
         wait_for_llm(srv.url)
-        answered = [c.prediction("A") for _ in range(3)]
-        assert all(p.llm_consulted and p.llm_fallback is None for p in answered), answered
+        day = h.test[0]
+        for u in range(t + 1, t + 40):  # the next steps, decided with the model loaded
+            c.observe("A", at(0, day.minutes[u]), day.activities[u], dict(zip(h.objects, day.locations[u])))
+            answered = c.prediction("A")
+            if answered.llm_consulted:
+                break
+        assert answered.llm_consulted and answered.llm_fallback is None, answered
 
 
 def test_the_embedded_answer_has_a_time_limit(make_server, households, tmp_path):

@@ -122,6 +122,9 @@ def test_mqtt_is_off_by_default_and_its_section_is_checked(tmp_path):
     with pytest.raises(ConfigError, match="port"):
         broker_address("mqtt://broker:99999")
     assert "secret" not in repr(MqttConfig(password="secret"))
+    configured = load_config(overrides={"mqtt.password": "secret"}, environ={})
+    assert "secret" not in json.dumps(configured.model_dump(mode="json"))  # what results' config.json holds
+    assert configured.with_overrides({"gate.threshold": 0.3}).mqtt.password.get_secret_value() == "secret"
 
 
 def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():

@@ -2,6 +2,7 @@
 act until an admin switches shadow off (HTTP or CLI); the scores follow the offline definitions
 and survive a restart; a database of the previous schema migrates with its households acting."""
 
+import datetime as dt
 import json
 import sqlite3
 
@@ -13,7 +14,7 @@ from globe.config import PolicyConfig
 from globe.evaluation.fetch import score_fetches, use_steps
 from globe.service.schema import MIGRATIONS, SCHEMA_VERSION
 from globe.service.store import Store
-from tests.service.dashboard_helpers import app_client, create, observe_days, tokens
+from tests.service.dashboard_helpers import BASE, app_client, create, observe_days, tokens
 
 pytestmark = pytest.mark.service
 
@@ -119,9 +120,64 @@ def test_a_schema_3_database_migrates_with_its_households_acting(tmp_path, house
                 "2026-01-01T00:00:00+00:00", "UTC"))
     db.close()
     store = Store(path)
-    assert store.version == SCHEMA_VERSION == 4
+    assert store.version == SCHEMA_VERSION == 5
     assert store.household("B").shadow is False and store.shadow("B") is False  # it acted before: it still does
     store.add_household(h.__class__("C", h.nodes, h.objects, (), (), ""), "UTC", [])
     assert store.household("C").shadow is True  # a new home starts in shadow
     assert store.day_scores("B", "0000") == []
     store.close()
+
+
+def test_a_step_has_one_decision_however_often_it_is_asked(tmp_path, households):
+    """The robot polling and Home Assistant's publisher ask for the same step's prediction: each
+    gets the same answer, and a fetch is decided and recorded once (found in review)."""
+    db = tmp_path / "globe.sqlite3"
+    admin, _ = tokens(db, "A")
+    h, day = households["A"], households["A"].test[0]
+    with app_client(db, admin) as c:
+        create(c, "A", h)
+        c.put("/households/A/shadow", json={"shadow": False})
+        asked = []
+        for t in range(60):
+            time = BASE + dt.timedelta(minutes=day.minutes[t])
+            c.post("/households/A/observations", json={"time": time.isoformat(), "activity": day.activities[t],
+                                                       "locations": dict(zip(h.objects, day.locations[t]))})
+            first, again = (c.get("/households/A/prediction").json() for _ in range(2))
+            assert again == first
+            asked.append(first)
+        store = Store(db)
+        stored = [(f.step, f.object) for f in store.fetches("A", asked[-1]["day"])]
+        store.close()
+    decided = sum(p["fetch_object"] is not None for p in asked)
+    assert decided > 0 and len(stored) == decided  # asked twice each step, each decision stored once
+
+
+def test_a_day_restarted_by_a_long_gap_is_not_counted_twice_after_a_restart(tmp_path, households):
+    """A gap longer than service.max_gap_steps restarts the day: the fetches before it are
+    counted then, and a rebuild must not count them again (found in review)."""
+    from fastapi.testclient import TestClient
+
+    from globe.service.app import create_app
+    from tests.service.dashboard_helpers import config
+
+    db = tmp_path / "globe.sqlite3"
+    admin, _ = tokens(db, "A")
+    h, day = households["A"], households["A"].test[0]
+    cfg = config(db).with_overrides({"service.max_gap_steps": 3})
+
+    def client() -> TestClient:
+        return TestClient(create_app(cfg), base_url="http://127.0.0.1", headers={"Authorization": f"Bearer {admin}"})
+
+    with client() as c:
+        create(c, "A", h)
+        c.put("/households/A/shadow", json={"shadow": False})
+        for t in [*range(0, 40), *range(50, 75)]:  # ten steps missing: the day restarts at step 50
+            time = BASE + dt.timedelta(minutes=day.minutes[t])
+            c.post("/households/A/observations", json={"time": time.isoformat(), "activity": day.activities[t],
+                                                       "locations": dict(zip(h.objects, day.locations[t]))})
+            c.get("/households/A/prediction")
+        before = c.get("/households/A/stats").json()["scores"]
+    with client() as c:
+        after = c.get("/households/A/stats").json()["scores"]
+    assert before["days"][-1]["fetches"] > 0
+    assert after == before

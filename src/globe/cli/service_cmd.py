@@ -40,7 +40,8 @@ def serve(
     from globe.errors import DamagedDatabaseError
     from globe.service import server
     from globe.service.app import create_app
-    from globe.service.store import Store, set_aside_database
+    from globe.service.dbfile import set_aside_database
+    from globe.service.store import Store
 
     try:
         Store(cfg.service.database).close()  # refuse a foreign, newer or damaged database here, with a clear message

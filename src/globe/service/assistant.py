@@ -97,6 +97,7 @@ class OnlineAssistant:
                 starts.setdefault(n.cls, []).append(self._locations[n.start_location])
         self._start = tuple(loc for o in household.objects for loc in starts.get(o, ()))
         self.observations = 0
+        self._prediction: tuple[tuple, Prediction] | None = None  # the decision of the current state
         self.feedback = {"accepted": 0, "refused": 0}
         self.fallbacks: Counter[str] = Counter()
         self.quarantined = 0
@@ -309,8 +310,24 @@ class OnlineAssistant:
     def status(self) -> str:
         return "ready" if self.days_learned > 0 else "learning"
 
+    @property
+    def last_prediction(self) -> Prediction | None:
+        """The prediction already decided for the current state of the day, if any."""
+        key = (self._day_key, len(self._slots), self.observations, self.days_learned)
+        return self._prediction[1] if self._prediction is not None and self._prediction[0] == key else None
+
     def predict(self) -> Prediction:
-        """Next activity, the object likely needed, and whether the robot should act."""
+        """Next activity, the object likely needed, and whether the robot should act: decided once
+        per state of the day, so every caller (the robot polling, Home Assistant's publisher) gets
+        the same answer and a fetch is decided once, until the next observation."""
+        decided = self.last_prediction
+        if decided is not None:
+            return decided
+        prediction = self._decide()
+        self._prediction = ((self._day_key, len(self._slots), self.observations, self.days_learned), prediction)
+        return prediction
+
+    def _decide(self) -> Prediction:
         step = len(self._slots)
         day = self._day_key or ""
         nothing = Prediction(status=self.status, days_learned=self.days_learned, day=day, step=step, activity=None,

@@ -24,6 +24,8 @@ PUBLIC_PATHS = frozenset({"/health", "/openapi.json", "/docs", "/docs/oauth2-red
 DASHBOARD = "/dashboard"
 """The dashboard's paths: a browser sends no Authorization header, its session cookie is checked by
 :mod:`globe.service.routes.dashboard` (the Host allow-list and the body limits still apply here)."""
+DASHBOARD_FORM_BYTES = 8192
+"""The largest body a dashboard form may post: its forms are read before anyone is known."""
 
 
 def printable(text: str) -> str:
@@ -80,8 +82,13 @@ class Guard:
             except GlobeError as err:
                 await refuse(err.http_status, str(err), err.field, dict(err.http_headers))
                 return
+        if dashboard and scope["method"] not in ("GET", "HEAD", "POST"):
+            await refuse(405, f"{scope['method'][:16]} is not a method of the dashboard", None)
+            return
         creating = scope["method"] == "POST" and scope["path"].rstrip("/") == "/households"
-        limit = self.household_limit if creating else self.limit
+        # The dashboard's forms are read before anyone is known (the login form carries the token):
+        # a few KiB at most, so an unauthenticated client cannot make the service buffer more.
+        limit = self.household_limit if creating else DASHBOARD_FORM_BYTES if dashboard else self.limit
         if declared is not None:
             if not declared.isdigit():
                 await refuse(400, "malformed Content-Length", "body")

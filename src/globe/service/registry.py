@@ -490,9 +490,10 @@ class Registry:
         with self._held(name) as held:
             a = held.assistant
             assert a is not None
+            decided = a.last_prediction
             p = a.predict()
             shadow = self.store.shadow(name)
-            if p.fetch_object is not None:
+            if p.fetch_object is not None and p is not decided:  # a new decision: recorded once
                 step = scoring.record_fetch(a, p.fetch_object, self.config.policy)
                 if step is not None and a.day is not None:
                     try:

@@ -115,6 +115,11 @@ MIGRATIONS: list[str] = [
         value TEXT NOT NULL
     );
     """,
+    # 5: a fetch already counted in day_scores (a long gap restarts the day: the fetches before it
+    # are settled then, and a rebuild must not count them again)
+    """
+    ALTER TABLE fetches ADD COLUMN settled INTEGER NOT NULL DEFAULT 0;
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 

@@ -58,6 +58,7 @@ def before_observe(name: str, a: OnlineAssistant, place: Placement, policy: Poli
                                                             useful_fetches=report.useful_fetches,
                                                             uses=report.used_objects,
                                                             uses_fetched=report.used_fetched_in_advance))
+            out.statements += Store.segment_closed_statements(name, day)
     if place.day == day and place.step == a.steps_today and place.step > 0:
         top = a.next_activity()
         if top is not None:

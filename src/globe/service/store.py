@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 from globe.data.records import Day, Household, Node
-from globe.errors import DamagedDatabaseError, StoreError, StoreUnavailableError
+from globe.errors import StoreError, StoreUnavailableError
+from globe.service.dbfile import SIDE_FILES, check_database_file
 from globe.service.schema import (
     APPLICATION_ID,
     MIGRATIONS,
@@ -47,53 +48,6 @@ _NODE_FIELDS = tuple(f.name for f in fields(Node))
 
 def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat()
-
-
-SIDE_FILES = ("-wal", "-shm")  # SQLite's write-ahead log and its index, beside the database file
-
-
-def check_database_file(path: Path) -> None:
-    """Refuse, before SQLite opens it, a database file that cannot hold what was stored: a
-    folder, an empty file (SQLite would start an empty database in it, and every robot's token
-    would be unknown), or a file shorter than its own header says (truncated)."""
-    path = Path(path)
-    if path.is_dir():
-        raise StoreError(f"{path}: is a folder; --db names the database file (e.g. {path / 'globe.sqlite3'})")
-    try:
-        size = path.stat().st_size
-        with open(path, "rb") as fh:
-            header = fh.read(100)
-    except FileNotFoundError:
-        return  # a new database
-    except OSError as err:
-        raise StoreError(f"{path}: cannot read the database file: {err.strerror or err}") from err
-    fix = "restore it from a backup, or start a new database with --new-db (the file is kept beside it)"
-    if size == 0:
-        raise DamagedDatabaseError(f"{path}: the database file is empty (0 bytes): a database that was truncated, or a "
-                                   f"file another program created; {fix}")
-    if not header.startswith(b"SQLite format 3\x00"):
-        return  # not SQLite at all: the identity check says so
-    if size < 100:
-        raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes, shorter than its header); "
-                                   f"{fix}")
-    page_size = int.from_bytes(header[16:18], "big")
-    page_size = 65536 if page_size == 1 else page_size
-    pages, changes, valid_for = (int.from_bytes(header[i:i + 4], "big") for i in (28, 24, 92))
-    if pages and changes == valid_for and size < page_size * pages:
-        raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes; its header says "
-                                   f"{page_size * pages}); {fix}")
-
-
-def set_aside_database(path: Path) -> Path:
-    """Rename a damaged database file (and its side files) to ``<name>.damaged-<time>``, so that a
-    new one can start in its place; returns the new name."""
-    path = Path(path)
-    target = path.with_name(f"{path.name}.damaged-{dt.datetime.now().strftime('%Y%m%dT%H%M%S')}")
-    for suffix in ("", *SIDE_FILES):
-        source = Path(str(path) + suffix)
-        if source.exists():
-            source.replace(Path(str(target) + suffix))
-    return target
 
 
 class Store:
@@ -452,6 +406,13 @@ class Store:
             "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             (household, day, step, obj, to_location, probability, int(shadow), _now()))])
 
+    @staticmethod
+    def segment_closed_statements(household: str, day: str) -> list[tuple[str, tuple]]:
+        """A day's fetches counted (its scores are written in the same transaction) and its step
+        predictions dropped: a long gap restarts the day, whose steps are then counted anew."""
+        return [("UPDATE fetches SET settled = 1 WHERE household = ? AND day = ?", (household, day)),
+                ("DELETE FROM step_predictions WHERE household = ? AND day = ?", (household, day))]
+
     def settle(self, what: str, statements: Sequence[tuple[str, tuple]]) -> None:
         """Write derived rows (scores) in one transaction."""
         if statements:
@@ -463,8 +424,9 @@ class Store:
         return [StepPrediction(*r) for r in rows]
 
     def fetches(self, household: str, day: str) -> list[FetchRow]:
+        """The fetches decided since the day (re)started and not yet counted in its scores."""
         rows = self._read("SELECT day, step, object, to_location, probability, shadow, made_at FROM fetches "
-                          "WHERE household = ? AND day = ? ORDER BY id", (household, day))
+                          "WHERE household = ? AND day = ? AND settled = 0 ORDER BY id", (household, day))
         return [FetchRow(d, s, o, t, p, bool(sh), m) for d, s, o, t, p, sh, m in rows]
 
     def day_scores(self, household: str, since: str) -> list[DayScore]:

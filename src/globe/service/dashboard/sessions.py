@@ -65,7 +65,7 @@ class Sessions:
         if not value or value.count(".") != 1 or len(value) > 512:
             return None
         body, mac = value.split(".")
-        if not hmac.compare_digest(mac, self._sign("session", body)):
+        if not _same(mac, self._sign("session", body)):
             return None
         try:
             token_id, expires, nonce = _unb64(body).decode().split("|")
@@ -89,7 +89,7 @@ class Sessions:
         return self._sign("csrf", session.nonce)
 
     def check_csrf(self, session: Session, sent: str | None) -> bool:
-        return bool(sent) and hmac.compare_digest(str(sent), self.csrf(session))
+        return bool(sent) and _same(str(sent), self.csrf(session))
 
     def login_pair(self) -> tuple[str, str]:
         """(cookie value, form value) of the login form's double-submit CSRF token."""
@@ -97,7 +97,13 @@ class Sessions:
         return nonce, self._sign("login", nonce)
 
     def check_login(self, cookie: str | None, sent: str | None) -> bool:
-        return bool(cookie) and bool(sent) and hmac.compare_digest(str(sent), self._sign("login", str(cookie)))
+        return bool(cookie) and bool(sent) and _same(str(sent), self._sign("login", str(cookie)))
+
+
+def _same(sent: str, expected: str) -> bool:
+    """A constant-time comparison of what a client sent (any text: non-ASCII is simply unequal,
+    never an error) with what the server expects."""
+    return hmac.compare_digest(sent.encode("utf-8", "surrogatepass"), expected.encode("utf-8"))
 
 
 __all__ = ["LOGIN_COOKIE", "SESSION_COOKIE", "Session", "Sessions"]

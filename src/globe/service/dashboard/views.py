@@ -165,7 +165,8 @@ def fetches_today(registry: Registry, name: str, a: OnlineAssistant) -> list[dic
                 used.add(i)
                 said = "accepted" if accepted else "refused"
                 break
-        when = _clock(a.day_start_minute + f.step * a.step_minutes)
+        # f.step indexes today's steps (a day may start late or skip a gap): its slot gives the time
+        when = _clock(a.step_minute(f.step)) if 0 <= f.step < a.steps_today else "–"
         out.append({"time": when, "object": f.object, "to": f.to_location,
                     "probability": f.probability, "shadow": f.shadow, "feedback": said})
     return out

@@ -63,7 +63,7 @@ def broker_address(url: str) -> tuple[str, int, bool]:
 
 def _password(config: MqttConfig) -> str | None:
     if config.password_file is None:
-        return config.password
+        return None if config.password is None else config.password.get_secret_value()
     try:
         lines = Path(config.password_file).read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as err:

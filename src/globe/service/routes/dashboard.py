@@ -23,6 +23,7 @@ from globe.service import auth
 from globe.service.dashboard import views
 from globe.service.dashboard.sessions import LOGIN_COOKIE, SESSION_COOKIE, Session, Sessions
 from globe.service.deps import RegistryDep
+from globe.service.guard import DASHBOARD_FORM_BYTES
 from globe.service.registry import Registry
 
 router = APIRouter(include_in_schema=False)
@@ -37,7 +38,8 @@ SECURITY_HEADERS = {
     "Cross-Origin-Opener-Policy": "same-origin",
 }
 STATIC_TYPES = {".css": "text/css; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".svg": "image/svg+xml"}
-MAX_FORM_BYTES = 8192
+STATIC_FILES = frozenset({"dashboard.css", "dashboard.js", "favicon.svg"})  # nothing else is served
+MAX_FORM_BYTES = DASHBOARD_FORM_BYTES
 
 
 def sessions(request: Request) -> Sessions:
@@ -99,7 +101,10 @@ async def form(request: Request) -> dict[str, str]:
     body = await request.body()
     if len(body) > MAX_FORM_BYTES:
         raise PermissionError("form too large")
-    return {k: v[0] for k, v in parse_qs(body.decode("utf-8", "replace"), max_num_fields=8).items()}
+    try:
+        return {k: v[0] for k, v in parse_qs(body.decode("utf-8", "replace"), max_num_fields=8).items()}
+    except ValueError:  # more fields than any of the dashboard's forms has
+        raise PermissionError("malformed form") from None
 
 
 def _cookie(response: Response, request: Request, name: str, value: str, max_age: int,
@@ -234,12 +239,9 @@ async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDe
 @router.get("/dashboard/static/{file}")
 async def static(file: str) -> Response:
     """The dashboard's own script, style sheet and icon (shipped in the package)."""
-    suffix = file[file.rfind("."):] if "." in file else ""
-    if suffix not in STATIC_TYPES or "/" in file or file.startswith("."):
+    if file not in STATIC_FILES:  # a fixed list: no name from the request reaches the file system
         return Response("not found", status_code=404, media_type="text/plain")
-    try:
-        body = resources.files("globe.service.dashboard").joinpath("static", file).read_bytes()
-    except (FileNotFoundError, IsADirectoryError):
-        return Response("not found", status_code=404, media_type="text/plain")
+    suffix = file[file.rfind("."):]
+    body = resources.files("globe.service.dashboard").joinpath("static", file).read_bytes()
     return Response(body, media_type=STATIC_TYPES[suffix],
                     headers={"Cache-Control": "max-age=300", "X-Content-Type-Options": "nosniff"})
