@@ -199,8 +199,12 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
         # Which activity a use is credited to depends on how the log was made (HOMER+'s rows: the
         # step before; an imported sensor log: the step itself): scored through the protocol, with
         # the chosen models, so the activity a use is credited to must itself be predicted.
+        measured = dict(zip((frozen_params(c) for c, _ in obj.scores), obj.metrics))
+
         def alignment_measure(params: dict[str, Any]) -> dict[str, float]:
             chosen = params["alignment"]
+            if chosen == alignment:  # the object search has just scored the chosen models so
+                return measured[frozen_params(obj.best)]
 
             def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
                 activity = fitted_activity(h, fold, models, chosen, memo, step)
