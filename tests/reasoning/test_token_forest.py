@@ -102,7 +102,8 @@ def test_big_forests_over_many_batches_score_like_nodes_alone(embedded_llm, seed
             text = f"While {activity}, the person used the {used}. Next, the person used the"
             prompt = tuple(rt.tokenize(text, True))
             requests.append(Request(prompt, tuple(rng.sample(tails, rng.randint(1, len(tails))))))
-    assert any(len(_split(r, rt.cells)) > 1 for r in requests)  # some need several forests
+    requests.append(Request(requests[0].prompt, tuple(rng.sample(tails, len(tails)))))  # every tail: > 64 leaves
+    assert any(len(_split(r, rt.cells)) > 1 for r in requests)  # some need several forests (whatever the seed)
     with rt.lock:
         decodes = rt.decodes
         batched = rt.score(requests)
