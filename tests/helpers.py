@@ -1,6 +1,7 @@
 """Small helpers shared by tests."""
 
 import socket
+from typing import NoReturn
 
 
 def free_port() -> int:
@@ -24,7 +25,7 @@ def enumerate_paths(model, history, steps: int) -> list[tuple[float, tuple[str, 
     return out
 
 
-def absent(message: str) -> None:
+def absent(message: str) -> NoReturn:
     """What a test does when something it needs outside Python is missing: skip, saying what to
     install, on a developer's machine; fail under ``CI=true`` (CI installs everything: its absence
     there is a broken set-up, not a skip)."""
@@ -56,3 +57,18 @@ def results_folder(*parts: str):
     folder = root.joinpath(*parts)
     folder.mkdir(parents=True, exist_ok=True)
     return folder
+
+
+def database_at_schema(path, version: int):
+    """A service database created by the first ``version`` migrations (as an older GLOBE left it):
+    an open sqlite3 connection in autocommit mode, to fill with that schema's rows."""
+    import sqlite3
+
+    from globe.service.schema import MIGRATIONS
+
+    db = sqlite3.connect(path, isolation_level=None)
+    for number, script in enumerate(MIGRATIONS[:version], start=1):
+        for statement in filter(str.strip, script.split(";")):
+            db.execute(statement)
+        db.execute(f"PRAGMA user_version = {number}")
+    return db

@@ -29,7 +29,6 @@ def system_binary(path: str, package: str) -> str:
     if found:
         return found
     absent(f"{path} is missing: install Debian's {package} package (sudo apt-get install {package})")
-    raise AssertionError("unreachable")
 
 
 class Mosquitto:

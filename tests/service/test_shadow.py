@@ -4,7 +4,6 @@ and survive a restart; a database of the previous schema migrates with its house
 
 import datetime as dt
 import json
-import sqlite3
 
 import pytest
 from typer.testing import CliRunner
@@ -12,8 +11,9 @@ from typer.testing import CliRunner
 from globe.cli.main import app
 from globe.config import PolicyConfig
 from globe.evaluation.fetch import score_fetches, use_steps
-from globe.service.schema import MIGRATIONS, SCHEMA_VERSION
+from globe.service.schema import SCHEMA_VERSION
 from globe.service.store import Store
+from tests.helpers import database_at_schema
 from tests.service.dashboard_helpers import BASE, app_client, create, observe_days, tokens
 
 pytestmark = pytest.mark.service
@@ -108,11 +108,7 @@ def test_the_scores_survive_a_restart(scored):
 
 def test_a_schema_3_database_migrates_with_its_households_acting(tmp_path, households):
     path = tmp_path / "old.sqlite3"
-    db = sqlite3.connect(path, isolation_level=None)
-    for number, script in enumerate(MIGRATIONS[:3], start=1):
-        for statement in filter(str.strip, script.split(";")):
-            db.execute(statement)
-        db.execute(f"PRAGMA user_version = {number}")
+    db = database_at_schema(path, 3)
     h = households["B"]
     db.execute("INSERT INTO households (name, nodes, objects, created_at, timezone) VALUES (?, ?, ?, ?, ?)",
                ("B", json.dumps([{"node": n.node, "cls": n.cls, "category": n.category, "movable": n.movable,

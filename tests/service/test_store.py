@@ -3,23 +3,19 @@ are stored compactly and read back identically."""
 
 import datetime as dt
 import json
-import sqlite3
 from dataclasses import asdict
 
 from globe.config import GlobeConfig
 from globe.service.registry import Registry
-from globe.service.schema import APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION
+from globe.service.schema import APPLICATION_ID, SCHEMA_VERSION
 from globe.service.store import Store
+from tests.helpers import database_at_schema
 
 
 def test_a_schema_2_database_migrates_and_replays(tmp_path, households):
     h = households["B"]
     path = tmp_path / "old.sqlite3"
-    db = sqlite3.connect(path, isolation_level=None)
-    for number, script in enumerate(MIGRATIONS[:2], start=1):
-        for statement in filter(str.strip, script.split(";")):
-            db.execute(statement)
-        db.execute(f"PRAGMA user_version = {number}")
+    db = database_at_schema(path, 2)
     created = (dt.datetime.now(dt.timezone.utc) - dt.timedelta(days=30)).isoformat()
     nodes = json.dumps([asdict(n) for n in h.nodes])
     db.execute("INSERT INTO households VALUES (?, ?, ?, ?)", ("B", nodes, json.dumps(h.objects), created))

@@ -68,15 +68,20 @@ class AnticipationScores:
                 for m, (n, a) in self.next_activity.items()]
 
 
-def time_of_day(train: Sequence[Day]) -> list[Counter[str]]:
-    """How often each activity was seen at each step of the training days."""
+def time_of_day(train: Sequence[Day]) -> list[dict[str, float]]:
+    """The share of training days on which each activity was seen, at each step."""
     counts: list[Counter[str]] = []
     for day in train:
         for t, a in enumerate(day.activities):
             if t == len(counts):
                 counts.append(Counter())
             counts[t][a] += 1
-    return counts
+    return [{a: c / sum(seen.values()) for a, c in seen.items()} for seen in counts]
+
+
+def at_step(by_step: list[dict[str, float]], step: int) -> dict[str, float]:
+    """The time-of-day distribution at ``step`` (empty past the training days' last step)."""
+    return by_step[step] if step < len(by_step) else {}
 
 
 def _top(dist: dict[str, float]) -> str:
@@ -110,9 +115,7 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
             row = marginals[q, j - 1]
             total = row.sum()
             mine = {labels[i]: float(p / total) for i, p in enumerate(row.tolist()) if p > 0} if total > 0 else {}
-            seen = by_step[r + j] if r + j < len(by_step) else Counter()
-            n = sum(seen.values())
-            tod = {a: c / n for a, c in seen.items()} if n else {}
+            tod = at_step(by_step, r + j)
             dists = [mine, {day.activities[r]: 1.0}, tod]
             if blend is not None:
                 w = blend[j - 1]
@@ -128,7 +131,7 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
                               _next_activity(space, test, by_step, method))
 
 
-def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[Counter[str]],
+def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[dict[str, float]],
                    method: str) -> dict[str, tuple[int, float]]:
     """Accuracy of the next different activity at every change event of ``test``."""
     events = []
@@ -152,7 +155,7 @@ def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[Counter
         mine = {labels[i]: float(p) for i, p in enumerate(row.tolist()) if p > 0}
         hits[method] += _top(mine) == truth
         here = day.activities[r]
-        modes = (_top(dict(by_step[t])) for t in range(r + 1, min(len(day), len(by_step))))
+        modes = (_top(by_step[t]) for t in range(r + 1, min(len(day), len(by_step))))
         hits["time_of_day"] += next((a for a in modes if a != here), None) == truth
         # persistence never expects a change: it has no next different activity (a miss)
     return {m: (len(events), h / len(events)) for m, h in hits.items()}
@@ -186,8 +189,7 @@ def blend_weights(household: Household, models: ModelConfig, step_minutes: int, 
                 truth, total = day.activities[r + j], totals[q, j - 1]
                 if truth in index and total > 0:
                     p_model[q] = marginals[q, j - 1, index[truth]] / total
-                seen = by_step[r + j] if r + j < len(by_step) else Counter()
-                p_time[q] = seen[truth] / sum(seen.values()) if seen else 0.0
+                p_time[q] = at_step(by_step, r + j).get(truth, 0.0)
             mixed = np.outer(p_model, 1 - weights) + np.outer(p_time, weights)
             losses[j - 1] -= np.log(np.maximum(mixed, LOG_LOSS_FLOOR)).sum(axis=0)
     return tuple(float(best_of([(w, -losses[j, i]) for i, w in enumerate(BLEND_WEIGHTS)])) for j in range(steps))

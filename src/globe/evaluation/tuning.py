@@ -181,15 +181,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     models = cfg.models.model_copy(update=base | act.best)
 
     def object_measure(params: dict[str, Any]) -> dict[str, float]:
-        candidate = models.model_copy(update=params)
-
-        def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
-            activity = fitted_activity(h, fold, candidate, alignment, memo, step)
-            objects = fitted_objects(h, fold, candidate, alignment, memo)
-            chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=candidate.object_marginal)
-            return object_scores(h, days, activity, chooser, alignment, _rankings(memo, fold, candidate, alignment))
-
-        return mean_over_folds(h, sel.folds, score_fold)
+        return object_cv_scores(h, cfg, models.model_copy(update=params), alignment, memo, step)
 
     obj = select_by(grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token}),
                     object_measure, sel.object_criterion)
@@ -199,26 +191,31 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
         # Which activity a use is credited to depends on how the log was made (HOMER+'s rows: the
         # step before; an imported sensor log: the step itself): scored through the protocol, with
         # the chosen models, so the activity a use is credited to must itself be predicted.
-        measured = dict(zip((frozen_params(c) for c, _ in obj.scores), obj.metrics))
+        best = obj.metrics[[c for c, _ in obj.scores].index(obj.best)]
 
         def alignment_measure(params: dict[str, Any]) -> dict[str, float]:
-            chosen = params["alignment"]
-            if chosen == alignment:  # the object search has just scored the chosen models so
-                return measured[frozen_params(obj.best)]
-
-            def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
-                activity = fitted_activity(h, fold, models, chosen, memo, step)
-                objects = fitted_objects(h, fold, models, chosen, memo)
-                chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=models.object_marginal)
-                return object_scores(h, days, activity, chooser, chosen, _rankings(memo, fold, models, chosen))
-
-            return mean_over_folds(h, sel.folds, score_fold)
+            if params["alignment"] == alignment:  # the object search has just scored these models so
+                return best
+            return object_cv_scores(h, cfg, models, params["alignment"], memo, step)
 
         tried = [{"alignment": a} for a in dict.fromkeys((alignment, *sel.alignments))]
         selections["alignment"] = select_by(tried, alignment_measure, sel.object_criterion)
     out = (models, selections)
     memo.put(key, out)
     return out
+
+
+def object_cv_scores(h: Household, cfg: GlobeConfig, models: ModelConfig, alignment: str, memo: Memo,
+                     step: int) -> dict[str, float]:
+    """The object model's log loss and weighted F1 under the full protocol (predicted activity),
+    mean over the folds of the training days, for ``models`` counted with ``alignment``."""
+    def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
+        activity = fitted_activity(h, fold, models, alignment, memo, step)
+        objects = fitted_objects(h, fold, models, alignment, memo)
+        chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=models.object_marginal)
+        return object_scores(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment))
+
+    return mean_over_folds(h, cfg.selection.folds, score_fold)
 
 
 def chosen_alignment(selections: Mapping[str, Selection], cfg: GlobeConfig) -> Alignment:

@@ -214,7 +214,7 @@ class OnlineAssistant:
         """The next-activity distribution given the day so far. With every label known, the
         activity model's own; otherwise a forward filter over the activities the unknown steps
         may have had, given the time and the objects seen moving (never a guess taken as truth)."""
-        key = (self._day_key, len(self._slots), self.observations, self.days_learned)
+        key = self._state()
         if self._belief is not None and self._belief[0] == key:
             return self._belief[1]
         belief = self._compute_belief()
@@ -310,11 +310,14 @@ class OnlineAssistant:
     def status(self) -> str:
         return "ready" if self.days_learned > 0 else "learning"
 
+    def _state(self) -> tuple:
+        """What the predictions depend on: the day, its steps, the observations and the days learned."""
+        return (self._day_key, len(self._slots), self.observations, self.days_learned)
+
     @property
     def last_prediction(self) -> Prediction | None:
         """The prediction already decided for the current state of the day, if any."""
-        key = (self._day_key, len(self._slots), self.observations, self.days_learned)
-        return self._prediction[1] if self._prediction is not None and self._prediction[0] == key else None
+        return self._prediction[1] if self._prediction is not None and self._prediction[0] == self._state() else None
 
     def predict(self) -> Prediction:
         """Next activity, the object likely needed, and whether the robot should act: decided once
@@ -324,7 +327,7 @@ class OnlineAssistant:
         if decided is not None:
             return decided
         prediction = self._decide()
-        self._prediction = ((self._day_key, len(self._slots), self.observations, self.days_learned), prediction)
+        self._prediction = (self._state(), prediction)
         return prediction
 
     def _decide(self) -> Prediction:

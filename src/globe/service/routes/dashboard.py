@@ -39,7 +39,6 @@ SECURITY_HEADERS = {
 }
 STATIC_TYPES = {".css": "text/css; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".svg": "image/svg+xml"}
 STATIC_FILES = frozenset({"dashboard.css", "dashboard.js", "favicon.svg"})  # nothing else is served
-MAX_FORM_BYTES = DASHBOARD_FORM_BYTES
 
 
 def sessions(request: Request) -> Sessions:
@@ -99,7 +98,7 @@ async def form(request: Request) -> dict[str, str]:
     if origin is not None and urlsplit(origin).netloc.lower() != request.headers.get("host", "").lower():
         raise PermissionError("cross-origin form post refused")
     body = await request.body()
-    if len(body) > MAX_FORM_BYTES:
+    if len(body) > DASHBOARD_FORM_BYTES:
         raise PermissionError("form too large")
     try:
         return {k: v[0] for k, v in parse_qs(body.decode("utf-8", "replace"), max_num_fields=8).items()}
