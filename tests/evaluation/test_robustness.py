@@ -42,3 +42,29 @@ def test_suite_scores_all_and_routine_events(setup, tmp_path):
     assert {(r["definition"], r["consistency"]) for r in res.consistency} == {
         (d, g) for d in ("start_time", "object_sequence") for g in ("more", "moderate", "less")}
     assert sorted(r["train_level"] for r in res.train_level) == [0.5, 1.0]
+
+
+def test_noisy_copies_keep_the_clean_homes_alignment(setup, monkeypatch):
+    """Which activity a movement is credited to is chosen on the clean home; its noisy copies are
+    logged the same way and are not searched again (only their models are)."""
+    import globe.evaluation.robustness as robustness
+    from globe.evaluation.selection import Memo
+    from globe.evaluation.tuning import chosen_alignment, tuned_models
+
+    cfg, small, root = setup
+    memo = Memo()
+    fixed = robustness.clean_alignments(cfg, [small], ("routine",), memo)
+    assert fixed == {"C": chosen_alignment(tuned_models(small, cfg, "routine", memo)[1], cfg)}
+    seen = []
+    real = robustness.precompute_selections
+
+    def spy(config, households, families, memo, config_for=None):
+        seen.extend((h, config_for(h) if config_for else config) for h in households)
+        return real(config, households, families, memo, config_for)
+
+    monkeypatch.setattr(robustness, "precompute_selections", spy)
+    run_suite(cfg, [small], root, None, methods=("routine",), memo=memo)
+    noisy = [(h, c) for h, c in seen if h is not small]
+    assert noisy and all(c.selection.alignments == (fixed["C"],) and c.sequences.alignment == fixed["C"]
+                         for _, c in noisy)
+    assert all(c is cfg for h, c in seen if h is small)  # the clean home itself is searched as configured

@@ -89,7 +89,7 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
         for fold in data_folds(h, 3):
             train, held_out = fold_days(h, fold)
             held_out_days = [d.activities for d in held_out]
-            shared = activity_f1(fitted_activity(h, fold, models, "previous", memo, 10), held_out_days)
+            shared = activity_f1(fitted_activity(h, fold, models, memo, 10), held_out_days)
             alone = assembly.activity_model(models, 10).fit([d.activities for d in train])
             assert shared == activity_f1(alone, held_out_days)  # type: ignore[arg-type]
     counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")

@@ -67,6 +67,16 @@ def test_recent_runs_follow_new_runs_and_new_fits():
     assert m.recent_runs("eat", 2) == (("spoon",), ("fork",))
 
 
+def test_remembered_distributions_follow_learning():
+    """Distributions are memoised per context; a new run or a new fit must show in the answer."""
+    m = ObjectModel().fit([("eat", ("bowl",)), ("eat", ("plate",))])
+    assert m.predict_proba("eat", ()) == {"bowl": pytest.approx(0.5), "plate": pytest.approx(0.5)}
+    m.partial_fit([("eat", ("bowl",))])
+    assert m.predict_proba("eat", ()) == {"bowl": pytest.approx(2 / 3), "plate": pytest.approx(1 / 3)}
+    m.fit([("eat", ("cup",))])
+    assert m.predict_proba("eat", ()) == {"cup": pytest.approx(1.0)}
+
+
 def test_run_start_token_conditions_the_first_object():
     m = ObjectModel(run_start_token=True).fit(RUNS)
     assert m.predict_proba("eat", ()) == {"bowl": pytest.approx(2 / 3), "plate": pytest.approx(1 / 3)}

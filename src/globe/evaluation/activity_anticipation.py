@@ -27,6 +27,7 @@ from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.evaluation import report
 from globe.evaluation.metrics import LOG_LOSS_FLOOR, f1, log_loss
+from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.selection import Memo, best_of
 from globe.evaluation.tuning import data_folds, fold_days, tuned_models
 from globe.inference.horizon import activity_marginals, next_different
@@ -198,19 +199,21 @@ def blend_weights(household: Household, models: ModelConfig, step_minutes: int, 
 def run_activity_anticipation(config: GlobeConfig, households: Sequence[Household],
                               memo: Memo) -> list[AnticipationScores]:
     """Every household's test days, with the routine family's model chosen by cross-validation
-    on its training days (``memo``: the main job's searches)."""
-    out = []
-    for h in households:
-        if not h.test:
-            continue
+    on its training days (``memo``: the main job's searches); households on several processes."""
+    tested = [h for h in households if h.test]
+
+    def one(i: int) -> AnticipationScores:
+        h = tested[i]
         models, _ = tuned_models(h, config, "routine", memo)
         step = assembly.step_minutes(h, config)
         model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
         steps = assembly.lookahead_steps(config, h)  # every step up to lookahead.horizon_minutes
         blend = blend_weights(h, models, step, steps, config.selection.folds, config.lookahead.cv_stride)
-        out.append(score_anticipation(h.name, model, h.train, h.test, steps, step,
-                                      f"chosen ({models.activity_estimator})", blend))
-    return out
+        return score_anticipation(h.name, model, h.train, h.test, steps, step,
+                                  f"chosen ({models.activity_estimator})", blend)
+
+    return run_forked(one, len(tested), worker_count(config.evaluation.workers),
+                      [len(h.train) + len(h.test) for h in tested])
 
 
 def write_activity_anticipation(out_dir: Path, scores: Sequence[AnticipationScores], title: str) -> list[Path]:

@@ -60,7 +60,6 @@ from globe.inference.emission import MovementEmission, moved_objects
 from globe.inference.forecast import Forecaster, first_locations
 from globe.inference.paths import Roots
 from globe.models.base import ActivityModelBase
-from globe.reasoning.choice import NextObjectModel
 from globe.sequences.movements import Alignment
 
 Progress = Callable[[str], None]
@@ -124,31 +123,6 @@ class _FixedScan:
 
 # -- choosing the movement evidence on training days --------------------------------------------
 
-class _MemoObjects:
-    """A fold's object model whose next-object distributions are remembered: every candidate
-    evidence asks it the same (activity, objects so far) questions on the same held-out days."""
-
-    def __init__(self, model: NextObjectModel) -> None:
-        self.model = model
-        self._memo: dict[tuple[str, tuple[str, ...]], dict[str, float]] = {}
-
-    def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]:
-        key = (activity, tuple(history))
-        out = self._memo.get(key)
-        if out is None:
-            out = self._memo[key] = self.model.predict_proba(activity, history)
-        return out
-
-    def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]:
-        return self.model.ranked(activity, distribution)
-
-    def candidates(self, activity: str) -> tuple[str, ...]:
-        return self.model.candidates(activity)
-
-    def recent_runs(self, activity: str, k: int) -> tuple[tuple[str, ...], ...]:
-        return self.model.recent_runs(activity, k)
-
-
 def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
     """The movement evidence's search space, simplest first (ties go to the first listed). The
     switch table only exists with the change flag and a share credited to a_{s-1}, so it is
@@ -169,9 +143,8 @@ def evidence_scores(household: Household, config: GlobeConfig, models: ModelConf
     step = assembly.step_minutes(household, config)
     for f, fold in enumerate(data_folds(household, k)):
         train, days = fold_days(household, fold)
-        activity = fitted_activity(household, fold, models, alignment, memo, step).model
-        objects = memo.get(FitKey("ObjectModel:remembered", fold.data, fold, models, alignment), _MemoObjects,
-                           fitted_objects(household, fold, models, alignment, memo))
+        activity = fitted_activity(household, fold, models, memo, step).model
+        objects = fitted_objects(household, fold, models, alignment, memo)
         chooser = assembly.object_chooser(objects, config.gate, None, marginal=models.object_marginal)
         counts = memo.get(FitKey("MovementEmission", fold.data, fold, config.filter.emission_smoothing),
                           assembly.movement_emission(config.filter, **candidates[0]).fit, train, household.objects)

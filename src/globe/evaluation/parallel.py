@@ -95,12 +95,15 @@ def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
 
 
 def precompute_selections(config: GlobeConfig, households: Sequence[Household], families: Sequence[str],
-                          memo: Memo) -> int:
+                          memo: Memo, config_for: Callable[[Household], GlobeConfig] | None = None) -> int:
     """Run every (household, family) cross-validation missing from ``memo`` on
     ``config.evaluation.workers`` processes, and keep each result where
-    :func:`~globe.evaluation.tuning.tuned_models` looks for it. Returns how many ran."""
-    todo = [(h, f) for h in households for f in dict.fromkeys(families) if model_search_key(h, config, f) not in memo]
-    results = run_parallel(_select, [(h, config, f) for h, f in todo], worker_count(config.evaluation.workers))
-    for (h, f), result in zip(todo, results):
-        memo.put(model_search_key(h, config, f), result)
+    :func:`~globe.evaluation.tuning.tuned_models` looks for it (with ``config_for(household)``
+    when given, else ``config``). Returns how many ran."""
+    configs = [config if config_for is None else config_for(h) for h in households]
+    todo = [(h, c, f) for h, c in zip(households, configs) for f in dict.fromkeys(families)
+            if model_search_key(h, c, f) not in memo]
+    results = run_parallel(_select, todo, worker_count(config.evaluation.workers))
+    for (h, c, f), result in zip(todo, results):
+        memo.put(model_search_key(h, c, f), result)
     return len(todo)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 from globe.config import GlobeConfig
 from globe.data.records import Household
@@ -23,18 +23,21 @@ from globe.evaluation.metrics import CONSISTENCY_DEFINITIONS, consistency_groups
 from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.evaluation.selection import Memo
-from globe.noise.dataset import Dataset, clean_dataset, noisy_dataset
+from globe.evaluation.tuning import chosen_alignment, tuned_models
+from globe.noise.dataset import CLEAN, Dataset, clean_dataset, noisy_dataset
 from globe.reasoning.backends.base import LLMBackend
+from globe.sequences.movements import Alignment
 
 
 def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMBackend | None,
-                     memo: Memo | None = None) -> list[Evaluation]:
+                     memo: Memo | None = None, alignments: Mapping[str, Alignment] | None = None) -> list[Evaluation]:
     """Train on each household's training days and score its test days, marking injected events.
-    ``memo`` keeps cross-validation results and fits (keyed by the days themselves)."""
+    ``memo`` keeps cross-validation results and fits (keyed by the days themselves);
+    ``alignments`` fixes a household's movement alignment (by name) instead of searching it."""
     memo = Memo() if memo is None else memo
     out = []
     for h in data.households:
-        prepared = METHODS[method].prepare(h, cfg, backend, memo)
+        prepared = METHODS[method].prepare(h, aligned(cfg, (alignments or {}).get(h.name)), backend, memo)
 
         def injected(day: str, step: int, obj: str, household: str = h.name) -> bool:
             return (household, day, step, obj) in data.injected
@@ -43,6 +46,24 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
         out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment,
                                  injected=injected))
     return out
+
+
+def aligned(cfg: GlobeConfig, alignment: Alignment | None) -> GlobeConfig:
+    """``cfg`` with the movement alignment fixed to ``alignment`` (not searched), or ``cfg``."""
+    if alignment is None:
+        return cfg
+    return cfg.with_overrides({"sequences.alignment": alignment, "selection.alignments": [alignment]})
+
+
+def clean_alignments(cfg: GlobeConfig, clean: Sequence[Household], methods: Sequence[str],
+                     memo: Memo) -> dict[str, Alignment]:
+    """The alignment cross-validation chose on each clean household. Which activity a movement is
+    credited to is a property of how the home's log is made, and a noisy copy of a home is logged
+    the same way: it keeps its clean home's alignment, and only its models are chosen again."""
+    if "routine" not in families(methods):
+        return {}
+    precompute_selections(cfg, clean, ["routine"], memo)
+    return {h.name: chosen_alignment(tuned_models(h, cfg, "routine", memo)[1], cfg) for h in clean}
 
 
 def score_row(dataset: str, method: str, evals: Sequence[Evaluation], **extra: object) -> dict:
@@ -101,15 +122,17 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
             if progress:
                 progress(f"{data.name} (train level {level:g}): {method}, d = {threshold:g}")
             run_cfg = cfg if threshold == cfg.gate.threshold else cfg.with_overrides({"gate.threshold": threshold})
-            done[key] = evaluate_dataset(run_cfg, data, method, backend, memo)
+            done[key] = evaluate_dataset(run_cfg, data, method, backend, memo, None if data.name == CLEAN else fixed)
         return done[key]
 
     res = RobustnessResults([], [], [], [])
     loaded = {} if loaded is None else loaded  # noisy households, shared by the datasets built from them
     datasets = [(clean_dataset(clean), 0.0)] + [
         (noisy_dataset(noise_root, t, n.train_level, n.test_level, names, loaded), n.train_level) for t in n.types]
+    fixed, clean_ids = clean_alignments(cfg, clean, methods, memo), {id(h) for h in clean}
     # every dataset's cross-validations at once, on several processes
-    precompute_selections(cfg, [h for data, _ in datasets for h in data.households], families(methods), memo)
+    precompute_selections(cfg, [h for data, _ in datasets for h in data.households], families(methods), memo,
+                          lambda h: cfg if id(h) in clean_ids else aligned(cfg, fixed.get(h.name)))
     for data, level in datasets:
         for method in methods:
             evals = evaluated(data, level, method, cfg.gate.threshold)

@@ -57,16 +57,18 @@ def sequences(household: Household, fold: Fold | None, alignment: str, memo: Mem
     return memo.get(key, lambda: training_sequences(household, days, alignment))  # type: ignore[arg-type]
 
 
-def fitted_activity(household: Household, fold: Fold | None, models: ModelConfig, alignment: str,
-                    memo: Memo, step_minutes: int) -> "ScanMemo":
+def fitted_activity(household: Household, fold: Fold | None, models: ModelConfig, memo: Memo,
+                    step_minutes: int) -> "ScanMemo":
     """The activity model of ``models`` on a fold (or every training day). Candidates that count
     the same share one fit; each answers with its own prediction parameters, and its scans of the
-    held-out days are kept with it."""
+    held-out days are kept with it. Activities do not depend on the movement alignment, so every
+    alignment tried shares these fits and scans."""
     model = assembly.activity_model(models, step_minutes)
     data = DataKey.of(household)
-    counted = memo.get(FitKey(type(model).__name__, data, fold, frozen_params(model.fit_params()), alignment),
-                       lambda: model.fit(sequences(household, fold, alignment, memo).activities))
-    key = FitKey(f"{type(model).__name__}:predicting", data, fold, frozen_params(model.get_params()), alignment)
+    days = household.train if fold is None else fold_days(household, fold)[0]
+    counted = memo.get(FitKey(type(model).__name__, data, fold, frozen_params(model.fit_params())),
+                       lambda: model.fit([d.activities for d in days]))
+    key = FitKey(f"{type(model).__name__}:predicting", data, fold, frozen_params(model.get_params()))
     return memo.get(key, lambda: ScanMemo(counted.with_prediction_params(**model.prediction_params())))
 
 
@@ -175,7 +177,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     def activity_measure(params: dict[str, Any]) -> dict[str, float]:
         models = cfg.models.model_copy(update=base | params)
         return mean_over_folds(h, sel.folds, lambda fold, days: activity_scores(
-            fitted_activity(h, fold, models, alignment, memo, step), [d.activities for d in days]))
+            fitted_activity(h, fold, models, memo, step), [d.activities for d in days]))
 
     act = select_by(simpler + space, activity_measure, sel.criterion if family == "routine" else sel.ngram_criterion)
     models = cfg.models.model_copy(update=base | act.best)
@@ -210,7 +212,7 @@ def object_cv_scores(h: Household, cfg: GlobeConfig, models: ModelConfig, alignm
     """The object model's log loss and weighted F1 under the full protocol (predicted activity),
     mean over the folds of the training days, for ``models`` counted with ``alignment``."""
     def score_fold(fold: Fold, days: Sequence[Day]) -> dict[str, float]:
-        activity = fitted_activity(h, fold, models, alignment, memo, step)
+        activity = fitted_activity(h, fold, models, memo, step)
         objects = fitted_objects(h, fold, models, alignment, memo)
         chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=models.object_marginal)
         return object_scores(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment))
@@ -249,7 +251,7 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
         gate = g.model_copy(update=params | {"examples": examples})
 
         def score_fold(fold: Fold, days: Sequence[Day]) -> float:
-            activity = fitted_activity(h, fold, models, alignment, memo, step)
+            activity = fitted_activity(h, fold, models, memo, step)
             objects = fitted_objects(h, fold, models, alignment, memo)
             chooser = assembly.object_chooser(objects, gate, backend, marginal=models.object_marginal)
             return object_f1(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment))

@@ -39,6 +39,7 @@ class ObjectModel(CountingModel):
         return self.partial_fit(runs)
 
     def partial_fit(self, runs: Iterable[tuple[str, Sequence[str]]]) -> "ObjectModel":
+        self.__dict__.pop("_proba", None)  # distributions over the old counts are stale
         if not hasattr(self, "training_data_"):
             self._validate_params()
             self.training_data_: list[tuple[str, tuple[str, ...]]] = []
@@ -90,15 +91,27 @@ class ObjectModel(CountingModel):
         return tuple(sorted(self.frequency_.get(activity, ())))
 
     def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]:
-        """Distribution over O(activity) of the next object, given the run's objects so far."""
+        """Distribution over O(activity) of the next object, given the run's objects so far.
+        Memoised until the model learns (the protocol asks each context many times): the dict
+        returned is shared, to be read and never modified."""
         self._check_fitted()
-        index = self.indexes_.get(activity)
-        if index is None:
-            return {}
-        state, matched = index.match(self._prefixed(history))
-        if self.estimator == "longest":
-            return longest_distribution(index, state, matched, self.max_order - 1)
-        return witten_bell_distribution(index, state, matched, self.max_order - 1, self.candidates(activity))
+        key = (activity, tuple(history))
+        memo: dict = self.__dict__.setdefault("_proba", {})
+        found = memo.get(key)
+        if found is None:
+            index = self.indexes_.get(activity)
+            if index is None:
+                return {}
+            state, matched = index.match(self._prefixed(history))
+            if self.estimator == "longest":
+                found = longest_distribution(index, state, matched, self.max_order - 1)
+            else:
+                found = witten_bell_distribution(index, state, matched, self.max_order - 1,
+                                                 self.candidates(activity))
+            if len(memo) > 100_000:
+                memo.clear()
+            memo[key] = found
+        return found
 
     def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]:
         return rank(distribution, self.frequency_.get(activity, {}))
