@@ -70,6 +70,34 @@ def test_the_cli_switches_shadow_mode(tmp_path, households):
     assert missing.exit_code != 0
 
 
+def test_a_running_service_follows_a_switch_made_by_another_connection(tmp_path, households):
+    """The flag is kept in memory between predictions, yet a switch committed by another
+    connection (the CLI under a running service) or by this one shows at the next read."""
+    from globe.data.csv_logs import format_day
+    from globe.service.client import household_payload
+    from globe.service.upload import household_from, parse_nodes
+
+    h = households["A"]
+    texts = [format_day(d, h.objects) for d in h.train[:2]]
+    service, cli = Store(tmp_path / "s.sqlite3"), None
+    try:
+        service.add_household(household_from("A", parse_nodes(household_payload(h)["nodes"]), texts), "UTC", texts)
+        assert service.shadow("A") is True and service.shadow("nope") is True
+        cli = Store(tmp_path / "s.sqlite3")
+        cli.set_shadow("A", False)
+        assert service.shadow("A") is True  # remembered: the store is not asked at every prediction
+        service.shadow_recheck_s = 0.0  # as if the recheck interval had passed
+        assert service.shadow("A") is False
+        service.set_shadow("A", True)
+        assert service.shadow("A") is True
+        service.delete_household("A")
+        assert service.shadow("A") is True  # gone: the default, not the remembered flag
+    finally:
+        service.close()
+        if cli is not None:
+            cli.close()
+
+
 def test_activity_accuracy_is_the_prediction_before_each_step_against_the_step(scored, households):
     """Each step t >= 1 of a day is predicted from the steps before it (what GET /prediction said
     after step t-1) and scored once the step closes; the last step of day 1 is still open."""

@@ -138,8 +138,8 @@ def household_shadow(
     name: Annotated[str, typer.Option("--name", help="household id in the service")],
     on: Annotated[bool, typer.Option("--on/--off", help="--on: predict and score, never act; --off: the robot acts")],
 ) -> None:
-    """Switch a household's shadow mode (new households start in it); a running service follows at
-    its next prediction. Switch it off once the online scores (globe serve's dashboard, /stats) are good enough."""
+    """Switch a household's shadow mode (new households start in it); a running service follows
+    within a second. Switch it off once the online scores (globe serve's dashboard, /stats) are good enough."""
     from globe.service.store import Store
 
     store = Store(db)

@@ -16,9 +16,11 @@ import datetime as dt
 import itertools
 import json
 import logging
+import math
 import os
 import sqlite3
 import threading
+import time
 import zlib
 from dataclasses import fields
 from pathlib import Path
@@ -59,6 +61,9 @@ class Store:
     fails with :class:`StoreUnavailableError` (503) until a restart. A failed write (a full disk)
     is reported by :meth:`problem` until a write succeeds."""
 
+    shadow_recheck_s = 1.0
+    """How soon another connection's shadow switch reaches :meth:`shadow` (seconds)."""
+
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         check_database_file(self.path)
@@ -66,6 +71,9 @@ class Store:
         self._lock = threading.Lock()
         self._lost: str | None = None  # why writes stopped for good (a file went away), once seen
         self._failed_write: str | None = None  # the last write's error, until a write succeeds
+        self._shadows: dict[str, bool] = {}  # shadow flags read, valid while data_version stays
+        self._shadow_version: int | None = None
+        self._shadow_checked = -math.inf
         try:
             self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
         except sqlite3.Error as err:
@@ -243,6 +251,7 @@ class Store:
         ]
         stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
                   for i, blob in enumerate(blobs)]
+        self._shadows.pop(household.name, None)
         self._transaction(f"store household {household.name!r}", stmts)
 
     def households(self) -> list[HouseholdRow]:
@@ -299,6 +308,7 @@ class Store:
 
     def delete_household(self, name: str) -> None:
         """Everything about a household, in one transaction (the right to be forgotten)."""
+        self._shadows.pop(name, None)
         self._transaction(f"delete household {name!r}", [
             (f"DELETE FROM {table} WHERE household = ?", (name,))
             for table in ("tokens", "feedback", "observations", "training_days", "step_predictions", "fetches",
@@ -371,14 +381,33 @@ class Store:
 
     # -- shadow mode and online scores -------------------------------------------------------
     def set_shadow(self, household: str, shadow: bool) -> int:
+        self._shadows.pop(household, None)
         return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
                                                   (int(shadow), household))])
 
     def shadow(self, household: str) -> bool:
-        """Whether the household is in shadow mode (read per prediction: the CLI may switch it under a
-        running service)."""
-        rows = self._read("SELECT shadow FROM households WHERE name = ?", (household,))
-        return bool(rows[0][0]) if rows else True
+        """Whether the household is in shadow mode. Asked at every prediction, so kept in memory
+        (no wait for the store's lock behind other households' writes); this connection's own
+        switches show at once, another's (``globe household shadow`` under a running service)
+        within :attr:`shadow_recheck_s`: SQLite's ``data_version`` changes exactly then."""
+        found = self._shadows.get(household)
+        if found is not None and time.monotonic() - self._shadow_checked < self.shadow_recheck_s:
+            return found
+        with self._lock:
+            try:
+                version = self._db.execute("PRAGMA data_version").fetchone()[0]
+                self._shadow_checked = time.monotonic()
+                if version != self._shadow_version:
+                    self._shadows, self._shadow_version = {}, version
+                found = self._shadows.get(household)
+                if found is None:
+                    rows = self._db.execute("SELECT shadow FROM households WHERE name = ?", (household,)).fetchall()
+                    if not rows:
+                        return True
+                    found = self._shadows[household] = bool(rows[0][0])
+            except sqlite3.Error as err:
+                raise StoreError(f"database read failed: {err}") from err
+        return found
 
     @staticmethod
     def step_prediction_statement(household: str, day: str, step: int, activity: str,
