@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from globe.inference.paths import ActivityPaths
+from globe.models.baselines import PersistenceModel
 from globe.models.clock import ClockModel
 
 # Two slots of 20 minutes on a 10-minute grid: steps 0-1 are slot 0, steps 2-3 slot 1.
@@ -56,3 +57,16 @@ def test_paths_over_the_clock_model_are_the_chain_marginals():
         table = np.array([[by_hand(a, step * 10 // 20, 2.0)[b] for b in labels] for a in labels])
         p = p @ table
         assert got[k] == pytest.approx(p)
+
+
+@pytest.mark.parametrize("make", [lambda: ClockModel(slot_minutes=20, shrinkage=2.0), lambda: PersistenceModel()])
+def test_a_whole_path_at_once_is_the_walk_one_step_at_a_time(make):
+    """The clock and persistence spaces number a day's states in one go; the oracle is the
+    generic walk (root, then the child after each activity), unseen labels included."""
+    from globe.models.state_space import StateSpace
+
+    space = make().fit(DAYS).states()
+    for day in [*DAYS, ("sleep", "dance", "eat", "dance", "work"), ("eat",), ()]:
+        assert np.array_equal(space.path(day), StateSpace.path(space, day))
+        assert [space.labels[c] if c >= 0 else None for c in space.last(space.path(day)).tolist()] == \
+            [None, *day[:-1]][: len(day)]

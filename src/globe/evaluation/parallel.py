@@ -37,9 +37,10 @@ def worker_count(requested: int | None) -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list[R]:
+def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int,
+                 cost: Sequence[float] | None = None) -> list[R]:
     """``[fn(t) for t in tasks]`` on up to ``workers`` processes (in this one when 1 or a single
-    task).
+    task); ``cost``, an estimate per task, starts the longest first.
 
     Workers are forked where the platform can: a fork server or spawned workers would import
     the caller's main script again, so a user's script without an ``if __name__ ==
@@ -48,7 +49,7 @@ def run_parallel(fn: Callable[[T], R], tasks: Sequence[T], workers: int) -> list
     if workers <= 1 or len(tasks) <= 1:
         return [fn(t) for t in tasks]
     if "fork" in multiprocessing.get_all_start_methods():
-        return run_forked(lambda i: fn(tasks[i]), len(tasks), workers)
+        return run_forked(lambda i: fn(tasks[i]), len(tasks), workers, cost)
     spawn = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=spawn) as pool:
         return list(pool.map(fn, tasks))
@@ -103,7 +104,9 @@ def precompute_selections(config: GlobeConfig, households: Sequence[Household], 
     configs = [config if config_for is None else config_for(h) for h in households]
     todo = [(h, c, f) for h, c in zip(households, configs) for f in dict.fromkeys(families)
             if model_search_key(h, c, f) not in memo]
-    results = run_parallel(_select, todo, worker_count(config.evaluation.workers))
+    # the routine family's search is about twice the n-gram's (clock models, alignments): first
+    results = run_parallel(_select, todo, worker_count(config.evaluation.workers),
+                           [2.0 if f == "routine" else 1.0 for _, _, f in todo])
     for (h, c, f), result in zip(todo, results):
         memo.put(model_search_key(h, c, f), result)
     return len(todo)

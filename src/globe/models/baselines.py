@@ -57,6 +57,11 @@ class PersistenceStates(StateSpace):
     def children(self, states: np.ndarray, codes: np.ndarray) -> np.ndarray:
         return np.asarray(codes, dtype=np.int64) + 1
 
+    def path(self, day: Sequence[str]) -> np.ndarray:
+        """:meth:`StateSpace.path` at once: the state after a step is its activity's code + 1."""
+        codes = np.array([self.code(a) for a in day[:-1]], dtype=np.int64)
+        return np.concatenate(([self.root], codes + 1)).astype(np.int64) if day else np.empty(0, dtype=np.int64)
+
     def rows(self, states: np.ndarray) -> np.ndarray:
         states = np.asarray(states, dtype=np.int64)
         out = np.zeros((len(states), len(self.labels)))

@@ -116,12 +116,20 @@ class ClockStates(StateSpace):
         step = np.asarray(states, dtype=np.int64) & ((1 << _STEP_BITS) - 1)
         return ((np.asarray(codes, dtype=np.int64) + 1) << _STEP_BITS) | (step + 1)
 
+    def path(self, day: Sequence[str]) -> np.ndarray:
+        """:meth:`StateSpace.path` at once: the state after step t is (code of step t, t + 1)."""
+        if not day:
+            return np.empty(0, dtype=np.int64)
+        codes = np.array([self.code(a) for a in day[:-1]], dtype=np.int64)
+        after = ((codes + 1) << _STEP_BITS) | np.arange(1, len(day), dtype=np.int64)
+        return np.concatenate(([self.root], after)).astype(np.int64)
+
     def rows(self, states: np.ndarray) -> np.ndarray:
         states = np.asarray(states, dtype=np.int64)
         previous, step = states >> _STEP_BITS, states & ((1 << _STEP_BITS) - 1)
-        slots = [self._model.slot(int(s)) for s in step.tolist()]
+        slots = step * self._model.step_minutes // self._model.slot_minutes  # :meth:`ClockModel.slot`
         out = np.empty((len(states), len(self.labels)))
-        for slot in dict.fromkeys(slots):
-            mine = np.array([s == slot for s in slots])
+        for slot in np.unique(slots).tolist():
+            mine = slots == slot
             out[mine] = self._table(slot)[previous[mine]]
         return out
