@@ -112,6 +112,7 @@ static Py_ssize_t merge_groups(Py_ssize_t n, const int64_t *query, const int64_t
     return groups;
 }
 
+/* n int64 or float64 values as bytes (NULL on failure: Py_BuildValue's "N" then fails cleanly) */
 static PyObject *bytes_of(const void *p, Py_ssize_t n) { return PyBytes_FromStringAndSize(n ? (const char *)p : "", n * 8); }
 
 static PyObject *select_(PyObject *self, PyObject *args) {
@@ -318,13 +319,7 @@ static PyObject *extend(PyObject *self, PyObject *args) {
             ce[m] = ce[i];
             ca[m++] = ca[i];
         }
-    PyObject *e = bytes_of(ce, m), *a = bytes_of(ca, m), *w = PyBytes_FromStringAndSize(m ? (const char *)cw : "", m * 8);
-    out = (e && a && w) ? Py_BuildValue("(NNN)", e, a, w) : NULL;
-    if (!out) {
-        Py_XDECREF(e);
-        Py_XDECREF(a);
-        Py_XDECREF(w);
-    }
+    out = Py_BuildValue("(NNN)", bytes_of(ce, m), bytes_of(ca, m), bytes_of(cw, m));  /* N: a NULL fails it cleanly */
 done:
     for (int i = 0; i < 7; i++) release(&b[i]);
     free(best);
@@ -430,13 +425,7 @@ static PyObject *extend_paths(PyObject *self, PyObject *args) {
         }
         k = total;
     }
-    PyObject *e = bytes_of(ce, k), *a = bytes_of(ca, k), *w = PyBytes_FromStringAndSize(k ? (const char *)cw : "", k * 8);
-    out = (e && a && w) ? Py_BuildValue("(NNN)", e, a, w) : NULL;
-    if (!out) {
-        Py_XDECREF(e);
-        Py_XDECREF(a);
-        Py_XDECREF(w);
-    }
+    out = Py_BuildValue("(NNN)", bytes_of(ce, k), bytes_of(ca, k), bytes_of(cw, k));  /* N: a NULL fails it cleanly */
 done:
     for (int i = 0; i < 5; i++) release(&b[i]);
     free(cw);
