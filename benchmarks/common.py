@@ -15,7 +15,7 @@ import httpx
 
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
-from globe.data.locate import resolve_data_root
+from globe.data.locate import household_names, resolve_data_root
 from globe.data.records import Household
 
 
@@ -29,7 +29,7 @@ def setup(doc: str | None,
     args = parser.parse_args()
     cfg = GlobeConfig()
     root = resolve_data_root(args.data)
-    return cfg, [load_household(root, n) for n in cfg.data.households], args
+    return cfg, [load_household(root, n) for n in cfg.data.households or household_names(root)], args
 
 
 def free_port() -> int:

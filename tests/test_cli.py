@@ -239,3 +239,25 @@ def test_docs_tables_writes_stale_tables_and_check_reports_them(tmp_path):
     assert "| Routine model (CV) |" in text and "| stale |" not in text
     again = globe(*args, "--check")
     assert again.returncode == 0 and "every table matches" in again.stdout
+
+
+def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
+    """A folder of imported homes needs no --households: every folder with a nodes.csv is one."""
+    from globe.data.csv_logs import write_day, write_nodes
+    from tests.simulated import clock_home
+
+    home = clock_home(12, 3)
+    folder = tmp_path / "homes" / "Mine"
+    for split, days in (("train", home.train), ("test", home.test)):
+        (folder / split).mkdir(parents=True)
+        for i, day in enumerate(days):
+            write_day(folder / split / f"{i:03d}.csv", day, home.objects)
+    write_nodes(folder / "nodes.csv", home.nodes)
+    (tmp_path / "homes" / "notes").mkdir()  # not a household: no nodes.csv
+    res = globe("evaluate", "--data", str(tmp_path / "homes"), "--methods", "persistence", "--backend", "none",
+                "--out", str(tmp_path / "out"))
+    assert res.returncode == 0, res.stderr
+    rows = list(csv.DictReader((tmp_path / "out" / "table1.csv").open()))
+    assert {r["household"] for r in rows} - {"mean"} == {"Mine"}
+    empty = globe("evaluate", "--data", str(tmp_path / "homes" / "notes"), "--out", str(tmp_path / "o2"))
+    assert empty.returncode != 0 and "no household folder" in empty.stderr

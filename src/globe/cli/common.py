@@ -21,7 +21,7 @@ from rich.text import Text
 
 from globe.config import GlobeConfig, load_config
 from globe.data.csv_logs import load_household, read_household_map
-from globe.data.locate import resolve_data_root
+from globe.data.locate import household_names, resolve_data_root
 from globe.data.records import Household, map_fingerprint
 from globe.errors import DataError
 
@@ -40,11 +40,20 @@ def resolve(config: Path | None, **overrides: Any) -> GlobeConfig:
 
 
 def households_from(cfg: GlobeConfig, data: Path | None, households: str | None) -> list[Household]:
-    """Load the named households (else ``data.households``) by the ``data`` section's rules."""
+    """Load the named households (else ``data.households``, else every household of the data
+    folder) by the ``data`` section's rules."""
     root = resolve_data_root(data if data is not None else cfg.data.root)
-    names = [h.strip() for h in households.split(",")] if households is not None else list(cfg.data.households)
-    if not names or any(not n for n in names):
-        raise typer.BadParameter(f"{households!r} names no household", param_hint="'--households'")
+    if households is not None:
+        names = [h.strip() for h in households.split(",")]
+        if not names or any(not n for n in names):
+            raise typer.BadParameter(f"{households!r} names no household", param_hint="'--households'")
+    elif cfg.data.households is not None:
+        names = list(cfg.data.households)
+    else:
+        names = household_names(root)
+        if not names:
+            raise DataError("no household folder (one with a nodes.csv) in the data folder; import a home with "
+                            "'globe data import' or pass --data", source=str(root))
     return [load_household(root, n, step_minutes=cfg.data.step_minutes, resample=cfg.data.resample) for n in names]
 
 

@@ -48,6 +48,20 @@ def _is_folder_name(name: str) -> bool:
         and name == name.strip()
 
 
+def household_names(root: Path) -> list[str]:
+    """Every household of the data folder ``root``: its folders holding a ``nodes.csv``, by name,
+    HOMER+'s ``Household<name>`` folders by their short name."""
+    prefix = HOUSEHOLD_DIR.format(name="")
+    try:
+        folders = sorted(p.name for p in Path(root).iterdir()
+                         if p.is_dir() and any(c.name.lower() == "nodes.csv" for c in p.iterdir()))
+    except OSError:
+        return []
+    short = [f[len(prefix):] if f.startswith(prefix) and len(f) > len(prefix) else f for f in folders]
+    # a short name that is also a folder of its own would be ambiguous: keep the folder's name
+    return [s if s == f or s not in folders else f for s, f in zip(short, folders)]
+
+
 def household_dir(root: Path, name: str) -> Path:
     """The folder of household ``name``: ``root/<name>``, or ``root/Household<name>`` (HOMER+'s
     short names ``A``, ``B``, ``C``) when no folder ``<name>`` exists. Both existing is an error
@@ -64,11 +78,7 @@ def household_dir(root: Path, name: str) -> Path:
     for folder in (exact, short):
         if folder.is_dir():
             return folder
-    try:
-        available = sorted(p.name for p in root.iterdir()
-                           if p.is_dir() and any(c.name.lower() == "nodes.csv" for c in p.iterdir()))
-    except OSError:
-        available = []
+    available = household_names(root)
     raise DataError(
         f"household {name!r} not found (no folder {exact.name}/ or {short.name}/); "
         f"available: {', '.join(available) or 'none'}",
