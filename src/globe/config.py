@@ -29,8 +29,8 @@ class _Section(BaseModel):
 class DataConfig(_Section):
     root: Path | None = Field(None, description="HOMER+-style data folder; None = locate it")
     households: tuple[str, ...] | None = Field(
-        None, description="households to use; None = every household folder of the data folder (one with a "
-        "nodes.csv), by name (HOMER+'s HouseholdA... as A, B, C)")
+        None, min_length=1, description="households to use; None = every household folder of the data folder "
+        "(one with a nodes.csv), by name (HOMER+'s HouseholdA... as A, B, C)")
     step_minutes: int | None = Field(
         None, ge=1, le=1440, description="minutes between a day's rows; None = the household's most common gap"
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from globe.data.csv_logs import check_map, check_step, day_files, household_step, load_household, parse_day_text
-from globe.data.locate import household_dir
+from globe.data.locate import household_dir, household_names
 from globe.data.records import Day, Node
 from globe.errors import DataError
 from tests.corpus.homes import NODES, write_home
@@ -83,7 +83,7 @@ def test_household_folder_is_the_name_given(tmp_path):
     for bad in ("", ".", "..", "a/b", " A"):
         with pytest.raises(DataError, match="is not a folder name"):
             household_dir(tmp_path, bad)
-    with pytest.raises(DataError, match=r"household 'a' not found .*available: HouseholdA, Kitchen"):
+    with pytest.raises(DataError, match=r"household 'a' not found .*available: A, Kitchen"):
         household_dir(tmp_path, "a")
 
 
@@ -101,3 +101,28 @@ def test_shipped_map_passes_the_map_rules(households):
     for h in households.values():
         check_map(h.nodes)
         assert household_step(h.train + h.test) == 10
+
+
+def test_the_households_of_a_data_folder_are_its_folders_with_a_map(tmp_path, monkeypatch):
+    """HOMER+'s HouseholdA is listed as A, unless a folder A exists (then by its own name, which
+    loads); folders without a nodes.csv and folders that cannot be read are passed over."""
+    from pathlib import Path
+
+    for folder in ("HouseholdA", "HouseholdB", "Mine", "B"):
+        (tmp_path / folder).mkdir()
+    for folder in ("HouseholdA", "HouseholdB", "Mine"):
+        (tmp_path / folder / "nodes.csv").write_text("node\n")
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "Household").mkdir()  # the prefix alone is a folder name like any other
+    (tmp_path / "Household" / "nodes.csv").write_text("node\n")
+    assert household_names(tmp_path) == ["Household", "A", "HouseholdB", "Mine"]
+    assert all(household_dir(tmp_path, n).is_dir() for n in household_names(tmp_path))
+    real = Path.iterdir
+
+    def unreadable(self):
+        if self.name == "Mine":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "iterdir", unreadable)
+    assert household_names(tmp_path) == ["Household", "A", "HouseholdB"]

@@ -59,7 +59,8 @@ def test_noisy_copies_keep_the_clean_homes_alignment(setup, monkeypatch):
     real = robustness.precompute_selections
 
     def spy(config, households, families, memo, config_for=None):
-        seen.extend((h, config_for(h) if config_for else config) for h in households)
+        seen.extend((h, config_for(h, f) if config_for else config) for h in households for f in families
+                    if f == "routine")
         return real(config, households, families, memo, config_for)
 
     monkeypatch.setattr(robustness, "precompute_selections", spy)
@@ -68,3 +69,40 @@ def test_noisy_copies_keep_the_clean_homes_alignment(setup, monkeypatch):
     assert noisy and all(c.selection.alignments == (fixed["C"],) and c.sequences.alignment == fixed["C"]
                          for _, c in noisy)
     assert all(c is cfg for h, c in seen if h is small)  # the clean home itself is searched as configured
+
+
+def test_only_the_routine_family_takes_the_clean_homes_alignment(setup, monkeypatch):
+    """As if CV had chosen another alignment on the clean home: the routine rows of its noisy
+    copies count and are scored with it; every other method counts and is scored as configured,
+    as on the clean home."""
+    import globe.assembly as assembly
+    import globe.evaluation.robustness as robustness
+
+    cfg, small, root = setup
+    monkeypatch.setattr(robustness, "clean_alignments", lambda *a, **k: {"C": "current"})
+    scored, method = set(), []
+    real_dataset, real_eval = robustness.evaluate_dataset, robustness.evaluate_days
+
+    def dataset(run_cfg, data, name, *args, **kwargs):
+        method.append(name)
+        return real_dataset(run_cfg, data, name, *args, **kwargs)
+
+    def evaluate(h, *args, **kwargs):
+        scored.add((method[-1], h is small, kwargs["alignment"]))
+        return real_eval(h, *args, **kwargs)
+
+    fitted, real_fit = set(), assembly.fit_household
+
+    def fit(h, c, *args, **kwargs):
+        if method:
+            fitted.add((method[-1], h is small, c.sequences.alignment))
+        return real_fit(h, c, *args, **kwargs)
+
+    monkeypatch.setattr(robustness, "evaluate_dataset", dataset)
+    monkeypatch.setattr(robustness, "evaluate_days", evaluate)
+    monkeypatch.setattr(assembly, "fit_household", fit)
+    run_suite(cfg, [small], root, None, methods=("ngram", "routine"))
+    configured = cfg.sequences.alignment
+    assert ("ngram", False, configured) in fitted and ("ngram", False, "current") not in fitted
+    assert scored == {("ngram", True, configured), ("ngram", False, configured), ("routine", True, configured),
+                      ("routine", False, "current")}

@@ -4,6 +4,7 @@ and survive a restart; a database of the previous schema migrates with its house
 
 import datetime as dt
 import json
+import threading
 
 import pytest
 from typer.testing import CliRunner
@@ -92,6 +93,20 @@ def test_a_running_service_follows_a_switch_made_by_another_connection(tmp_path,
         assert service.shadow("A") is True
         service.delete_household("A")
         assert service.shadow("A") is True  # gone: the default, not the remembered flag
+        service.add_household(household_from("A", parse_nodes(household_payload(h)["nodes"]), texts), "UTC", texts,
+                              shadow=True)
+        service.shadow_recheck_s = 3600.0
+        real = service._transaction
+
+        def read_first(what, statements):  # another thread (the dashboard) reads just before the switch
+            reader = threading.Thread(target=service.shadow, args=("A",))
+            reader.start()
+            reader.join()
+            return real(what, statements)
+
+        service._transaction = read_first
+        service.set_shadow("A", False)
+        assert service.shadow("A") is False  # at once: the flag read before the commit is not kept
     finally:
         service.close()
         if cli is not None:

@@ -50,16 +50,24 @@ def _is_folder_name(name: str) -> bool:
 
 def household_names(root: Path) -> list[str]:
     """Every household of the data folder ``root``: its folders holding a ``nodes.csv``, by name,
-    HOMER+'s ``Household<name>`` folders by their short name."""
+    HOMER+'s ``Household<name>`` folders by their short name unless a folder ``<name>`` exists
+    too (then by their own); a folder that cannot be read is passed over."""
     prefix = HOUSEHOLD_DIR.format(name="")
+    root = Path(root)
     try:
-        folders = sorted(p.name for p in Path(root).iterdir()
-                         if p.is_dir() and any(c.name.lower() == "nodes.csv" for c in p.iterdir()))
+        folders = sorted(p.name for p in root.iterdir() if p.is_dir())
     except OSError:
         return []
-    short = [f[len(prefix):] if f.startswith(prefix) and len(f) > len(prefix) else f for f in folders]
-    # a short name that is also a folder of its own would be ambiguous: keep the folder's name
-    return [s if s == f or s not in folders else f for s, f in zip(short, folders)]
+    names = []
+    for folder in folders:
+        try:
+            if not any(c.name.lower() == "nodes.csv" for c in (root / folder).iterdir()):
+                continue
+        except OSError:
+            continue
+        short = folder[len(prefix):]
+        names.append(short if folder.startswith(prefix) and short and short not in folders else folder)
+    return names
 
 
 def household_dir(root: Path, name: str) -> Path:

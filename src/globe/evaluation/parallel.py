@@ -96,14 +96,14 @@ def _select(task: tuple[Household, GlobeConfig, str]) -> tuple:
 
 
 def precompute_selections(config: GlobeConfig, households: Sequence[Household], families: Sequence[str],
-                          memo: Memo, config_for: Callable[[Household], GlobeConfig] | None = None) -> int:
+                          memo: Memo, config_for: Callable[[Household, str], GlobeConfig] | None = None) -> int:
     """Run every (household, family) cross-validation missing from ``memo`` on
     ``config.evaluation.workers`` processes, and keep each result where
-    :func:`~globe.evaluation.tuning.tuned_models` looks for it (with ``config_for(household)``
-    when given, else ``config``). Returns how many ran."""
-    configs = [config if config_for is None else config_for(h) for h in households]
-    todo = [(h, c, f) for h, c in zip(households, configs) for f in dict.fromkeys(families)
-            if model_search_key(h, c, f) not in memo]
+    :func:`~globe.evaluation.tuning.tuned_models` looks for it (with ``config_for(household,
+    family)`` when given, else ``config``). Returns how many ran."""
+    tasks = [(h, config if config_for is None else config_for(h, f), f) for h in households
+             for f in dict.fromkeys(families)]
+    todo = [(h, c, f) for h, c, f in tasks if model_search_key(h, c, f) not in memo]
     # the routine family's search is about twice the n-gram's (clock models, alignments): first
     results = run_parallel(_select, todo, worker_count(config.evaluation.workers),
                            [2.0 if f == "routine" else 1.0 for _, _, f in todo])

@@ -33,16 +33,19 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
                      memo: Memo | None = None, alignments: Mapping[str, Alignment] | None = None) -> list[Evaluation]:
     """Train on each household's training days and score its test days, marking injected events.
     ``memo`` keeps cross-validation results and fits (keyed by the days themselves);
-    ``alignments`` fixes a household's movement alignment (by name) instead of searching it."""
+    ``alignments`` fixes a household's movement alignment (by name) where the routine family would
+    search it; every other method counts and is scored as configured, as on the clean homes."""
     memo = Memo() if memo is None else memo
     out = []
     for h in data.households:
-        prepared = METHODS[method].prepare(h, aligned(cfg, (alignments or {}).get(h.name)), backend, memo)
+        fixed = (alignments or {}).get(h.name) if METHODS[method].family == "routine" else None
+        run = aligned(cfg, fixed)
+        prepared = METHODS[method].prepare(h, run, backend, memo)
 
         def injected(day: str, step: int, obj: str, household: str = h.name) -> bool:
             return (household, day, step, obj) in data.injected
 
-        alignment = prepared.alignment or cfg.sequences.alignment
+        alignment = prepared.alignment or run.sequences.alignment
         out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment,
                                  injected=injected))
     return out
@@ -132,7 +135,8 @@ def run_suite(cfg: GlobeConfig, clean: Sequence[Household], noise_root: Path, ba
     fixed, clean_ids = clean_alignments(cfg, clean, methods, memo), {id(h) for h in clean}
     # every dataset's cross-validations at once, on several processes
     precompute_selections(cfg, [h for data, _ in datasets for h in data.households], families(methods), memo,
-                          lambda h: cfg if id(h) in clean_ids else aligned(cfg, fixed.get(h.name)))
+                          lambda h, family: cfg if id(h) in clean_ids or family != "routine"
+                          else aligned(cfg, fixed.get(h.name)))
     for data, level in datasets:
         for method in methods:
             evals = evaluated(data, level, method, cfg.gate.threshold)

@@ -251,8 +251,10 @@ class Store:
         ]
         stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
                   for i, blob in enumerate(blobs)]
-        self._shadows.pop(household.name, None)
-        self._transaction(f"store household {household.name!r}", stmts)
+        try:
+            self._transaction(f"store household {household.name!r}", stmts)
+        finally:
+            self._forget_shadow(household.name)
 
     def households(self) -> list[HouseholdRow]:
         rows = self._read("SELECT name, timezone, created_at, shadow FROM households ORDER BY created_at, name")
@@ -308,12 +310,14 @@ class Store:
 
     def delete_household(self, name: str) -> None:
         """Everything about a household, in one transaction (the right to be forgotten)."""
-        self._shadows.pop(name, None)
-        self._transaction(f"delete household {name!r}", [
-            (f"DELETE FROM {table} WHERE household = ?", (name,))
-            for table in ("tokens", "feedback", "observations", "training_days", "step_predictions", "fetches",
-                          "day_scores")
-        ] + [("DELETE FROM households WHERE name = ?", (name,))])
+        try:
+            self._transaction(f"delete household {name!r}", [
+                (f"DELETE FROM {table} WHERE household = ?", (name,))
+                for table in ("tokens", "feedback", "observations", "training_days", "step_predictions", "fetches",
+                              "day_scores")
+            ] + [("DELETE FROM households WHERE name = ?", (name,))])
+        finally:
+            self._forget_shadow(name)
 
     # -- observations and feedback ----------------------------------------------------------
     def add_observation(self, household: str, time: dt.datetime, activity: str | None, locations: dict[str, str],
@@ -381,9 +385,17 @@ class Store:
 
     # -- shadow mode and online scores -------------------------------------------------------
     def set_shadow(self, household: str, shadow: bool) -> int:
-        self._shadows.pop(household, None)
-        return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
-                                                  (int(shadow), household))])
+        try:
+            return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
+                                                      (int(shadow), household))])
+        finally:
+            self._forget_shadow(household)
+
+    def _forget_shadow(self, household: str) -> None:
+        """After this connection wrote the household's row (data_version does not see its own
+        commits): under the lock, so no read that began before the commit caches the old flag later."""
+        with self._lock:
+            self._shadows.pop(household, None)
 
     def shadow(self, household: str) -> bool:
         """Whether the household is in shadow mode. Asked at every prediction, so kept in memory
