@@ -343,7 +343,7 @@ CASES: list[Case] = [
     Case("household name with a path", lambda r, h: ["data", "validate", "--households", "../T", "--data", str(r)], 1,
          "error: {root}: household name '../T' is not a folder name (set the data folder with --data)"),
     Case("missing household", lambda r, h: ["data", "validate", "--households", "Z", "--data", str(r)], 1,
-         "error: {root}: household 'Z' not found (no folder Z/ or HouseholdZ/); available: HouseholdT"),
+         "error: {root}: household 'Z' not found (no folder Z/ or HouseholdZ/); available: T"),
     Case("no training days", lambda r, h: (shutil.rmtree(h / "train"), [*VALIDATE, "--data", str(r)])[1], 1,
          "error: {home}: no training days (expected train/*.csv)"),
     Case("markup in a message stays literal", _markup_folder, 1,

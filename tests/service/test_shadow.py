@@ -98,11 +98,11 @@ def test_a_running_service_follows_a_switch_made_by_another_connection(tmp_path,
         service.shadow_recheck_s = 3600.0
         real = service._transaction
 
-        def read_first(what, statements):  # another thread (the dashboard) reads just before the switch
+        def read_first(*args):  # another thread (the dashboard) reads just before the switch
             reader = threading.Thread(target=service.shadow, args=("A",))
             reader.start()
             reader.join()
-            return real(what, statements)
+            return real(*args)
 
         service._transaction = read_first
         service.set_shadow("A", False)

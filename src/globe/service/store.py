@@ -192,7 +192,9 @@ class Store:
             raise StoreUnavailableError(
                 f"{reason}; restart the service (writes are refused so nothing is lost silently)")
 
-    def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]]) -> int:
+    def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> int:
+        """Run ``statements`` in one transaction; ``household``: whose row they may change (its
+        remembered shadow flag is dropped with the commit, under the same lock)."""
         with self._lock:
             self._writable()
             db = self._db
@@ -202,6 +204,7 @@ class Store:
                 for sql, params in statements:
                     last = db.execute(sql, params).lastrowid or last
                 db.execute("COMMIT")
+                self._shadows.pop(household or "", None)
             except sqlite3.Error as err:
                 if db.in_transaction:
                     db.execute("ROLLBACK")
@@ -251,10 +254,7 @@ class Store:
         ]
         stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
                   for i, blob in enumerate(blobs)]
-        try:
-            self._transaction(f"store household {household.name!r}", stmts)
-        finally:
-            self._forget_shadow(household.name)
+        self._transaction(f"store household {household.name!r}", stmts, household.name)
 
     def households(self) -> list[HouseholdRow]:
         rows = self._read("SELECT name, timezone, created_at, shadow FROM households ORDER BY created_at, name")
@@ -310,14 +310,11 @@ class Store:
 
     def delete_household(self, name: str) -> None:
         """Everything about a household, in one transaction (the right to be forgotten)."""
-        try:
-            self._transaction(f"delete household {name!r}", [
-                (f"DELETE FROM {table} WHERE household = ?", (name,))
-                for table in ("tokens", "feedback", "observations", "training_days", "step_predictions", "fetches",
-                              "day_scores")
-            ] + [("DELETE FROM households WHERE name = ?", (name,))])
-        finally:
-            self._forget_shadow(name)
+        self._transaction(f"delete household {name!r}", [
+            (f"DELETE FROM {table} WHERE household = ?", (name,))
+            for table in ("tokens", "feedback", "observations", "training_days", "step_predictions", "fetches",
+                          "day_scores")
+        ] + [("DELETE FROM households WHERE name = ?", (name,))], name)
 
     # -- observations and feedback ----------------------------------------------------------
     def add_observation(self, household: str, time: dt.datetime, activity: str | None, locations: dict[str, str],
@@ -337,6 +334,7 @@ class Store:
                 for sql, params in also:
                     db.execute(sql, params)
                 db.execute("COMMIT")
+                self._shadows.pop(household or "", None)
             except sqlite3.Error as err:
                 if db.in_transaction:
                     db.execute("ROLLBACK")
@@ -385,23 +383,15 @@ class Store:
 
     # -- shadow mode and online scores -------------------------------------------------------
     def set_shadow(self, household: str, shadow: bool) -> int:
-        try:
-            return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
-                                                      (int(shadow), household))])
-        finally:
-            self._forget_shadow(household)
-
-    def _forget_shadow(self, household: str) -> None:
-        """After this connection wrote the household's row (data_version does not see its own
-        commits): under the lock, so no read that began before the commit caches the old flag later."""
-        with self._lock:
-            self._shadows.pop(household, None)
+        return self._transaction("switch shadow mode", [("UPDATE households SET shadow = ? WHERE name = ?",
+                                                  (int(shadow), household))], household)
 
     def shadow(self, household: str) -> bool:
         """Whether the household is in shadow mode. Asked at every prediction, so kept in memory
-        (no wait for the store's lock behind other households' writes); this connection's own
-        switches show at once, another's (``globe household shadow`` under a running service)
-        within :attr:`shadow_recheck_s`: SQLite's ``data_version`` changes exactly then."""
+        (no wait for the store's lock behind other households' writes). This connection's own
+        switches show at once (dropped with their commit, which ``data_version`` does not count);
+        another's (``globe household shadow`` under a running service) within
+        :attr:`shadow_recheck_s`, once ``data_version`` changes."""
         found = self._shadows.get(household)
         if found is not None and time.monotonic() - self._shadow_checked < self.shadow_recheck_s:
             return found
