@@ -8,11 +8,13 @@ from globe.config import GlobeConfig
 from globe.evaluation.activity_anticipation import (
     BLEND_WEIGHTS,
     blend_weights,
+    fold_losses,
     run_activity_anticipation,
     score_anticipation,
     write_activity_anticipation,
 )
 from globe.evaluation.selection import Memo
+from globe.evaluation.tuning import data_folds
 from globe.models.baselines import PersistenceModel
 from tests.simulated import clock_home
 
@@ -58,7 +60,7 @@ def test_the_time_of_day_is_mixed_in_as_far_as_training_days_say():
     the mix then beats it on the test days."""
     home = clock_home(40, 6, 10, 7, 3.0)
     models = GlobeConfig().models.model_copy(update={"activity_estimator": "persistence"})
-    weights = blend_weights(home, models, 10, 6, 4)
+    weights = blend_weights([fold_losses(home, models, 10, 6, fold) for fold in data_folds(home, 4)])
     assert all(w in BLEND_WEIGHTS for w in weights)
     assert list(weights) == sorted(weights) and weights[0] < weights[-1]
     model = assembly.activity_model(models, 10).fit([d.activities for d in home.train])

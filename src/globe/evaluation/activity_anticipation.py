@@ -27,8 +27,8 @@ from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.evaluation import report
 from globe.evaluation.metrics import LOG_LOSS_FLOOR, f1, log_loss
-from globe.evaluation.parallel import run_forked, worker_count
-from globe.evaluation.selection import Memo, best_of
+from globe.evaluation.parallel import precompute_selections, run_forked, worker_count
+from globe.evaluation.selection import Fold, Memo, best_of
 from globe.evaluation.tuning import data_folds, fold_days, tuned_models
 from globe.inference.horizon import activity_marginals, next_different
 from globe.models.base import ActivityModelBase
@@ -166,54 +166,65 @@ BLEND_WEIGHTS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.9)
 """Weights of the time of day tried per horizon (the first wins ties: the model alone)."""
 
 
-def blend_weights(household: Household, models: ModelConfig, step_minutes: int, steps: int,
-                  k: int, stride: int = 1) -> tuple[float, ...]:
-    """Per horizon 1..``steps``, the weight of the time of day (:data:`BLEND_WEIGHTS`) whose mix
-    with the model has the lowest log loss on held-out blocks of training days (every
-    ``stride``-th reference step: ``lookahead.cv_stride``, as the lookahead's own search)."""
+def fold_losses(household: Household, models: ModelConfig, step_minutes: int, steps: int, fold: Fold,
+                stride: int = 1) -> np.ndarray:
+    """(horizons x :data:`BLEND_WEIGHTS`): the log loss on one fold's held-out training days of
+    each mix of the model with the time of day (every ``stride``-th reference step)."""
     losses = np.zeros((steps, len(BLEND_WEIGHTS)))
     weights = np.array(BLEND_WEIGHTS)
-    for fold in data_folds(household, k):
-        train, held_out = fold_days(household, fold)
-        refs = [(day, r) for day in held_out for r in range(0, len(day) - steps, stride)]
-        if not refs:
-            continue
-        space = state_space(assembly.activity_model(models, step_minutes).fit([d.activities for d in train]))
-        roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
-        marginals = activity_marginals(space, roots, steps)
-        totals = marginals.sum(axis=2)
-        index = {a: i for i, a in enumerate(space.labels)}
-        by_step = time_of_day(train)
-        for j in range(1, steps + 1):
-            p_model, p_time = np.zeros(len(refs)), np.zeros(len(refs))
-            for q, (day, r) in enumerate(refs):
-                truth, total = day.activities[r + j], totals[q, j - 1]
-                if truth in index and total > 0:
-                    p_model[q] = marginals[q, j - 1, index[truth]] / total
-                p_time[q] = at_step(by_step, r + j).get(truth, 0.0)
-            mixed = np.outer(p_model, 1 - weights) + np.outer(p_time, weights)
-            losses[j - 1] -= np.log(np.maximum(mixed, LOG_LOSS_FLOOR)).sum(axis=0)
-    return tuple(float(best_of([(w, -losses[j, i]) for i, w in enumerate(BLEND_WEIGHTS)])) for j in range(steps))
+    train, held_out = fold_days(household, fold)
+    refs = [(day, r) for day in held_out for r in range(0, len(day) - steps, stride)]
+    if not refs:
+        return losses
+    space = state_space(assembly.activity_model(models, step_minutes).fit([d.activities for d in train]))
+    roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
+    marginals = activity_marginals(space, roots, steps)
+    totals = marginals.sum(axis=2)
+    index = {a: i for i, a in enumerate(space.labels)}
+    by_step = time_of_day(train)
+    for j in range(1, steps + 1):
+        p_model, p_time = np.zeros(len(refs)), np.zeros(len(refs))
+        for q, (day, r) in enumerate(refs):
+            truth, total = day.activities[r + j], totals[q, j - 1]
+            if truth in index and total > 0:
+                p_model[q] = marginals[q, j - 1, index[truth]] / total
+            p_time[q] = at_step(by_step, r + j).get(truth, 0.0)
+        mixed = np.outer(p_model, 1 - weights) + np.outer(p_time, weights)
+        losses[j - 1] -= np.log(np.maximum(mixed, LOG_LOSS_FLOOR)).sum(axis=0)
+    return losses
+
+
+def blend_weights(losses: Sequence[np.ndarray]) -> tuple[float, ...]:
+    """Per horizon, the weight of the time of day (:data:`BLEND_WEIGHTS`) whose mix with the model
+    has the lowest log loss summed over the folds (:func:`fold_losses`)."""
+    total = np.sum(losses, axis=0)
+    return tuple(float(best_of([(w, -total[j, i]) for i, w in enumerate(BLEND_WEIGHTS)])) for j in range(len(total)))
 
 
 def run_activity_anticipation(config: GlobeConfig, households: Sequence[Household],
                               memo: Memo) -> list[AnticipationScores]:
     """Every household's test days, with the routine family's model chosen by cross-validation
-    on its training days (``memo``: the main job's searches); households on several processes."""
+    on its training days (``memo``: the main job's searches). The folds of the time-of-day
+    weights, then the households, run on several processes."""
     tested = [h for h in households if h.test]
-
-    def one(i: int) -> AnticipationScores:
-        h = tested[i]
+    workers = worker_count(config.evaluation.workers)
+    precompute_selections(config, tested, ["routine"], memo)  # the searches not run yet, in parallel
+    chosen = []
+    for h in tested:
         models, _ = tuned_models(h, config, "routine", memo)
-        step = assembly.step_minutes(h, config)
-        model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
-        steps = assembly.lookahead_steps(config, h)  # every step up to lookahead.horizon_minutes
-        blend = blend_weights(h, models, step, steps, config.selection.folds, config.lookahead.cv_stride)
-        return score_anticipation(h.name, model, h.train, h.test, steps, step,
-                                  f"chosen ({models.activity_estimator})", blend)
+        chosen.append((h, models, assembly.step_minutes(h, config), assembly.lookahead_steps(config, h)))
+    folds = [(i, fold) for i, (h, *_) in enumerate(chosen) for fold in data_folds(h, config.selection.folds)]
+    losses = run_forked(lambda t: fold_losses(*chosen[folds[t][0]], folds[t][1], config.lookahead.cv_stride),
+                        len(folds), workers)
 
-    return run_forked(one, len(tested), worker_count(config.evaluation.workers),
-                      [len(h.train) + len(h.test) for h in tested])
+    def score(i: int) -> AnticipationScores:
+        h, models, step, steps = chosen[i]
+        model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
+        blend = blend_weights([loss for (owner, _), loss in zip(folds, losses) if owner == i])
+        return score_anticipation(h.name, model, h.train, h.test, steps, step, f"chosen ({models.activity_estimator})",
+                                  blend)
+
+    return run_forked(score, len(chosen), workers, [len(h.test) for h, *_ in chosen])
 
 
 def write_activity_anticipation(out_dir: Path, scores: Sequence[AnticipationScores], title: str) -> list[Path]:
