@@ -91,6 +91,22 @@ def test_a_running_service_follows_a_switch_made_by_another_connection(tmp_path,
         assert service.shadow("A") is False
         service.set_shadow("A", True)
         assert service.shadow("A") is True
+        asked = []
+
+        class Counting:  # the connection, counting what the store asks it
+            def __getattr__(self, name):
+                return getattr(db, name)
+
+            def execute(self, sql, *args):
+                asked.append(sql)
+                return db.execute(sql, *args)
+
+        db, service._db = service._db, Counting()
+        service.shadow_recheck_s = 3600.0
+        service.add_observation("A", dt.datetime(2026, 1, 5, 6, tzinfo=dt.timezone.utc), "sleep", {}, None, {})
+        asked.clear()
+        assert [service.shadow("A") for _ in range(100)] == [True] * 100 and asked == []  # an observation keeps it
+        service._db = db
         service.delete_household("A")
         assert service.shadow("A") is True  # gone: the default, not the remembered flag
         service.add_household(household_from("A", parse_nodes(household_payload(h)["nodes"]), texts), "UTC", texts,

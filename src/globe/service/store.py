@@ -334,7 +334,6 @@ class Store:
                 for sql, params in also:
                     db.execute(sql, params)
                 db.execute("COMMIT")
-                self._shadows.pop(household or "", None)
             except sqlite3.Error as err:
                 if db.in_transaction:
                     db.execute("ROLLBACK")
@@ -392,9 +391,11 @@ class Store:
         switches show at once (dropped with their commit, which ``data_version`` does not count);
         another's (``globe household shadow`` under a running service) within
         :attr:`shadow_recheck_s`, once ``data_version`` changes."""
-        found = self._shadows.get(household)
-        if found is not None and time.monotonic() - self._shadow_checked < self.shadow_recheck_s:
-            return found
+        found, now = self._shadows.get(household), time.monotonic()
+        if found is not None:
+            if now - self._shadow_checked < self.shadow_recheck_s:
+                return found
+            self._shadow_checked = now  # this caller rechecks; the others keep the flag meanwhile
         with self._lock:
             try:
                 version = self._db.execute("PRAGMA data_version").fetchone()[0]
