@@ -90,6 +90,8 @@ def log_in(driver, url: str, token: str) -> None:
     from selenium.webdriver.common.by import By
 
     driver.get(url + "/dashboard")
+    driver.delete_all_cookies()  # each test starts logged out, whatever the one before left
+    driver.get(url + "/dashboard")
     assert driver.current_url.endswith("/dashboard/login")
     driver.find_element(By.ID, "token").send_keys(token)
     driver.find_element(By.ID, "login").click()
@@ -97,9 +99,13 @@ def log_in(driver, url: str, token: str) -> None:
 
 def test_a_wrong_token_is_refused(driver, service):
     from selenium.webdriver.common.by import By
+    from selenium.webdriver.support import expected_conditions as ec
+    from selenium.webdriver.support.ui import WebDriverWait
 
     log_in(driver, service.url, "globe_wrong-token")
-    assert "Unknown or revoked token" in driver.find_element(By.ID, "login-error").text
+    # the click returns before the refused form's page has loaded on a busy machine: wait for it
+    error = WebDriverWait(driver, 10).until(ec.presence_of_element_located((By.ID, "login-error")))
+    assert "Unknown or revoked token" in error.text
     assert driver.current_url.endswith("/dashboard/login")
     assert not driver.get_cookies() or all(c["name"] != "globe_session" for c in driver.get_cookies())
     shoot(driver, "login")
