@@ -96,23 +96,22 @@ def table1(results: Path) -> str:
 def table1_households(results: Path) -> str:
     """Weighted F1 per household: activity / object."""
     rows = [r for r in read_rows(results, "table1.csv") if r["average"] == "weighted" and r["household"] != "mean"]
-    households = list(dict.fromkeys(r["household"] for r in rows))
-    body = []
-    for method in dict.fromkeys(r["method"] for r in rows):
-        get = {r["household"]: r for r in rows if r["method"] == method}
-        body.append([_label(method), *[f"{_f(get[h]['activity_f1'])} / {_f(get[h]['object_f1'])}" for h in households]])
-    return markdown(["method", *[f"{h}: activity / object" for h in households]], body)
+    return _activity_object(rows, "household")
 
 
 def table1_averages(results: Path) -> str:
     """Mean F1 of the households by each average (weighted, micro, macro)."""
-    rows = [r for r in read_rows(results, "table1.csv") if r["household"] == "mean"]
-    averages = list(dict.fromkeys(r["average"] for r in rows))
+    return _activity_object([r for r in read_rows(results, "table1.csv") if r["household"] == "mean"], "average")
+
+
+def _activity_object(rows: list[dict[str, str]], column: str) -> str:
+    """A row per method, a column per value of ``column``: activity / object F1."""
+    values = list(dict.fromkeys(r[column] for r in rows))
     body = []
     for method in dict.fromkeys(r["method"] for r in rows):
-        get = {r["average"]: r for r in rows if r["method"] == method}
-        body.append([_label(method), *[f"{_f(get[a]['activity_f1'])} / {_f(get[a]['object_f1'])}" for a in averages]])
-    return markdown(["method", *[f"{a}: activity / object" for a in averages]], body)
+        get = {r[column]: r for r in rows if r["method"] == method}
+        body.append([_label(method), *[f"{_f(get[v]['activity_f1'])} / {_f(get[v]['object_f1'])}" for v in values]])
+    return markdown(["method", *[f"{v}: activity / object" for v in values]], body)
 
 
 def details(results: Path) -> str:

@@ -490,20 +490,17 @@ class Store:
 
     def token(self, digest: str) -> TokenRow | None:
         """The token with this hash (on the token connection: never waits for a write)."""
-        with self._token_lock:
-            try:
-                rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens "
-                                              "WHERE hash = ?", (digest,)).fetchall()
-            except sqlite3.Error as err:
-                raise StoreError(f"database read failed: {err}") from err
-        return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
+        return self._token_where("hash", digest)
 
     def token_by_id(self, token_id: str) -> TokenRow | None:
         """The token with this id (a dashboard session names its token by id, never by the token)."""
+        return self._token_where("id", token_id)
+
+    def _token_where(self, column: str, value: str) -> TokenRow | None:
         with self._token_lock:
             try:
                 rows = self._token_db.execute("SELECT id, household, admin, created_at, revoked_at FROM tokens "
-                                              "WHERE id = ?", (token_id,)).fetchall()
+                                              f"WHERE {column} = ?", (value,)).fetchall()
             except sqlite3.Error as err:
                 raise StoreError(f"database read failed: {err}") from err
         return TokenRow(rows[0][0], rows[0][1], bool(rows[0][2]), rows[0][3], rows[0][4]) if rows else None
