@@ -18,7 +18,7 @@ probabilities are never 0 or 1, which is what a proper scoring rule rewards on r
 from __future__ import annotations
 
 from collections import Counter
-from typing import Sequence
+from typing import Sequence, TypeVar
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from globe.models.base import ActivityModelBase
 from globe.models.state_space import StateSpace
 
 _STEP_BITS = 24
+Steps = TypeVar("Steps", int, np.ndarray)
 
 
 class ClockModel(ActivityModelBase):
@@ -65,8 +66,8 @@ class ClockModel(ActivityModelBase):
         self._learnt()
         return self
 
-    def slot(self, step: int) -> int:
-        """The time slot of ``step`` (steps counted from the day's first)."""
+    def slot(self, step: Steps) -> Steps:
+        """The time slot of ``step`` (steps counted from the day's first; one or an array)."""
         return step * self.step_minutes // self.slot_minutes
 
     def _build_states(self) -> "ClockStates":
@@ -127,7 +128,7 @@ class ClockStates(StateSpace):
     def rows(self, states: np.ndarray) -> np.ndarray:
         states = np.asarray(states, dtype=np.int64)
         previous, step = states >> _STEP_BITS, states & ((1 << _STEP_BITS) - 1)
-        slots = step * self._model.step_minutes // self._model.slot_minutes  # :meth:`ClockModel.slot`
+        slots = self._model.slot(step)
         out = np.empty((len(states), len(self.labels)))
         for slot in np.unique(slots).tolist():
             mine = slots == slot
