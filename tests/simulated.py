@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import random
 from dataclasses import dataclass
+from datetime import date, timedelta
 
 from globe.data.records import Day, Household, Node
 
@@ -111,12 +112,15 @@ def _household(name: str, days: list[Day], test: int) -> Household:
     return Household(name, _nodes(), OBJECTS, tuple(days[:-test]), tuple(days[-test:]))
 
 
-def clock_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0, drift: float = 0.0) -> Household:
-    """A home whose routine is a clock (see the module doc); day i is weekday i % 7; ``drift``
+def clock_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0, drift: float = 0.0,
+               dated: bool = False) -> Household:
+    """A home whose routine is a clock (see the module doc); day i is weekday i % 7 (with
+    ``dated``, named by its date from Monday 2024-01-01 on, as imported days are); ``drift``
     switches an hour between idle and relax make its quiet hours as unsettled as real ones."""
     rng = random.Random(seed)
-    return _household("Clock", [_day(f"day{i:03d}", _unsettled(rng, _clock_blocks(rng, i % 7), drift), step)
-                                for i in range(days)], test)
+    names = [(date(2024, 1, 1) + timedelta(days=i)).isoformat() if dated else f"day{i:03d}" for i in range(days)]
+    return _household("Clock", [_day(name, _unsettled(rng, _clock_blocks(rng, i % 7), drift), step)
+                                for i, name in enumerate(names)], test)
 
 
 def random_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0) -> Household:
@@ -124,3 +128,23 @@ def random_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0) -
     rng = random.Random(seed)
     labels = ("sleeping", "idle", "relax", "breakfast", "dinner", "grooming", "work", "leave_home")
     return _household("Random", [_day(f"day{i:03d}", _random_blocks(rng, labels), step) for i in range(days)], test)
+
+
+def weekly_home(days: int = 75, test: int = 10, seed: int = 0, dated: bool = True) -> Household:
+    """A home whose week has two kinds of day that look the same until after breakfast (up near
+    07:00): on weekdays then at work until about 17:00; at the weekend relaxing, out in the
+    afternoon. Only the day of the week tells which follows breakfast. Named by date from Monday
+    2024-01-01 on with ``dated``."""
+    rng = random.Random(seed)
+    out = []
+    for i in range(days):
+        j = lambda sd: rng.gauss(0, sd)  # noqa: E731
+        blocks = [_Block("sleeping", START), _Block("breakfast", 420 + j(10), (("kettle", 2.0),))]
+        if i % 7 < 5:
+            blocks += [_Block("work", 450 + j(5)), _Block("relax", 1020 + j(20))]
+        else:
+            blocks += [_Block("relax", 450 + j(5)), _Block("outing", 780 + j(30)), _Block("relax", 1020 + j(20))]
+        blocks.append(_Block("sleeping", 1380 + j(15)))
+        name = (date(2024, 1, 1) + timedelta(days=i)).isoformat() if dated else f"day{i:03d}"
+        out.append(_day(name, blocks, 10))
+    return _household("Weekly", out, test)

@@ -46,6 +46,7 @@ CLOCK_MODELS = {
     "activity_estimator": ("clock", "activity", "kind", "ClockModel"),
     "clock_slot_minutes": ("30", "activity", "slot_minutes", 30),
     "clock_shrinkage": ("2.5", "activity", "shrinkage", 2.5),
+    "clock_day_types": ("weekend", "activity", "day_types", "weekend"),
 }
 
 

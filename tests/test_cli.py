@@ -34,6 +34,10 @@ def test_train_then_predict(tmp_path):
     assert "next activity:" in res.stdout and "next object during" in res.stdout
     bad = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up,flying")
     assert bad.returncode == 1 and "unknown activity 'flying'" in bad.stderr
+    dated = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up", "--date", "2024-01-06")
+    assert dated.returncode == 0, dated.stderr
+    no_date = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up", "--date", "2024-13-06")
+    assert no_date.returncode == 1 and "--date: '2024-13-06' is not a date; expected YYYY-MM-DD" in no_date.stderr
 
 
 def test_missing_data_folder_is_one_clean_line(tmp_path):

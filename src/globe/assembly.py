@@ -76,7 +76,7 @@ def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
                             step_minutes=step_minutes)
     if models.activity_estimator == "clock":
         return ClockModel(slot_minutes=models.clock_slot_minutes, shrinkage=models.clock_shrinkage,
-                          step_minutes=step_minutes)
+                          step_minutes=step_minutes, day_types=models.clock_day_types)
     return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
                          time_weight=models.time_weight, time_window=steps(models.time_window_minutes, step_minutes))
 
@@ -102,9 +102,14 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
     t0 = time.perf_counter()
     seqs = training_sequences(household, household.train if days is None else days, config.sequences.alignment)
     t1 = time.perf_counter()
-    activity = activity_model(config.models, step_minutes(household, config)).fit(seqs.activities)
+    activity = activity_model(config.models, step_minutes(household, config)).fit(seqs.activities, seqs.weekdays)
     objects = object_model(config.models).fit(seqs.runs)
     return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0, seqs)
+
+
+def fitted_activity_model(models: ModelConfig, step: int, days: Sequence[Day]) -> ActivityModelBase:
+    """The activity model of ``models`` counted on ``days`` (their activities and days of the week)."""
+    return activity_model(models, step).fit([d.activities for d in days], [d.weekday for d in days])
 
 
 def movement_emission(filter_cfg: FilterConfig, *, previous_share: float, weight: float,
@@ -246,7 +251,7 @@ def forecaster(household: Household, config: GlobeConfig, days: Sequence[Day] | 
     la = config.lookahead
     t0 = time.perf_counter()
     step = step_minutes(household, config)
-    activity = activity_model(models or config.models, step).fit([d.activities for d in days])
+    activity = fitted_activity_model(models or config.models, step, days)
     movements = movement_model(la, step, run_end, run_memory, run_next).fit(days, household.objects)
     train_s = time.perf_counter() - t0
     return FittedForecaster(forecaster_over(activity, movements, la), train_s)

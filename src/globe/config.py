@@ -20,6 +20,7 @@ from globe.errors import ConfigError
 Alignment = Literal["previous", "current", "hybrid"]
 ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine", "clock"]
 ObjectEstimator = Literal["longest", "witten_bell"]
+DayTypes = Literal["none", "weekend", "weekday"]
 
 
 class _Section(BaseModel):
@@ -74,6 +75,9 @@ class ModelConfig(_Section):
     clock_shrinkage: float = Field(
         5.0, gt=0.0, le=1000.0, description="clock model: pseudo-count pulling a slot toward the time-free bigram"
     )
+    clock_day_types: DayTypes = Field(
+        "none", description="clock model: which days of the week it tells apart ('weekend': Monday to Friday and the "
+        "weekend; 'weekday': each day; days named by their date only), each shrunk toward every day's slot")
     object_marginal: bool = Field(
         False, description="mix object predictions over the activity distribution instead of its argmax"
     )
@@ -100,6 +104,11 @@ class SelectionConfig(_Section):
     time_weights: tuple[float, ...] = Field((0.0, 1.0, 2.0), description="time-of-day weights tried")
     clock_slots: tuple[int, ...] = Field((30, 60, 120), description="clock model: slot widths tried (minutes)")
     clock_shrinkages: tuple[float, ...] = Field((2.0, 10.0), description="clock model: shrinkage pseudo-counts tried")
+    clock_day_types: tuple[DayTypes, ...] = Field(
+        ("none", "weekend", "weekday"), description="clock model: day types tried where the training days' dates span "
+        "at least day_types_min_days")
+    day_types_min_days: int = Field(
+        14, ge=7, le=3660, description="days from the first training date to the last before day types are tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
     alignments: tuple[Alignment, ...] = Field(
         ("previous", "current", "hybrid"), description="routine family: movement alignments tried after the models "

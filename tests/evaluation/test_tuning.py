@@ -5,6 +5,7 @@ import random
 from dataclasses import replace
 
 from globe.config import GlobeConfig
+from globe.data.records import Day
 from globe.evaluation.metrics import LOG_LOSS_FLOOR
 from globe.evaluation.selection import Memo
 from globe.evaluation.tuning import ScanMemo, activity_scores, tuned_gate, tuned_models
@@ -88,10 +89,9 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
         models = cfg.model_copy(update=params)
         for fold in data_folds(h, 3):
             train, held_out = fold_days(h, fold)
-            held_out_days = [d.activities for d in held_out]
-            shared = activity_f1(fitted_activity(h, fold, models, memo, 10), held_out_days)
-            alone = assembly.activity_model(models, 10).fit([d.activities for d in train])
-            assert shared == activity_f1(alone, held_out_days)  # type: ignore[arg-type]
+            shared = activity_f1(fitted_activity(h, fold, models, memo, 10), held_out)
+            alone = assembly.fitted_activity_model(models, 10, train)
+            assert shared == activity_f1(alone, held_out)  # type: ignore[arg-type]
     counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")
                                        and k.model != "sequences")]
     assert len(counted) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit
@@ -99,5 +99,6 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
 
 def test_a_perfect_prediction_scores_a_log_loss_of_zero_and_an_empty_fold_the_floor():
     model = ScanMemo(PersistenceModel().fit([("a", "a", "a")]))
-    assert activity_scores(model, [("a", "a", "a")])["log_loss"] == 0.0
+    day = Day("train/2024-01-01", (360, 370, 380), ("a", "a", "a"), ((), (), ()))
+    assert activity_scores(model, [day])["log_loss"] == 0.0
     assert activity_scores(model, [])["log_loss"] == -math.log(LOG_LOSS_FLOOR)

@@ -76,3 +76,33 @@ def test_the_alignment_cross_validation_chooses_is_the_best_on_test_days():
         test_f1[alignment] = f1([r.true for r in run.evaluation.objects], [r.predicted for r in run.evaluation.objects])
     assert test_f1[search.best["alignment"]] >= max(test_f1.values()) - 0.01
     assert max(test_f1.values()) - min(test_f1.values()) > 0.03  # the choice matters here
+
+
+def test_where_days_carry_dates_the_day_of_the_week_is_offered_and_chosen_when_it_tells_days_apart():
+    """Day types are tried only where dated training days span two weeks; on a home whose
+    weekends differ from its weekdays in a way the last activity and the time cannot tell (what
+    follows breakfast), cross-validation chooses them and the test days' log loss of what follows
+    breakfast drops well below the same home's without dates; on the clock home (whose weekends
+    the last activity mostly reveals) the choice is no worse than without dates."""
+    from globe.evaluation.tuning import day_types_tried
+    from tests.simulated import weekly_home
+
+    sel = GlobeConfig().selection
+    assert day_types_tried(weekly_home(20, 5, 0, dated=False), sel) == ["none"]
+    assert day_types_tried(weekly_home(12, 2, 0), sel) == ["none"]  # ten training days: under two weeks
+    assert day_types_tried(weekly_home(20, 5, 0), sel) == ["none", "weekend", "weekday"]
+
+    def chosen(home) -> tuple[str, float, float]:
+        """The day types chosen, the log loss on the test days and that of what follows breakfast."""
+        models, _ = tuned_models(home, GlobeConfig(), "routine", Memo())
+        model = assembly.fitted_activity_model(models, 10, home.train)
+        steps = [(d.activities[t - 1], d.activities[t], dist.get(d.activities[t], 0.0)) for d in home.test
+                 for t, dist in enumerate(model.scan_proba(d.activities, d.weekday)) if t]
+        types = models.clock_day_types if models.activity_estimator == "clock" else "none"
+        return types, log_loss([p for *_, p in steps]), log_loss([p for a, b, p in steps if a == "breakfast" != b])
+
+    dated, undated = chosen(weekly_home(56, 14, 3)), chosen(weekly_home(56, 14, 3, dated=False))
+    assert dated[0] in ("weekend", "weekday") and undated[0] == "none"
+    assert dated[2] < 0.75 * undated[2]
+    assert dated[1] < undated[1]
+    assert chosen(clock_home(75, 10, 10, 1, 3.0, dated=True))[1] <= chosen(clock_home(75, 10, 10, 1, 3.0))[1] + 0.01

@@ -33,7 +33,7 @@ TOY_DAYS = (
 class ChainModel(ActivityModelBase):
     """Test double: after a, a with 0.6 and b with 0.4; after b, always b."""
 
-    def partial_fit(self, days):
+    def partial_fit(self, days, weekdays=None):
         self.training_data_ = list(days)
         self.frequency_ = {"a": 1, "b": 1}
         return self
@@ -348,7 +348,7 @@ class TreeModel(ActivityModelBase):
     """Test double: three activities, each next step depending on the last two (a second-order
     chain, so paths do not merge), every probability a few bits long."""
 
-    def partial_fit(self, days):
+    def partial_fit(self, days, weekdays=None):
         self.training_data_ = list(days)
         self.frequency_ = {"a": 3, "b": 2, "c": 1}
         self.classes_ = ("a", "b", "c")

@@ -70,3 +70,80 @@ def test_a_whole_path_at_once_is_the_walk_one_step_at_a_time(make):
         assert np.array_equal(space.path(day), StateSpace.path(space, day))
         assert [space.labels[c] if c >= 0 else None for c in space.last(space.path(day)).tolist()] == \
             [None, *day[:-1]][: len(day)]
+
+
+# DAYS[0] a Monday, DAYS[1] a Saturday, DAYS[2] a Sunday: under "weekend", type 1 and type 2.
+WEEKDAYS = [0, 5, 6]
+
+
+def typed_by_hand(previous: str | None, slot: int, k: float) -> dict[str, float]:
+    """The weekend level (DAYS[1:]) shrunk to every day's row, by hand."""
+    labels = ("eat", "sleep", "work")
+    if previous is None:  # the first step: weekend starts are sleep, sleep
+        counts = {"eat": 5, "sleep": 5, "work": 2}
+        unigram = {b: (counts[b] + 1) / 15 for b in labels}
+        below = {b: ((3 if b == "sleep" else 0) + k * unigram[b]) / (3 + k) for b in labels}
+        here = {"eat": 0, "sleep": 2, "work": 0}
+    else:
+        below = by_hand(previous, slot, k)
+        # the weekend days' pairs: (sleep, eat) slot 0; (eat, eat) slot 1; (eat, work) slot 1;
+        # (sleep, sleep) slot 0; (sleep, eat) slot 1; (eat, eat) slot 1
+        pairs = {("sleep", "eat"): {0: 1, 1: 1}, ("eat", "eat"): {1: 2}, ("eat", "work"): {1: 1},
+                 ("sleep", "sleep"): {0: 1}}
+        here = {b: pairs.get((previous, b), {}).get(slot, 0) for b in labels}
+    return {b: (here[b] + k * below[b]) / (sum(here.values()) + k) for b in labels}
+
+
+@pytest.mark.parametrize("history, previous, slot", [((), None, 0), (("sleep",), "sleep", 0),
+                                                      (("sleep", "sleep"), "sleep", 1),
+                                                      (("sleep", "eat", "eat"), "eat", 1)])
+def test_a_day_type_is_its_own_counts_shrunk_to_every_days_slot(history, previous, slot):
+    model = ClockModel(slot_minutes=20, shrinkage=2.0, day_types="weekend").fit(DAYS, WEEKDAYS)
+    for weekday in (5, 6):
+        got = model.predict_proba(history, weekday)
+        want = typed_by_hand(previous, slot, 2.0)
+        assert got == pytest.approx(want)
+    if previous is not None:  # a day of no known date, and the model without day types: the level below
+        assert model.predict_proba(history) == pytest.approx(by_hand(previous, slot, 2.0))
+        assert ClockModel(slot_minutes=20, shrinkage=2.0).fit(DAYS, WEEKDAYS).predict_proba(history, 5) == \
+            pytest.approx(by_hand(previous, slot, 2.0))
+
+
+def test_the_day_type_travels_with_the_state_through_paths_and_the_filter():
+    """Forward from a Saturday's root with no pruning: the marginals are the product of the
+    weekend tables; the filter with every label visible gives the scan of that Saturday."""
+    from globe.data.records import Day
+    from globe.inference.activity_filter import ActivityFilter, filtered_beliefs
+
+    model = ClockModel(slot_minutes=20, shrinkage=2.0, day_types="weekend").fit(DAYS, WEEKDAYS)
+    paths = ActivityPaths(model, min_path_probability=0.0, max_paths=10_000)
+    trees = paths.trees(paths.roots([("sleep",)], [1], [5]), 2)
+    labels = [trees.names[i] for i in range(len(trees.names))]
+    p = np.array([1.0 if a == "sleep" else 0.0 for a in labels])
+    for k, got in enumerate(trees.activity_matrix()[0]):
+        step = 1 + k
+        p = p @ np.array([[typed_by_hand(a, step * 10 // 20, 2.0)[b] for b in labels] for a in labels])
+        assert got == pytest.approx(p)
+    day = Day("test/2024-01-06", (360, 370, 380, 390), DAYS[0], ((),) * 4)  # a Saturday
+    rows, _ = filtered_beliefs(ActivityFilter(model), [day], [[True] * 4], ())
+    scan = model.scan_proba(day.activities, day.weekday)
+    space = model.states()
+    assert rows is not None
+    for t, row in enumerate(rows[0]):
+        assert dict(zip(space.labels, row.tolist())) == pytest.approx({a: scan[t].get(a, 0.0) for a in space.labels})
+
+
+def test_a_whole_path_with_a_day_type_is_the_walk_and_the_weekdays_are_saved_with_the_model():
+    from globe.models.io import model_from_dict, model_to_dict
+    from globe.models.state_space import StateSpace
+
+    model = ClockModel(slot_minutes=20, shrinkage=2.0, day_types="weekday").fit(DAYS, WEEKDAYS)
+    space = model.states()
+    for weekday in (None, 0, 6):
+        assert np.array_equal(space.path(DAYS[0], weekday), StateSpace.path(space, DAYS[0], weekday))
+        assert [space.labels[c] for c in space.last(space.path(DAYS[0], weekday))[1:].tolist()] == list(DAYS[0][:-1])
+    again = model_from_dict(model_to_dict(model))
+    assert again.weekdays_ == WEEKDAYS
+    assert again.scan_proba(DAYS[1], 5) == model.scan_proba(DAYS[1], 5) != model.scan_proba(DAYS[1])
+    with pytest.raises(ValueError, match="3 days but 2 weekdays"):
+        ClockModel().fit(DAYS, [0, 1])

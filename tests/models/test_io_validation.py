@@ -32,6 +32,12 @@ EDITS = {
     "run_start_token 1": (lambda p: p["objects"]["params"].__setitem__("run_start_token", 1), "params.run_start_token"),
     "estimator 3": (lambda p: p["activity"]["params"].__setitem__("estimator", 3), "params.estimator"),
     "unknown parameter": (lambda p: p["objects"]["params"].__setitem__("speed", 1), "params.speed"),
+    "weekday 7": (lambda p: p["activity"].__setitem__("weekdays", [7] * len(p["activity"]["data"])), "'weekdays'"),
+    "weekday true": (lambda p: p["activity"].__setitem__("weekdays", [True] * len(p["activity"]["data"])),
+                     "'weekdays'"),
+    "weekdays short": (lambda p: p["activity"].__setitem__("weekdays", [0]), "'weekdays'"),
+    "weekdays on objects": (lambda p: p["objects"].__setitem__("weekdays", [0] * len(p["objects"]["data"])),
+                            "'weekdays'"),
 }
 
 

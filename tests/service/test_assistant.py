@@ -142,3 +142,30 @@ def test_policy_makes_no_fetch_without_a_basis_today(households):
     a.observe(Observation(at(360), None, dict(zip(h.objects, h.test[0].locations[0]))))
     p = a.predict()
     assert not p.act and p.fetch_object is None and p.status == "ready"
+
+
+def test_the_assistant_predicts_from_the_day_of_the_week_it_is_in():
+    """With a clock model that tells weekends apart, what follows breakfast on a Saturday is what
+    the training Saturdays did (relax), on a Monday what the weekdays did (work), with every label
+    seen and with labels missing (the filter starts from the day's type too); the day it learns
+    keeps its date."""
+    from globe.config import GlobeConfig
+    from tests.simulated import weekly_home
+
+    h = weekly_home(29, 1, 1)
+    cfg = GlobeConfig().with_overrides({"llm.backend": "none", "models.activity_estimator": "clock",
+                                        "models.clock_day_types": "weekend", "service.fetch_decision": "threshold"})
+    saturday, monday = dt.datetime(2026, 3, 7), dt.datetime(2026, 3, 9)
+    for hide in (False, True):
+        nexts = {}
+        for start in (saturday, monday):
+            a = build_assistant(h, cfg, None)
+            for minute in range(360, 450, 10):  # asleep until 07:00, then breakfast until 07:20
+                label = "sleeping" if minute < 420 else "breakfast"
+                a.observe(Observation(start + dt.timedelta(minutes=minute), None if hide and minute == 390 else label,
+                                      {}))
+            belief = a.activity_belief()
+            nexts[start.weekday()] = max(sorted(set(belief) - {"breakfast"}), key=belief.get)
+        assert nexts == {5: "relax", 0: "work"}
+    a.observe(Observation(monday + dt.timedelta(days=1, minutes=360), "sleeping", {}))
+    assert a.activity_model.weekdays_[-1] == 0

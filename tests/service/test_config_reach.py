@@ -40,6 +40,7 @@ CLOCK = {  # the clock model's fields
     "activity_estimator": ("clock", ("models", "activity", "kind"), "ClockModel"),
     "clock_slot_minutes": ("30", ("models", "activity", "slot_minutes"), 30),
     "clock_shrinkage": ("2.5", ("models", "activity", "shrinkage"), 2.5),
+    "clock_day_types": ("weekend", ("models", "activity", "day_types"), "weekend"),
 }
 
 

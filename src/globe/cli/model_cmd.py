@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 from pathlib import Path
 from typing import Annotated
 
@@ -47,17 +48,29 @@ def _known(values: tuple[str, ...], known: tuple[str, ...] | list[str], what: st
         raise DataError(f"--{option}: unknown {what} {unknown[0]!r}; known: {shown or 'none'}")
 
 
+def _weekday(text: str | None) -> int | None:
+    if text is None:
+        return None
+    try:
+        return dt.date.fromisoformat(text).weekday()
+    except ValueError:
+        raise DataError(f"--date: {text!r} is not a date; expected YYYY-MM-DD") from None
+
+
 def predict(
     model_dir: ModelDir,
     history: Annotated[str, typer.Option("--history", help="the day's activities so far, comma-separated")] = "",
     objects: Annotated[str, typer.Option("--objects", help="objects moved so far in the current activity run")] = "",
     top: Annotated[int, typer.Option("--top", min=1, help="how many candidates to list")] = 3,
+    date: Annotated[str | None, typer.Option(
+        "--date", help="the day's date, YYYY-MM-DD (a model that knows the day of the week uses it)")] = None,
     household: Annotated[str | None, typer.Option(
         "--household", help="check that the model was trained for this household's map")] = None,
     data: DataOption = None,
     config: ConfigOption = None,
 ) -> None:
     """Predict the next activity and, for it, the next object."""
+    weekday = _weekday(date)
     fingerprint = folder = None
     if household is not None:
         folder, fingerprint = household_map(resolve(config), data, household)
@@ -68,7 +81,7 @@ def predict(
     moved = _split(objects)
     known_objects = model.objects_columns or tuple(sorted({o for _, run in object_model.training_data_ for o in run}))
     _known(moved, known_objects, "object", "objects")
-    dist = activity_model.predict_proba(hist)
+    dist = activity_model.predict_proba(hist, weekday)
     ranked = activity_model.ranked(dist)
     out.print("next activity:", markup=False)
     for a in ranked[:top]:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
+from datetime import date
 from typing import Literal
 
 Split = Literal["train", "test"]
+_ISO_DATE = re.compile(r"[0-9]{4}-[0-9]{2}-[0-9]{2}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,6 +34,25 @@ class Day:
 
     def __len__(self) -> int:
         return len(self.minutes)
+
+    @property
+    def calendar_date(self) -> date | None:
+        """The day's date when it is named by it (``train/2024-04-13``, as the importers and the
+        service name days), else None: a day without a date is simply one of no known weekday."""
+        stem = self.name.rsplit("/", 1)[-1]
+        if not _ISO_DATE.fullmatch(stem):
+            return None
+        try:
+            return date.fromisoformat(stem)
+        except ValueError:
+            return None
+
+    @property
+    def weekday(self) -> int | None:
+        """Monday 0 .. Sunday 6 (:attr:`calendar_date`), or None: what models that know the day of
+        the week read."""
+        when = self.calendar_date
+        return None if when is None else when.weekday()
 
 
 @dataclass(frozen=True, slots=True)

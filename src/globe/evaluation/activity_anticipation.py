@@ -99,7 +99,7 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
     the time of day per horizon), also the model mixed with it."""
     space = state_space(model)
     refs = [(day, r) for day in test for r in range(len(day) - steps)]
-    roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
+    roots = np.array([space.state(day.activities[: r + 1], day.weekday) for day, r in refs], dtype=np.int64)
     labels = space.labels
     marginals = activity_marginals(space, roots, steps)
     by_step = time_of_day(train)
@@ -145,7 +145,7 @@ def _next_activity(space: StateSpace, test: Sequence[Day], by_step: list[dict[st
                     events.append((day, r, later))
     if not events:
         return {m: (0, 0.0) for m in (method, "persistence", "time_of_day")}
-    roots = np.array([space.state(day.activities[: r + 1]) for day, r, _ in events], dtype=np.int64)
+    roots = np.array([space.state(day.activities[: r + 1], day.weekday) for day, r, _ in events], dtype=np.int64)
     current = np.array([space.code(day.activities[r]) for day, r, _ in events], dtype=np.int64)
     limits = np.array([len(day) - 1 - r for day, r, _ in events], dtype=np.int64)
     probs = next_different(space, roots, current, limits)
@@ -176,8 +176,8 @@ def fold_losses(household: Household, models: ModelConfig, step_minutes: int, st
     refs = [(day, r) for day in held_out for r in range(0, len(day) - steps, stride)]
     if not refs:
         return losses
-    space = state_space(assembly.activity_model(models, step_minutes).fit([d.activities for d in train]))
-    roots = np.array([space.state(day.activities[: r + 1]) for day, r in refs], dtype=np.int64)
+    space = state_space(assembly.fitted_activity_model(models, step_minutes, train))
+    roots = np.array([space.state(day.activities[: r + 1], day.weekday) for day, r in refs], dtype=np.int64)
     marginals = activity_marginals(space, roots, steps)
     totals = marginals.sum(axis=2)
     index = {a: i for i, a in enumerate(space.labels)}
@@ -219,7 +219,7 @@ def run_activity_anticipation(config: GlobeConfig, households: Sequence[Househol
 
     def score(i: int) -> AnticipationScores:
         h, models, step, steps = chosen[i]
-        model = assembly.activity_model(models, step).fit([d.activities for d in h.train])
+        model = assembly.fitted_activity_model(models, step, h.train)
         blend = blend_weights([loss for (owner, _), loss in zip(folds, losses) if owner == i])
         return score_anticipation(h.name, model, h.train, h.test, steps, step, f"chosen ({models.activity_estimator})",
                                   blend)

@@ -52,7 +52,8 @@ def day_candidates(policy: FetchPolicy, day: Day) -> list[list[FetchCandidate]]:
     queries = [(day.activities[: t + 1], day.locations[: t + 1]) for t in range(len(day) - 1)]
     if not queries:
         return []
-    return policy.candidates_many(policy.forecaster.forecast_many(queries, policy.window_steps - 1))
+    forecasts = policy.forecaster.forecast_many(queries, policy.window_steps - 1, weekdays=[day.weekday] * len(queries))
+    return policy.candidates_many(forecasts)
 
 
 def use_steps(household: Household, day: Day) -> dict[str, list[int]]:

@@ -219,7 +219,8 @@ def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, fi
     rows: dict = {}
     for lo in range(0, len(refs), chunk):
         part = refs[lo: lo + chunk]
-        fcs = forecaster.forecast_many([(day.activities[:r], day.locations[: r + 1]) for day, r in part], horizons - 1)
+        fcs = forecaster.forecast_many([(day.activities[:r], day.locations[: r + 1]) for day, r in part], horizons - 1,
+                                       weekdays=[day.weekday for day, _ in part])
         score_forecasts(run, fcs, part, forecaster.activity, rows)
     return run
 
@@ -278,16 +279,18 @@ def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, sett
     for fold in data_folds(household, config.selection.folds) if todo else ():
         train, held_out = fold_days(household, fold)
         step = assembly.step_minutes(household, config)
-        activity = assembly.activity_model(models, step).fit([d.activities for d in train])
+        activity = assembly.fitted_activity_model(models, step, train)
         refs = reference_queries(held_out, horizons, la.first_reference, la.last_reference, la.cv_stride)
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
+        weekdays = [day.weekday for day, _ in refs]
         trees = None
         for setting in todo:
             fc = assembly.forecaster_over(activity, movements_on(household, la, fold, setting, memo, step), la)
             if trees is None:
-                trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs]), horizons - 1)
+                trees = fc.trees(fc.roots([a for a, _ in queries], [r for _, r in refs], weekdays), horizons - 1)
             run = LookaheadRun.empty(horizons)
-            score_forecasts(run, fc.forecast_many(queries, horizons - 1, trees=trees), refs, activity, {})
+            forecasts = fc.forecast_many(queries, horizons - 1, trees=trees, weekdays=weekdays)
+            score_forecasts(run, forecasts, refs, activity, {})
             runs[setting].append(run)
     for setting in todo:
         memo.put(cv_key(household, config, models, setting), pool(runs[setting], horizons))

@@ -109,7 +109,7 @@ class _FixedScan:
     def __init__(self, model: Any, dists: list[dict[str, float]]) -> None:
         self.model, self.dists = model, dists
 
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
+    def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
         if len(day) != len(self.dists):
             raise ValueError(f"{len(self.dists)} filtered distributions for a day of {len(day)} steps")
         return self.dists
@@ -281,7 +281,7 @@ def filtered_references(setup: FilterSetup, fcfg: FilterConfig, days: Sequence[D
     moved = [moved_objects(day, setup.household.objects) for day in days]
     steps = [set(lk.reference_steps(day, horizons, first, last, stride)) for day in days]
     found: list[list[Reference]] = [[] for _ in days]
-    belief = flt.start(len(days))
+    belief = flt.start(len(days), weekdays=[d.weekday for d in days])
     for t in range(max((len(d) for d in days), default=0)):
         seen = [m[t] if t < len(m) else None for m in moved]
         asked = [q for q, refs in enumerate(steps) if t in refs]
@@ -411,7 +411,7 @@ def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo
 def _fold_filter(setup: FilterSetup, config: GlobeConfig,
                  train: Sequence[Day]) -> tuple[ActivityModelBase, MovementEmission]:
     step = assembly.step_minutes(setup.household, config)
-    activity = assembly.activity_model(setup.models, step).fit([d.activities for d in train])
+    activity = assembly.fitted_activity_model(setup.models, step, train)
     emission = assembly.movement_emission(config.filter, **setup.selection.best)
     return activity, emission.fit(train, setup.household.objects)
 

@@ -24,7 +24,7 @@ NO_PREDICTION = "<none>"
 
 
 class ActivityPredictor(Protocol):
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]: ...
+    def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]: ...
     def ranked(self, distribution: dict[str, float]) -> list[str]: ...
     def top(self, distribution: dict[str, float]) -> str | None: ...  # ranked(...)[0], None if empty
 
@@ -139,7 +139,7 @@ def evaluate_days(
     started = time.perf_counter()
     for day in days:
         acts = day.activities
-        dists = activity_model.scan_proba(acts)
+        dists = activity_model.scan_proba(acts, day.weekday)
         predicted = [_top(activity_model, d) for d in dists]
         for t in range(1, len(acts)):
             act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1],

@@ -14,7 +14,7 @@ import time
 from typing import Any, Mapping, Sequence, cast
 
 from globe import assembly
-from globe.config import GateConfig, GlobeConfig, ModelConfig
+from globe.config import GateConfig, GlobeConfig, ModelConfig, SelectionConfig
 from globe.data.records import Day, Household
 from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.protocol import ActivityPredictor, evaluate_days
@@ -67,7 +67,7 @@ def fitted_activity(household: Household, fold: Fold | None, models: ModelConfig
     data = DataKey.of(household)
     days = household.train if fold is None else fold_days(household, fold)[0]
     counted = memo.get(FitKey(type(model).__name__, data, fold, frozen_params(model.fit_params())),
-                       lambda: model.fit([d.activities for d in days]))
+                       lambda: model.fit([d.activities for d in days], [d.weekday for d in days]))
     key = FitKey(f"{type(model).__name__}:predicting", data, fold, frozen_params(model.get_params()))
     return memo.get(key, lambda: ScanMemo(counted.with_prediction_params(**model.prediction_params())))
 
@@ -85,13 +85,13 @@ class ScanMemo:
 
     def __init__(self, model: ActivityModelBase) -> None:
         self.model = model
-        self._scans: dict[tuple[str, ...], list[dict[str, float]]] = {}
+        self._scans: dict[tuple[int | None, tuple[str, ...]], list[dict[str, float]]] = {}
 
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
-        key = tuple(day)
+    def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
+        key = (weekday, tuple(day))
         scans = self._scans.get(key)
         if scans is None:
-            scans = self._scans[key] = self.model.scan_proba(day)
+            scans = self._scans[key] = self.model.scan_proba(day, weekday)
         return scans
 
     def ranked(self, distribution: dict[str, float]) -> list[str]:
@@ -101,21 +101,22 @@ class ScanMemo:
         return self.model.top(distribution)
 
 
-def activity_scores(model: ScanMemo, days: Sequence[Sequence[str]]) -> dict[str, float]:
+def activity_scores(model: ScanMemo, days: Sequence[Day]) -> dict[str, float]:
     """Log loss and weighted F1 of the next activity at steps 1..T-1 of held-out days (a fold
     with nothing to score: F1 0, log loss that of a probability of 0)."""
     true, pred, p_true = [], [], []
     for day in days:
-        for t, dist in enumerate(model.scan_proba(day)):
+        acts = day.activities
+        for t, dist in enumerate(model.scan_proba(acts, day.weekday)):
             if t:
-                true.append(day[t])
+                true.append(acts[t])
                 pred.append(model.top(dist) or "<none>")
-                p_true.append(dist.get(day[t], 0.0))
+                p_true.append(dist.get(acts[t], 0.0))
     loss = log_loss(p_true if p_true else [0.0])
     return {"log_loss": 0.0 if loss is None else loss, "f1": f1(true, pred) or 0.0}
 
 
-def activity_f1(model: ScanMemo, days: Sequence[Sequence[str]]) -> float:
+def activity_f1(model: ScanMemo, days: Sequence[Day]) -> float:
     """Weighted F1 of the next activity at steps 1..T-1 of held-out days (0 with nothing to score)."""
     return activity_scores(model, days)["f1"]
 
@@ -144,6 +145,16 @@ def mean_over_folds(household: Household, k: int, score_fold: Any) -> Any:
     return sum(scores) / len(scores)
 
 
+def day_types_tried(h: Household, sel: SelectionConfig) -> list[str]:
+    """The clock model's day types to try on ``h``: "none" only, unless its training days carry
+    dates spanning ``sel.day_types_min_days`` (two weeks by default), so that every day of the week
+    was seen more than once."""
+    known = [when for when in (d.calendar_date for d in h.train) if when is not None]
+    span = (max(known) - min(known)).days + 1 if known else 0
+    tried: list[str] = list(sel.clock_day_types) if span >= sel.day_types_min_days else []
+    return tried if "none" in tried else ["none", *tried]
+
+
 def model_search_key(h: Household, cfg: GlobeConfig, family: str) -> SearchKey:
     """Everything a model search depends on: the training days, the family, the search space, the
     base models, the folds and the alignment."""
@@ -161,8 +172,12 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     if family == "routine":
         space = grid({"activity_estimator": ["routine"], "routine_order": sel.routine_orders,
                       "routine_time_weight": sel.time_weights})
-        space += grid({"activity_estimator": ["clock"], "clock_slot_minutes": sel.clock_slots,
-                       "clock_shrinkage": sel.clock_shrinkages})
+        clock: dict[str, Sequence[Any]] = {"activity_estimator": ["clock"], "clock_slot_minutes": sel.clock_slots,
+                                           "clock_shrinkage": sel.clock_shrinkages}
+        day_types = day_types_tried(h, sel)
+        if len(day_types) > 1:  # a home without dates keeps the candidates (and their names) it had
+            clock["clock_day_types"] = day_types
+        space += grid(clock)
         base: dict[str, Any] = {"object_marginal": True}
     elif family == "witten_bell":
         space = grid({"activity_estimator": ["witten_bell"], "activity_max_order": sel.activity_orders,
@@ -177,7 +192,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     def activity_measure(params: dict[str, Any]) -> dict[str, float]:
         models = cfg.models.model_copy(update=base | params)
         return mean_over_folds(h, sel.folds, lambda fold, days: activity_scores(
-            fitted_activity(h, fold, models, memo, step), [d.activities for d in days]))
+            fitted_activity(h, fold, models, memo, step), days))
 
     act = select_by(simpler + space, activity_measure, sel.criterion if family == "routine" else sel.ngram_criterion)
     models = cfg.models.model_copy(update=base | act.best)

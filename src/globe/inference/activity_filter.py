@@ -91,14 +91,19 @@ class ActivityFilter:
         """The activity codes of every distribution the filter returns (columns)."""
         return self.space.labels
 
-    def start(self, queries: int = 1, emissions: Sequence[MovementEmission | None] | None = None) -> Belief:
-        """Before the first step of ``queries`` days: one empty history each. ``emissions`` (one
-        per day) replace the filter's movement evidence, day by day (candidates compared at once)."""
+    def start(self, queries: int = 1, emissions: Sequence[MovementEmission | None] | None = None,
+              weekdays: Sequence[int | None] | None = None) -> Belief:
+        """Before the first step of ``queries`` days: one empty history each, at the root of each
+        day's day of the week (``weekdays``, Monday 0, when known). ``emissions`` (one per day)
+        replace the filter's movement evidence, day by day (candidates compared at once)."""
         if not self.space.current():
             self.space = state_space(self.model)
         if emissions is not None and len(emissions) != queries:
             raise ValueError(f"{len(emissions)} movement evidences for {queries} days")
-        beam = Beam.roots(np.full(queries, self.space.root, dtype=np.int64))
+        if weekdays is not None and len(weekdays) != queries:
+            raise ValueError(f"{len(weekdays)} days of the week for {queries} days")
+        roots = [self.space.root_of(w) for w in weekdays] if weekdays is not None else [self.space.root] * queries
+        beam = Beam.roots(np.array(roots, dtype=np.int64))
         return Belief(-1, queries, (beam,), np.zeros(queries, dtype=np.int64),
                       None if emissions is None else tuple(emissions))
 
@@ -221,7 +226,7 @@ def filtered_beliefs(flt: ActivityFilter, days: Sequence[Day], visible: Sequence
             raise ValueError(f"the label mask has {len(mask)} steps; the day {day.name} has {len(day)}")
     moved_sets = [moved_objects(day, objects) for day in days]
     steps = max((len(d) for d in days), default=0)
-    belief = flt.start(len(days), emissions)
+    belief = flt.start(len(days), emissions, [d.weekday for d in days])
     ahead: list[list[np.ndarray]] = [[] for _ in days]
     now: list[list[np.ndarray]] = [[] for _ in days]
     for t in range(steps):

@@ -69,13 +69,15 @@ class FetchPolicy:
         total = self.cost_useless + self.cost_missed
         return self.cost_useless / total if total > 0 else 1.0
 
-    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]]) -> Forecast:
+    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]],
+                 weekday: int | None = None) -> Forecast:
         """The forecast the decision is read from (the activity of the last step is known)."""
-        return self.forecaster.forecast(activities, locations, self.window_steps - 1)
+        return self.forecaster.forecast(activities, locations, self.window_steps - 1, weekday)
 
-    def candidates(self, activities: Sequence[str], locations: Sequence[Sequence[str]]) -> list[FetchCandidate]:
+    def candidates(self, activities: Sequence[str], locations: Sequence[Sequence[str]],
+                   weekday: int | None = None) -> list[FetchCandidate]:
         """Every tracked object as a candidate fetch, most likely useful first."""
-        return self.candidates_from(self.forecast(activities, locations))
+        return self.candidates_from(self.forecast(activities, locations, weekday))
 
     def candidates_from(self, forecast: Forecast) -> list[FetchCandidate]:
         p = forecast.useful_probability(self.min_lead_steps, self.window_steps)
@@ -122,7 +124,8 @@ class FetchPolicy:
         return probability * self.cost_missed - (1.0 - probability) * self.cost_useless > 0
 
     def decide(self, activities: Sequence[str], locations: Sequence[Sequence[str]],
-               exclude: Collection[str] = ()) -> list[FetchCandidate]:
+               exclude: Collection[str] = (), weekday: int | None = None) -> list[FetchCandidate]:
         """What to fetch now, given the day so far (``activities`` and ``locations`` up to and
-        including the current step), leaving out objects already fetched (``exclude``)."""
-        return self.choose(self.candidates(activities, locations), exclude)
+        including the current step, on a day of ``weekday``), leaving out objects already fetched
+        (``exclude``)."""
+        return self.choose(self.candidates(activities, locations, weekday), exclude)

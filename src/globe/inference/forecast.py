@@ -144,21 +144,25 @@ class Forecaster:
         probabilities summing to 1 (the forward pass; pruned as configured)."""
         return self._paths.paths(history, steps)
 
-    def roots(self, histories: Sequence[Sequence[str]], starts: Sequence[int]) -> Roots:
+    def roots(self, histories: Sequence[Sequence[str]], starts: Sequence[int],
+              weekdays: Sequence[int | None] | None = None) -> Roots:
         """Where the paths of queries given as histories start (:meth:`ActivityPaths.roots`)."""
-        return self._paths.roots(histories, starts)
+        return self._paths.roots(histories, starts, weekdays)
 
     def trees(self, roots: Roots, horizon: int) -> TreeBatch:
         """The forward pass of :meth:`forecast_roots` alone (shareable between movement models)."""
         return self._paths.trees(roots, horizon)
 
-    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]], horizon: int) -> Forecast:
+    def forecast(self, activities: Sequence[str], locations: Sequence[Sequence[str]], horizon: int,
+                 weekday: int | None = None) -> Forecast:
         """Forecast movements at steps m+1..m+1+horizon, where m = len(locations) - 1 is the last
         step whose locations are known and ``activities`` holds a_0.. (m or m+1 of them: the
-        activity at step m may be unknown). Movements at step u belong to the activity at u-1."""
-        return self.forecast_many([(activities, locations)], horizon)[0]
+        activity at step m may be unknown). Movements at step u belong to the activity at u-1;
+        ``weekday``: the day's day of the week (Monday 0), when known."""
+        return self.forecast_many([(activities, locations)], horizon, weekdays=[weekday])[0]
 
-    def forecast_many(self, queries: Sequence[Query], horizon: int, trees: TreeBatch | None = None) -> Forecasts:
+    def forecast_many(self, queries: Sequence[Query], horizon: int, trees: TreeBatch | None = None,
+                      weekdays: Sequence[int | None] | None = None) -> Forecasts:
         """:meth:`forecast` for every (activities, locations) of ``queries`` at once. Each query's
         activities end at the same offset from its last location step (m - 1 for all or m for
         all). ``trees`` (of the same queries) saves the forward pass when several movement models
@@ -168,7 +172,7 @@ class Forecaster:
             if m < 0 or n not in (m, m + 1):
                 raise ValueError(f"need the locations of steps 0..m and the activities of 0..m-1 or 0..m; got "
                                  f"{len(locations)} location rows and {n} activities")
-        roots = self.roots([a for a, _ in queries], [len(loc) - 1 for _, loc in queries])
+        roots = self.roots([a for a, _ in queries], [len(loc) - 1 for _, loc in queries], weekdays)
         return self.forecast_roots(roots, [loc for _, loc in queries], horizon, trees)
 
     def forecast_roots(self, roots: Roots, locations: Sequence[Sequence[Sequence[str]]], horizon: int,

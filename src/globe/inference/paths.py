@@ -117,9 +117,11 @@ class ActivityPaths:
             self.space = state_space(self.model)
         return self.space
 
-    def roots(self, histories: Sequence[Sequence[str]], starts: Sequence[int]) -> Roots:
+    def roots(self, histories: Sequence[Sequence[str]], starts: Sequence[int],
+              weekdays: Sequence[int | None] | None = None) -> Roots:
         """The roots of queries given as histories a_0..a_{n-1} whose last known places are at
-        step m = ``starts[q]`` (n = m, or n = m + 1 when a_m is known: the same for all)."""
+        step m = ``starts[q]`` (n = m, or n = m + 1 when a_m is known: the same for all), on days
+        of ``weekdays`` (Monday 0; None: not known)."""
         space = self._current()
         heads = {len(h) - m for h, m in zip(histories, starts)}
         if len(heads) > 1 or not heads <= {0, 1}:
@@ -134,7 +136,8 @@ class ActivityPaths:
                 while d < m - 1 and h[m - 2 - d] == a:
                     d += 1
                 prev[q], duration[q] = space.code(a), d
-        states = np.array([space.state(h) for h in histories], dtype=np.int64)
+        days = [None] * nq if weekdays is None else weekdays
+        states = np.array([space.state(h, w) for h, w in zip(histories, days)], dtype=np.int64)
         heads_ = np.array([space.code(h[m]) for h, m in zip(histories, starts)], dtype=np.int64) if head else None
         return Roots(space, states, prev, duration, heads_)
 

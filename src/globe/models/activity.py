@@ -10,7 +10,7 @@ from globe.models.backoff import (
     longest_distribution,
     witten_bell_distribution,
 )
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, Weekdays
 from globe.models.state_space import NumberedStates
 from globe.models.suffix_index import SuffixIndex
 
@@ -39,7 +39,7 @@ class ActivityModel(ActivityModelBase):
         self.time_window = time_window
 
     # -- training ---------------------------------------------------------------------------
-    def partial_fit(self, days: Sequence[Sequence[str]]) -> "ActivityModel":
+    def partial_fit(self, days: Sequence[Sequence[str]], weekdays: Weekdays = None) -> "ActivityModel":
         """Add observed days to the counts (no retraining of what was seen before)."""
         if not hasattr(self, "training_data_"):
             self._validate_params()

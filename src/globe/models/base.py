@@ -5,11 +5,14 @@ from __future__ import annotations
 import copy
 import itertools
 from collections import Counter
-from typing import TYPE_CHECKING, Any, ClassVar, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping, Optional, Sequence
 
 import numpy as np
 
 from globe.errors import ConfigError, NotFittedError
+
+Weekdays = Optional[Sequence[Optional[int]]]
+"""Each training day's day of the week (Monday 0; None: not known), or None for no dates at all."""
 
 if TYPE_CHECKING:
     from globe.models.state_space import StateSpace
@@ -120,12 +123,14 @@ class ActivityModelBase(CountingModel):
     _priors: tuple[int, dict[tuple[int, int], dict[str, float]]] | None = None
     _space: Any = None
 
-    def fit(self, days: Sequence[Sequence[str]]):
-        """Train from scratch on per-day activity sequences."""
+    def fit(self, days: Sequence[Sequence[str]], weekdays: Weekdays = None):
+        """Train from scratch on per-day activity sequences (``weekdays``: each day's day of the
+        week, Monday 0, or None; only models that know the day of the week read it)."""
         self._reset()
-        return self.partial_fit(days)
+        return self.partial_fit(days, weekdays)
 
-    def partial_fit(self, days: Sequence[Sequence[str]]):  # pragma: no cover - abstract
+    def partial_fit(self, days: Sequence[Sequence[str]],
+                    weekdays: Weekdays = None):  # pragma: no cover - abstract
         raise NotImplementedError
 
     def _learnt(self) -> None:
@@ -157,14 +162,15 @@ class ActivityModelBase(CountingModel):
         return space
 
     # -- prediction, once for every model ---------------------------------------------------------
-    def predict_proba(self, history: Sequence[str]) -> dict[str, float]:
-        """P(the next activity | ``history``, the day so far from its first step)."""
+    def predict_proba(self, history: Sequence[str], weekday: int | None = None) -> dict[str, float]:
+        """P(the next activity | ``history``, the day so far from its first step, and the day of
+        the week when known: Monday 0)."""
         space = self.states()
-        return space.distributions(np.array([space.state(history)]))[0]
+        return space.distributions(np.array([space.state(history, weekday)]))[0]
 
-    def scan_proba(self, day: Sequence[str]) -> list[dict[str, float]]:
-        """``[predict_proba(day[:t]) for t in range(len(day))]`` in one pass."""
-        return self.states().scan(day)
+    def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
+        """``[predict_proba(day[:t], weekday) for t in range(len(day))]`` in one pass."""
+        return self.states().scan(day, weekday)
 
     def ranked(self, distribution: Mapping[str, float]) -> list[str]:
         return rank(distribution, self.frequency_)

@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, Weekdays
 from globe.models.state_space import StateSpace
 
 
@@ -19,7 +19,7 @@ class PersistenceModel(ActivityModelBase):
 
     kind = "persistence"
 
-    def partial_fit(self, days: Sequence[Sequence[str]]) -> "PersistenceModel":
+    def partial_fit(self, days: Sequence[Sequence[str]], weekdays: Weekdays = None) -> "PersistenceModel":
         if not hasattr(self, "training_data_"):
             self.training_data_: list[tuple[str, ...]] = []
             self.first_: Counter[str] = Counter()
@@ -57,7 +57,7 @@ class PersistenceStates(StateSpace):
     def children(self, states: np.ndarray, codes: np.ndarray) -> np.ndarray:
         return np.asarray(codes, dtype=np.int64) + 1
 
-    def path(self, day: Sequence[str]) -> np.ndarray:
+    def path(self, day: Sequence[str], weekday: int | None = None) -> np.ndarray:
         """:meth:`StateSpace.path` at once: the state after a step is its activity's code + 1."""
         codes = np.array([self.code(a) for a in day[:-1]], dtype=np.int64)
         return np.concatenate(([self.root], codes + 1)).astype(np.int64) if day else np.empty(0, dtype=np.int64)

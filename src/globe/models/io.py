@@ -47,7 +47,11 @@ def model_to_dict(model: Any) -> dict[str, Any]:
         data = [[a, list(objs)] for a, objs in data]
     else:
         data = [list(d) for d in data]
-    return {"format": FORMAT, "version": FORMAT_VERSION, "kind": model.kind, "params": model.get_params(), "data": data}
+    out = {"format": FORMAT, "version": FORMAT_VERSION, "kind": model.kind, "params": model.get_params(), "data": data}
+    weekdays = getattr(model, "weekdays_", None)
+    if weekdays is not None and any(w is not None for w in weekdays):
+        out["weekdays"] = list(weekdays)  # each day's day of the week, for a model that knows it
+    return out
 
 
 def _is_labels(value: Any) -> bool:
@@ -119,12 +123,18 @@ def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
     if "data" not in payload:
         raise ModelFileError(f"{source}: malformed model file: no 'data'")
     _check_data(cls.kind, payload["data"], source)
+    weekdays = payload.get("weekdays")
+    if weekdays is not None and (cls.kind == "object" or not isinstance(weekdays, list)
+                                 or len(weekdays) != len(payload["data"])
+                                 or not all(w is None or (type(w) is int and 0 <= w <= 6) for w in weekdays)):
+        raise ModelFileError(f"{source}: malformed model file: 'weekdays' is not one day of the week (0-6 or null) "
+                             "per day of 'data'")
     try:
         model: Any = cls(**params)
         data = payload["data"]
         if cls.kind == "object":
             return model.fit([(a, tuple(o)) for a, o in data])
-        return model.fit([tuple(d) for d in data])
+        return model.fit([tuple(d) for d in data], weekdays)
     except (GlobeError, TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError,
             RecursionError) as err:
         raise ModelFileError(f"{source}: malformed model file: {' '.join(str(err).split())}") from err

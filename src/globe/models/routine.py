@@ -25,7 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from globe.models.backoff import witten_bell_distribution
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, Weekdays
 from globe.models.state_space import StateSpace
 from globe.models.suffix_index import SuffixIndex
 from globe.sequences.runs import run_bounds
@@ -60,7 +60,7 @@ class RoutineModel(ActivityModelBase):
         self.duration_cap = duration_cap
         self.step_minutes = step_minutes
 
-    def partial_fit(self, days: Sequence[Sequence[str]]) -> "RoutineModel":
+    def partial_fit(self, days: Sequence[Sequence[str]], weekdays: Weekdays = None) -> "RoutineModel":
         if not hasattr(self, "training_data_"):
             self._validate_params()
             self.training_data_: list[tuple[str, ...]] = []

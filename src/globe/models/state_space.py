@@ -49,6 +49,7 @@ class StateSpace:
         self.labels = Vocabulary(classes)
         self._name_rank = np.zeros(0, dtype=np.int64)
         self._histories: dict[tuple[str, ...], int] = {}
+        self._rooted: dict[int, dict[tuple[str, ...], int]] = {}  # other roots' histories (days of a known type)
 
     # -- what a model implements ---------------------------------------------------------------
     def rows(self, states: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
@@ -63,6 +64,11 @@ class StateSpace:
     def last(self, states: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
         """The last activity code of each state's history (-1 before the first step)."""
         raise NotImplementedError
+
+    def root_of(self, weekday: int | None) -> int:
+        """The state before the first step of a day of ``weekday`` (Monday 0; None: not known);
+        :attr:`root` for a model that does not know the day of the week."""
+        return self.root
 
     def child(self, state: int, code: int) -> int:
         """:meth:`children` of one state (a history is walked one activity at a time)."""
@@ -101,18 +107,19 @@ class StateSpace:
         """The most probable next activity of each state (ties: the larger name; -1: none)."""
         return best_of(self.rows(states), self.name_rank())
 
-    def state(self, history: Sequence[str]) -> int:
-        """The state after ``history`` (memoised; a history one activity longer than one asked
-        before is walked from there)."""
+    def state(self, history: Sequence[str], weekday: int | None = None) -> int:
+        """The state after ``history`` on a day of ``weekday`` (memoised per root; a history one
+        activity longer than one asked before is walked from there)."""
         history = tuple(history)
-        known = self._histories
+        root = self.root_of(weekday)
+        known = self._histories if root == self.root else self._rooted.setdefault(root, {})
         sid = known.get(history)
         if sid is not None:
             return sid
         start = len(history) - 1
         while start > 0 and history[:start] not in known:
             start -= 1
-        sid = known.get(history[:start], self.root) if start > 0 else self.root
+        sid = known.get(history[:start], root) if start > 0 else root
         for activity in history[max(start, 0):]:
             sid = self.child(sid, self.code(activity))
         if len(known) >= MEMO_STATES:
@@ -120,19 +127,19 @@ class StateSpace:
         known[history] = sid
         return sid
 
-    def path(self, day: Sequence[str]) -> np.ndarray:
-        """The state before each step of ``day`` (the root, then after each activity but the last)."""
+    def path(self, day: Sequence[str], weekday: int | None = None) -> np.ndarray:
+        """The state before each step of ``day`` (its root, then after each activity but the last)."""
         out = np.empty(len(day), dtype=np.int64)
-        sid = self.root
+        sid = self.root_of(weekday)
         for t, activity in enumerate(day):
             out[t] = sid
             if t + 1 < len(day):
                 sid = self.child(sid, self.code(activity))
         return out
 
-    def scan(self, day: Sequence[str]) -> list[dict[str, float]]:
+    def scan(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
         """The next-step distribution before each step of ``day`` (what ``scan_proba`` answers)."""
-        return self.distributions(self.path(day))
+        return self.distributions(self.path(day, weekday))
 
     def distributions(self, states: np.ndarray) -> list[dict[str, float]]:
         """:meth:`rows` as {label: probability} over their nonzero entries, in code order."""
@@ -240,7 +247,7 @@ class NumberedStates(StateSpace):
         """The model's own dicts (the rows hold the same numbers)."""
         return [dict(self._dist(sid)) for sid in np.asarray(states).tolist()]
 
-    def scan(self, day: Sequence[str]) -> list[dict[str, float]]:
+    def scan(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
         """The model's own dicts along ``day``, its states walked without numbering them (a scan
         visits each of its states once)."""
         out: list[dict[str, float]] = []

@@ -78,13 +78,15 @@ def run_objects(day: Day, objects: tuple[str, ...], alignment: Alignment = "prev
 @dataclass(frozen=True, slots=True)
 class TrainingSequences:
     """What every model counts, from one walk over the training days: per-day activity sequences
-    (the activity models), (activity, objects) per run (the object model), each day's moved steps
-    (the movement evidence) and the days packed, their rows of places numbered (the movement model)."""
+    (the activity models) and each day's day of the week, (activity, objects) per run (the object
+    model), each day's moved steps (the movement evidence) and the days packed, their rows of places
+    numbered (the movement model)."""
 
     activities: list[tuple[str, ...]]
     runs: list[tuple[str, tuple[str, ...]]]
     moves: list[Moves] = field(default_factory=list, compare=False)
     packed: PackedDays = field(default_factory=PackedDays, compare=False)
+    weekdays: list[int | None] = field(default_factory=list, compare=False)
 
 
 def training_sequences(household: Household, days: Sequence[Day], alignment: Alignment) -> TrainingSequences:
@@ -95,4 +97,5 @@ def training_sequences(household: Household, days: Sequence[Day], alignment: Ali
         [run for d, m in zip(days, moves) for run in run_objects(d, household.objects, alignment, m)],
         moves,
         PackedDays(days),
+        [d.weekday for d in days],
     )

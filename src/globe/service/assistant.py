@@ -223,9 +223,9 @@ class OnlineAssistant:
 
     def _compute_belief(self) -> dict[str, float]:
         if self._new_filter is None or all(a is not None for a in self._activities):
-            return self.activity_model.predict_proba(tuple(self.activity_history()))
+            return self.activity_model.predict_proba(tuple(self.activity_history()), self.weekday)
         flt = self._new_filter()
-        belief = flt.start()
+        belief = flt.start(weekdays=[self.weekday])
         previous: tuple[str, ...] | None = None
         objects = self.household.objects
         for step, (label, state) in enumerate(zip(self._activities, self._states)):
@@ -249,7 +249,7 @@ class OnlineAssistant:
             return None, None, None
         now = len(self._slots) - 1
         recent = {o for o, at in self._fetched.items() if now - at < self.fetch_policy.window_steps}
-        fetches = self.fetch_policy.decide(history, self._states, exclude=recent)
+        fetches = self.fetch_policy.decide(history, self._states, exclude=recent, weekday=self.weekday)
         if not fetches:
             return None, None, None
         best = fetches[0]
@@ -261,6 +261,12 @@ class OnlineAssistant:
     def day(self) -> str | None:
         """The day the last observation belongs to (None before any)."""
         return self._day_key
+
+    @property
+    def weekday(self) -> int | None:
+        """Today's day of the week (Monday 0; None before any observation): the models that know
+        it predict from it."""
+        return None if self._day_key is None else dt.date.fromisoformat(self._day_key).weekday()
 
     @property
     def steps_today(self) -> int:
@@ -300,7 +306,7 @@ class OnlineAssistant:
         history = self.activity_history()
         if self.fetch_policy is None or not self._states or len(history) != len(self._states) or self.days_learned == 0:
             return []
-        forecast = self.fetch_policy.forecaster.forecast(history, self._states, max(0, steps - 1))
+        forecast = self.fetch_policy.forecaster.forecast(history, self._states, max(0, steps - 1), self.weekday)
         targets = forecast.likely_target(1, steps)
         return [(obj, [float(x) for x in forecast.departure[:steps, j]], targets[j])
                 for j, obj in enumerate(forecast.objects)]
@@ -389,7 +395,7 @@ class OnlineAssistant:
 
     def learn(self, days: Sequence[Day]) -> None:
         """Add whole days to both models (the same counts as training on them from the start)."""
-        self.activity_model.partial_fit([d.activities for d in days])
+        self.activity_model.partial_fit([d.activities for d in days], [d.weekday for d in days])
         runs = self._runs(days)
         self.chooser.model.partial_fit([(r.activity, r.objects) for r in runs])  # type: ignore[attr-defined]
         if self.emission is not None:
