@@ -2,11 +2,18 @@
 host that does not resolve is a one-line :class:`ConfigError` before anything is printed), and
 uvicorn's HTTP protocol (httptools) gets limits on what it reads before the app sees a request:
 the size of the request line and headers (431 above ``service.max_header_bytes``) and the time
-they may take (``service.header_timeout_s``; a silent or half-sent request is closed)."""
+they may take (``service.header_timeout_s``; a silent or half-sent request is closed).
+
+The process also fixes glibc's mmap threshold (:func:`map_large_blocks`): a household upload is
+megabytes of request body, freed once the household is built, and glibc's default threshold
+rises after the first such block is freed, so later bodies land in the heap between the models
+of the households built meanwhile and stay in the process as freed, unusable memory."""
 
 from __future__ import annotations
 
 import asyncio
+import ctypes
+import ctypes.util
 import socket
 from typing import Any
 
@@ -102,11 +109,32 @@ def guarded_protocol(service: ServiceConfig) -> type[asyncio.Protocol]:
     return GuardedHttpToolsProtocol
 
 
+M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter (malloc.h)
+MMAP_THRESHOLD_BYTES = 1 << 20
+"""Blocks from 1 MiB up (request bodies, not the ~100 KB day texts) are mapped on their own and
+returned to the system when freed (benchmarks/bench_service.py: memory per household)."""
+
+
+def map_large_blocks(threshold: int = MMAP_THRESHOLD_BYTES) -> bool:
+    """Fix glibc's mmap threshold at ``threshold`` bytes (see the module doc); False where the C
+    library has no ``mallopt`` (musl, macOS) or refuses, which changes nothing else."""
+    name = ctypes.util.find_library("c")
+    try:
+        mallopt = ctypes.CDLL(name).mallopt if name else None
+    except (OSError, AttributeError):
+        return False
+    if mallopt is None:
+        return False
+    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    return bool(mallopt(M_MMAP_THRESHOLD, threshold))
+
+
 def run(app: Any, service: ServiceConfig, sock: socket.socket) -> None:
     """Serve ``app`` on the bound ``sock`` until interrupted."""
     try:
         import uvicorn
     except ImportError as err:
         raise MissingExtraError("uvicorn", "service") from err
+    map_large_blocks()
     config = uvicorn.Config(app, http=guarded_protocol(service), log_level="warning")
     uvicorn.Server(config).run(sockets=[sock])

@@ -11,7 +11,7 @@ import csv
 import io
 import operator
 import sys
-from itertools import chain, compress, repeat
+from itertools import chain, repeat
 from typing import Any, Iterable, Mapping, Sequence
 
 from globe.data.csv_logs import (
@@ -89,19 +89,34 @@ def day_fields(text: str) -> tuple[tuple[str, ...], tuple[str, ...], list[int], 
     after the header), and the lines where the rest (its locations) differs from the line
     before's, with that rest; None for a blank line (a final newline aside) or a line after the
     header with fewer than three cells (the data layer reports them). Objects rarely move, so
-    only the changed locations are looked up: comparing ~1 KB of text costs less than hashing it."""
-    lines = text.split("\n")
-    if lines and not lines[-1]:
-        lines.pop()
-    if "" in lines:  # a blank line (cheaper here than searching the text for two newlines)
+    the rest of a line is compared in place with the last one that changed, and only a changed
+    rest becomes a string: a day's ~1 KB lines are never all copied, which kept freed memory
+    scattered between each household's models."""
+    n = len(text) - text.endswith("\n")
+    pos = text.find("\n", 0, n) + 1
+    if pos <= 1:  # one line, or a blank header
         return None
-    parts = [line.split(",", 2) for line in lines[1:]]
-    if not parts or min(map(len, parts)) < 3:
-        return None
-    raw_minutes, raw_activities, tails = zip(*parts)
-    starts = [0, *compress(range(1, len(tails)), map(str.__ne__, tails[1:], tails[:-1]))]
-    return raw_minutes, raw_activities, starts, [tails[i] for i in starts]
-
+    find, starts_with = text.find, text.startswith
+    minutes: list[str] = []
+    activities: list[str] = []
+    starts: list[int] = []
+    tails: list[str] = []
+    tail = ""
+    while pos <= n:
+        end = find("\n", pos, n)
+        end = n if end < 0 else end
+        first = find(",", pos, end)
+        second = find(",", first + 1, end) if first >= 0 else -1
+        if second < 0:  # a blank line, or fewer than three cells
+            return None
+        minutes.append(text[pos:first])
+        activities.append(text[first + 1: second])
+        if not tails or end - second - 1 != len(tail) or not starts_with(tail, second + 1, end):
+            tail = text[second + 1: end]
+            starts.append(len(minutes) - 1)
+            tails.append(tail)
+        pos = end + 1
+    return tuple(minutes), tuple(activities), starts, tails
 
 
 class DayParser:
