@@ -105,10 +105,10 @@ class SelectionConfig(_Section):
     clock_slots: tuple[int, ...] = Field((30, 60, 120), description="clock model: slot widths tried (minutes)")
     clock_shrinkages: tuple[float, ...] = Field((2.0, 10.0), description="clock model: shrinkage pseudo-counts tried")
     clock_day_types: tuple[DayTypes, ...] = Field(
-        ("none", "weekend", "weekday"), description="clock model: day types tried where the training days' dates span "
-        "at least day_types_min_days")
+        ("none", "weekend", "weekday"), description="clock model: day types tried where at least day_types_min_days "
+        "training days are named by their date")
     day_types_min_days: int = Field(
-        14, ge=7, le=3660, description="days from the first training date to the last before day types are tried")
+        14, ge=7, le=3660, description="training days named by distinct dates before day types are tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
     alignments: tuple[Alignment, ...] = Field(
         ("previous", "current", "hybrid"), description="routine family: movement alignments tried after the models "

@@ -89,7 +89,7 @@ def test_where_days_carry_dates_the_day_of_the_week_is_offered_and_chosen_when_i
 
     sel = GlobeConfig().selection
     assert day_types_tried(weekly_home(20, 5, 0, dated=False), sel) == ["none"]
-    assert day_types_tried(weekly_home(12, 2, 0), sel) == ["none"]  # ten training days: under two weeks
+    assert day_types_tried(weekly_home(15, 2, 0), sel) == ["none"]  # thirteen dated training days: under two weeks
     assert day_types_tried(weekly_home(20, 5, 0), sel) == ["none", "weekend", "weekday"]
 
     def chosen(home) -> tuple[str, float, float]:

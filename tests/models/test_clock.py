@@ -145,5 +145,6 @@ def test_a_whole_path_with_a_day_type_is_the_walk_and_the_weekdays_are_saved_wit
     again = model_from_dict(model_to_dict(model))
     assert again.weekdays_ == WEEKDAYS
     assert again.scan_proba(DAYS[1], 5) == model.scan_proba(DAYS[1], 5) != model.scan_proba(DAYS[1])
-    with pytest.raises(ValueError, match="3 days but 2 weekdays"):
-        ClockModel().fit(DAYS, [0, 1])
+    for wrong in ([0, 1], [0, 1, 7], [0, True, None]):
+        with pytest.raises(ValueError, match="3 days but weekdays"):
+            ClockModel().fit(DAYS, wrong)

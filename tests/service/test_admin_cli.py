@@ -93,3 +93,25 @@ def test_household_delete_and_export_from_the_command_line(tmp_path, homer_root)
         srv.stop()
     with pytest.raises(DataError, match="no household 'home-c'"):
         cli("household", "delete", "--db", str(db), "--name", "home-c")
+
+
+def test_import_takes_each_day_files_date_from_its_name(tmp_path):
+    """A folder written by ``globe data import`` names its day files by their date: the database
+    keeps the dates; a folder of numbered days keeps none."""
+    from globe.data.csv_logs import write_day, write_nodes
+    from globe.service.store import Store
+    from tests.simulated import weekly_home
+
+    h = weekly_home(9, 1, 4)
+    for name, named in (("dated", True), ("numbered", False)):
+        folder = tmp_path / name
+        (folder / "train").mkdir(parents=True)
+        write_nodes(folder / "nodes.csv", h.nodes)
+        for i, d in enumerate(h.train):
+            write_day(folder / "train" / (f"{d.name}.csv" if named else f"{i:03d}.csv"), d, h.objects)
+        cli("household", "import", "--db", str(tmp_path / "db.sqlite3"), "--name", name, "--timezone", "UTC",
+            str(folder))
+    store = Store(tmp_path / "db.sqlite3")
+    assert store.training_dates("dated") == [d.name for d in h.train] and h.train[0].name == "2024-01-01"
+    assert store.training_dates("numbered") == [None] * len(h.train)
+    store.close()

@@ -74,3 +74,26 @@ def test_checkpoints_beyond_the_training_days_are_refused(households):
     h = households["A"]
     with pytest.raises(DataError, match="checkpoint 66"):
         learning_curve(None, h, (1, 66))  # type: ignore[arg-type]  # refused before any request
+
+
+def test_replays_keep_the_weekday_of_days_named_by_their_date():
+    """Dated days are replayed on their own dates moved by whole weeks, ending on or before the
+    last date asked, gaps kept; numbered days (or dates out of order) on consecutive dates."""
+    import datetime as dt
+
+    from globe.data.records import Day
+    from globe.service.client import replay_dates
+    from globe.service.learning_curve import required_clock_skew
+    from tests.simulated import weekly_home
+
+    def day(name):
+        return Day(name, (360,), ("a",), ((),))
+
+    dated = [day("train/2024-01-01"), day("train/2024-01-02"), day("test/2024-01-10")]
+    got = replay_dates(dated, dt.date(2026, 3, 1))
+    assert [d.weekday() for d in got] == [0, 1, 2] and got[-1] <= dt.date(2026, 3, 1) < got[-1] + dt.timedelta(7)
+    assert [(b - a).days for a, b in zip(got, got[1:])] == [1, 8]
+    for undated in ([day("d1"), day("d2")], [dated[1], dated[0]]):
+        assert replay_dates(undated, dt.date(2026, 3, 1)) == [dt.date(2026, 2, 28), dt.date(2026, 3, 1)]
+    home = weekly_home(40, 10, 0)  # the test days follow the training days: the replay spans them all
+    assert required_clock_skew(home, [2]).days >= (home.test[-1].calendar_date - home.train[0].calendar_date).days

@@ -179,3 +179,24 @@ def test_no_acknowledged_observation_is_lost_when_killed_mid_stream(server, hous
     with server.client() as c:
         stored = c.stats("B")["observations"]
     assert len(acknowledged) <= stored <= len(acknowledged) + 1  # at most the one in flight, committed unacknowledged
+
+
+def test_dated_days_reach_a_model_that_knows_the_day_of_the_week(make_server):
+    """Training days uploaded with their dates: the exported model counted each by its weekday
+    and loads back predicting the same (a Saturday after breakfast: relax, not work)."""
+    from globe.service.client import household_payload
+    from tests.simulated import weekly_home
+
+    h = weekly_home(22, 1, 2)
+    payload = household_payload(h)
+    srv = make_server({"GLOBE_MODELS__ACTIVITY_ESTIMATOR": "clock", "GLOBE_MODELS__CLOCK_DAY_TYPES": "weekend"})
+    with srv.client() as c:
+        c.create_household("W", payload["nodes"], payload["days"], timezone="UTC", dates=payload["dates"])
+        exported = c.export_model("W")["activity"]
+    assert exported["weekdays"] == [d.calendar_date.weekday() for d in h.train]
+    model = model_from_dict(exported)
+    history = ("sleeping",) * 6 + ("breakfast",) * 3
+    saturday = model.predict_proba(history, 5)
+    assert max(set(saturday) - {"breakfast"}, key=saturday.get) == "relax"
+    monday = model.predict_proba(history, 0)
+    assert max(set(monday) - {"breakfast"}, key=monday.get) == "work"

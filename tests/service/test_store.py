@@ -76,3 +76,38 @@ def test_day_encoding_shared_by_threads_gives_the_blobs_of_encode_days(household
     stopped.stop()
     stopped.run()
     assert stopped.blobs == [b""] * len(texts)
+
+
+def test_training_days_keep_their_dates_through_a_restart_and_an_export(tmp_path):
+    """Days uploaded with dates are counted by their weekday, and so again when the household is
+    rebuilt from the database; the export carries the dates; a date list of another length is
+    refused by name."""
+    import pytest
+
+    from globe.errors import DataError
+    from globe.service.client import household_payload
+    from tests.simulated import weekly_home
+
+    h = weekly_home(22, 1, 2)
+    payload = household_payload(h)
+    dates = [dt.date.fromisoformat(d) for d in payload["dates"]]
+    assert len(dates) == len(h.train) and dates[0] == dt.date(2024, 1, 1)
+    cfg = GlobeConfig().with_overrides({"models.activity_estimator": "clock", "models.clock_day_types": "weekend",
+                                        "llm.backend": "none"})
+    store = Store(tmp_path / "dated.sqlite3")
+    registry = Registry(store, cfg, None)
+    registry.create_uploaded("W", "UTC", payload["nodes"], payload["days"], dates)
+    registry.create_uploaded("U", "UTC", payload["nodes"], payload["days"])
+    want = [d.weekday() for d in dates]
+    assert registry.get("W").activity_model.weekdays_ == want
+    assert registry.get("U").activity_model.weekdays_ == [None] * len(dates)
+    with pytest.raises(DataError) as err:
+        registry.create_uploaded("X", "UTC", payload["nodes"], payload["days"], dates[:-1])
+    assert err.value.field == "dates"
+    assert store.export_household("W")["dates"] == payload["dates"]
+    store.close()
+    store = Store(tmp_path / "dated.sqlite3")
+    again = Registry(store, cfg, None)
+    again.load_all()
+    assert again.get("W").activity_model.weekdays_ == want
+    store.close()

@@ -89,6 +89,7 @@ def household_import(
 ) -> None:
     """Import a household folder from this machine's disk into the database."""
     from globe.data.csv_logs import day_files, read_nodes
+    from globe.data.records import named_date
     from globe.service.schemas import check_household_name
     from globe.service.store import Store
     from globe.service.timepolicy import check_timezone
@@ -97,8 +98,10 @@ def household_import(
     check_household_name(name)
     nodes = read_nodes(folder / "nodes.csv")
     train = folder / "train"
-    texts = [f.read_text(encoding="utf-8-sig") for f in day_files(train)] if train.is_dir() else []
-    household = household_from(name, nodes, texts)
+    files = day_files(train) if train.is_dir() else []
+    texts = [f.read_text(encoding="utf-8-sig") for f in files]
+    named = [named_date(f.name) for f in files]  # imported days are named by their date
+    household = household_from(name, nodes, texts, dates=named if None not in named else None)
     objects, days = household.objects, household.train
     tz = check_timezone(timezone)
     store = Store(db)

@@ -22,6 +22,18 @@ class Node:
     start_location: str
 
 
+def named_date(name: str) -> date | None:
+    """The date a day's name or file name gives (``train/2024-04-13``, ``2024-04-13.csv``, as the
+    importers and the service name days), else None."""
+    stem = name.rsplit("/", 1)[-1].removesuffix(".csv")
+    if not _ISO_DATE.fullmatch(stem):
+        return None
+    try:
+        return date.fromisoformat(stem)
+    except ValueError:
+        return None
+
+
 @dataclass(frozen=True, slots=True)
 class Day:
     """One observed day: the activity and every movable object's location at each step."""
@@ -37,15 +49,9 @@ class Day:
 
     @property
     def calendar_date(self) -> date | None:
-        """The day's date when it is named by it (``train/2024-04-13``, as the importers and the
-        service name days), else None: a day without a date is simply one of no known weekday."""
-        stem = self.name.rsplit("/", 1)[-1]
-        if not _ISO_DATE.fullmatch(stem):
-            return None
-        try:
-            return date.fromisoformat(stem)
-        except ValueError:
-            return None
+        """The day's date when it is named by it (:func:`named_date`), else None: a day without a
+        date is simply one of no known weekday."""
+        return named_date(self.name)
 
     @property
     def weekday(self) -> int | None:

@@ -146,12 +146,11 @@ def mean_over_folds(household: Household, k: int, score_fold: Any) -> Any:
 
 
 def day_types_tried(h: Household, sel: SelectionConfig) -> list[str]:
-    """The clock model's day types to try on ``h``: "none" only, unless its training days carry
-    dates spanning ``sel.day_types_min_days`` (two weeks by default), so that every day of the week
-    was seen more than once."""
-    known = [when for when in (d.calendar_date for d in h.train) if when is not None]
-    span = (max(known) - min(known)).days + 1 if known else 0
-    tried: list[str] = list(sel.clock_day_types) if span >= sel.day_types_min_days else []
+    """The clock model's day types to try on ``h``: "none" only, unless ``sel.day_types_min_days``
+    of its training days (two weeks by default) are named by distinct dates, so that every day of
+    the week can have been seen more than once."""
+    known = {when for when in (d.calendar_date for d in h.train) if when is not None}
+    tried: list[str] = list(sel.clock_day_types) if len(known) >= sel.day_types_min_days else []
     return tried if "none" in tried else ["none", *tried]
 
 

@@ -137,6 +137,8 @@ class ActivityPaths:
                     d += 1
                 prev[q], duration[q] = space.code(a), d
         days = [None] * nq if weekdays is None else weekdays
+        if len(days) != nq:
+            raise ValueError(f"{len(days)} days of the week for {nq} histories")
         states = np.array([space.state(h, w) for h, w in zip(histories, days)], dtype=np.int64)
         heads_ = np.array([space.code(h[m]) for h, m in zip(histories, starts)], dtype=np.int64) if head else None
         return Roots(space, states, prev, duration, heads_)

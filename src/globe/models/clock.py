@@ -82,9 +82,11 @@ class ClockModel(ActivityModelBase):
             self.pairs_: Counter[tuple[int, str, str]] = Counter()  # (slot of t, a_{t-1}, a_t)
             self.typed_pairs_: Counter[tuple[int, int, str, str]] = Counter()  # (day type, slot of t, a_{t-1}, a_t)
             self.weekdays_: list[int | None] = []  # each training day's, kept with training_data_ (saved with it)
+        if weekdays is not None and (len(weekdays) != len(days) or not all(
+                w is None or (type(w) is int and 0 <= w <= 6) for w in weekdays)):
+            raise ValueError(f"{len(days)} days but weekdays {list(weekdays)[:8]!r}...: expected one 0-6 (Monday 0) "
+                             "or None per day")
         types = [0] * len(days) if weekdays is None else [day_type(w, self.day_types) for w in weekdays]
-        if len(types) != len(days):
-            raise ValueError(f"{len(days)} days but {len(types)} weekdays")
         self.weekdays_.extend([None] * len(days) if weekdays is None else weekdays)
         for day, kind in zip(days, types):
             day = tuple(day)

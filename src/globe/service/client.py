@@ -11,7 +11,7 @@ import datetime as dt
 from typing import Any, Mapping, Sequence
 
 from globe.data.csv_logs import format_day
-from globe.data.records import Household
+from globe.data.records import Day, Household
 from globe.errors import DataError, GlobeError, MissingExtraError
 from globe.service.schemas import Prediction
 
@@ -31,11 +31,26 @@ class ServiceUnreachableError(GlobeError):
 ServicePrediction = Prediction  # the service's own schema (kept as a name for robot code written against it)
 
 
+def replay_dates(days: Sequence[Day], last: dt.date) -> list[dt.date]:
+    """The calendar dates a replay posts ``days`` on, the last on or before ``last``: consecutive
+    dates, unless every day is named by its date (in order): then their own dates moved by whole
+    weeks, so a model that knows the day of the week sees each replayed day as it was."""
+    named = [d.calendar_date for d in days]
+    if not named or None in named or any(b <= a for a, b in zip(named, named[1:])):  # type: ignore[operator]
+        return [last - dt.timedelta(days=len(days) - 1 - i) for i in range(len(days))]
+    shift = dt.timedelta(days=(last - named[-1]).days // 7 * 7)  # type: ignore[operator]
+    return [when + shift for when in named if when is not None]
+
+
 def household_payload(household: Household) -> dict[str, Any]:
     """``nodes`` and ``days`` (the training days as day-file text) of a loaded household."""
     nodes = [{"node": n.node, "class": n.cls, "category": n.category, "movable": n.movable,
               "start_location": n.start_location} for n in household.nodes]
-    return {"nodes": nodes, "days": [format_day(d, household.objects) for d in household.train]}
+    out: dict[str, Any] = {"nodes": nodes, "days": [format_day(d, household.objects) for d in household.train]}
+    dates = [d.calendar_date for d in household.train]
+    if dates and None not in dates:  # days named by their date (imported homes): their weekdays count
+        out["dates"] = [when.isoformat() for when in dates if when is not None]
+    return out
 
 
 class GlobeClient:
@@ -80,10 +95,12 @@ class GlobeClient:
         return self._call("GET", "/households")
 
     def create_household(self, name: str, nodes: Sequence[Mapping[str, Any]], days: Sequence[str] = (),
-                         timezone: str | None = None) -> dict:
+                         timezone: str | None = None, dates: Sequence[str] | None = None) -> dict:
         body: dict[str, Any] = {"name": name, "nodes": list(nodes), "days": list(days)}
         if timezone:
             body["timezone"] = timezone
+        if dates is not None:
+            body["dates"] = list(dates)
         return self._call("POST", "/households", json=body)
 
     def set_shadow(self, name: str, shadow: bool) -> dict:

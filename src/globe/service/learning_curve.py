@@ -85,8 +85,14 @@ class _Scores:
 
 def required_clock_skew(household: Household, checkpoints: Sequence[int] = CHECKPOINTS) -> dt.timedelta:
     """How far back the service must accept times (``service.max_clock_skew``): the days of the
-    largest checkpoint and every test day are replayed on the calendar days up to yesterday."""
-    return dt.timedelta(days=max(checkpoints, default=0) + len(household.test) + 2)
+    largest checkpoint and every test day are replayed on the calendar days up to yesterday (on
+    their own dates moved by whole weeks, for days named by their date: :func:`replay_dates`)."""
+    from globe.service.client import replay_dates
+
+    days = [*household.train[: max(checkpoints, default=0)], *household.test]
+    dates = replay_dates(days, dt.date(2000, 1, 1))
+    span = (dates[-1] - dates[0]).days + 1 if dates else 0
+    return dt.timedelta(days=max(span, max(checkpoints, default=0) + len(household.test)) + 2)
 
 
 def _at(date: dt.date, minute: int) -> dt.datetime:
@@ -94,16 +100,16 @@ def _at(date: dt.date, minute: int) -> dt.datetime:
     return dt.datetime.combine(date, dt.time()) + dt.timedelta(minutes=minute)
 
 
-def stream_days(client: GlobeClient, name: str, household: Household, days: Sequence[Day], first_date: dt.date) -> int:
-    """Post every step of ``days`` as observations, day i on ``first_date + i``; returns how many.
+def stream_days(client: GlobeClient, name: str, household: Household, days: Sequence[Day],
+                dates: Sequence[dt.date]) -> int:
+    """Post every step of ``days`` as observations, day i on ``dates[i]``; returns how many.
 
     Each step carries the true activity; the first step of a day every object's location (a new
     day starts from the map's start locations), later steps only the objects that moved (the
     others keep their last known place), as a robot reporting what it sees change. The last day
     stays open: it is learned when the next day begins."""
     posted = 0
-    for i, day in enumerate(days):
-        date = first_date + dt.timedelta(days=i)
+    for date, day in zip(dates, days):
         previous: tuple[str, ...] | None = None
         for minute, activity, locations in zip(day.minutes, day.activities, day.locations):
             changed = {o: loc for j, (o, loc) in enumerate(zip(household.objects, locations))
@@ -130,8 +136,8 @@ def _score_replayed(household: Household, days: Sequence[Day], predictions: Mapp
             scores.object_pred.append(predictions[(d, ev.step - 1)].object or NO_PREDICTION)
 
 
-def _replay_and_score(client: GlobeClient, name: str, household: Household, days: Sequence[Day], first_date: dt.date,
-                      scores: _Scores, lead_window_steps: int) -> int:
+def _replay_and_score(client: GlobeClient, name: str, household: Household, days: Sequence[Day],
+                      dates: Sequence[dt.date], scores: _Scores, lead_window_steps: int) -> int:
     from globe.service.robot import SimulatedRobot, replay_days
 
     predictions: dict[tuple[int, int], ServicePrediction] = {}
@@ -139,7 +145,7 @@ def _replay_and_score(client: GlobeClient, name: str, household: Household, days
     def keep(d: int, t: int, p: ServicePrediction) -> None:
         predictions[(d, t)] = p
 
-    report = replay_days(client, name, household, days, SimulatedRobot(), base_date=first_date,
+    report = replay_days(client, name, household, days, SimulatedRobot(), dates=dates,
                          lead_window_steps=lead_window_steps, on_prediction=keep)
     _score_replayed(household, days, predictions, scores)
     scores.add_report(report)
@@ -165,7 +171,7 @@ def curve_point(client: GlobeClient, household: Household, days_learned: int, *,
                 lead_window_steps: int = 6) -> CurvePoint:
     """Score the test days after ``days_learned`` training days streamed into fresh household(s):
     one per test day if ``isolate_test_days``, else one shared by the test days in order."""
-    from globe.service.client import household_payload
+    from globe.service.client import household_payload, replay_dates
 
     if not 1 <= days_learned <= len(household.train):
         raise DataError(f"checkpoint {days_learned} is outside 1..{len(household.train)} (the training days of "
@@ -182,12 +188,12 @@ def curve_point(client: GlobeClient, household: Household, days_learned: int, *,
     groups = [[d] for d in household.test] if isolate_test_days else [list(household.test)]
     for g, test_days in enumerate(groups):
         name = f"{prefix}-k{days_learned}" + (f"-t{g}" if isolate_test_days else "")
-        first_date = last_date - dt.timedelta(days=days_learned + len(test_days) - 1)
+        dates = replay_dates([*train, *test_days], last_date)
         _fresh_household(client, name, nodes, timezone)
         try:
-            posted += stream_days(client, name, household, train, first_date)
-            test_start = first_date + dt.timedelta(days=days_learned)
-            posted += _replay_and_score(client, name, household, test_days, test_start, scores, lead_window_steps)
+            posted += stream_days(client, name, household, train, dates[:days_learned])
+            posted += _replay_and_score(client, name, household, test_days, dates[days_learned:], scores,
+                                        lead_window_steps)
         finally:
             client.delete_household(name)
     return CurvePoint(

@@ -136,9 +136,12 @@ class Registry:
         days = []
         parser = DayParser(objects, locations, owners)
         set_aside = 0
+        dates = self.store.training_dates(row.name)
         for i, text in enumerate(self.store.training_days(row.name)):
             try:
-                days.append(legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0])
+                day = legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0]
+                when = dates[i] if i < len(dates) else None
+                days.append(day if when is None else dataclasses.replace(day, name=when))
             except (GlobeError, ValueError, KeyError, TypeError) as err:
                 log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
                 set_aside += 1
@@ -203,7 +206,7 @@ class Registry:
 
     # -- households ------------------------------------------------------------------------------
     def create_uploaded(self, name: str, timezone: str | None, node_rows: Sequence[Mapping[str, Any]],
-                        day_texts: list[str]) -> HouseholdInfo:
+                        day_texts: list[str], dates: Sequence[dt.date] | None = None) -> HouseholdInfo:
         """Validate a household sent over HTTP (its map's rows and its days' texts) against the
         configured limits and the rules of files on disk, then :meth:`create` it."""
         s = self.config.service
@@ -212,10 +215,13 @@ class Registry:
             raise LimitError(f"{len(node_rows)} nodes (at most {s.max_nodes})", field="nodes")
         if len(day_texts) > s.max_days:
             raise LimitError(f"{len(day_texts)} days (at most {s.max_days})", field="days")
+        if dates is not None and len(dates) != len(day_texts):
+            raise DataError(f"{len(dates)} dates for {len(day_texts)} days; give one date per day, or none",
+                            field="dates")
         zone = timepolicy.check_timezone(timezone or s.timezone)
         nodes = parse_nodes(node_rows, max_label=s.max_label_length)
         try:
-            household = household_from(name, nodes, day_texts, max_label=s.max_label_length)
+            household = household_from(name, nodes, day_texts, max_label=s.max_label_length, dates=dates)
         except DataError as err:
             where = err.source or "days"
             detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"

@@ -12,7 +12,7 @@ from typing import Callable, Protocol, Sequence
 from globe.data.records import Day, Household
 from globe.evaluation.fetch import FetchReport
 from globe.sequences.movements import extract_movements
-from globe.service.client import GlobeClient, ServicePrediction
+from globe.service.client import GlobeClient, ServicePrediction, replay_dates
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,12 +61,13 @@ class AssistanceReport(FetchReport):
         }
 
 
-def _timestamp(day_index: int, minute: int, base: dt.date) -> dt.datetime:
-    return dt.datetime.combine(base, dt.time()) + dt.timedelta(days=day_index, minutes=minute)
+def _timestamp(date: dt.date, minute: int) -> dt.datetime:
+    return dt.datetime.combine(date, dt.time()) + dt.timedelta(minutes=minute)
 
 
 def replay_days(client: GlobeClient, household_name: str, household: Household, days: Sequence[Day],
-                robot: RobotAdapter, *, base_date: dt.date | None = None, lead_window_steps: int = 6,
+                robot: RobotAdapter, *, base_date: dt.date | None = None, dates: Sequence[dt.date] | None = None,
+                lead_window_steps: int = 6,
                 progress: Callable[[int], None] | None = None,
                 on_prediction: Callable[[int, int, ServicePrediction], None] | None = None) -> AssistanceReport:
     """Post every step of ``days`` as observations, ask for a prediction after each, and fetch
@@ -80,7 +81,13 @@ def replay_days(client: GlobeClient, household_name: str, household: Household, 
     report = AssistanceReport()
     # The days run in the past, the last one ending yesterday: the service needs a clock skew that
     # covers them (observations ahead of its clock would be held, not learned, until the clock came).
-    base_date = base_date or dt.date.today() - dt.timedelta(days=len(days) + 1)
+    # Day i runs on base_date + i, else on ``dates[i]``, else on :func:`replay_dates` (days named by
+    # their date keep their weekday).
+    if dates is None:
+        dates = ([base_date + dt.timedelta(days=i) for i in range(len(days))] if base_date is not None
+                 else replay_dates(days, dt.date.today() - dt.timedelta(days=2)))
+    if len(dates) != len(days):
+        raise ValueError(f"{len(dates)} dates for {len(days)} days")
     for d_index, day in enumerate(days):
         report.days += 1
         moves: dict[int, set[str]] = {}
@@ -95,7 +102,7 @@ def replay_days(client: GlobeClient, household_name: str, household: Household, 
                     report.used_fetched_in_advance += 1
                     report.lead_minutes.append(day.minutes[t] - day.minutes[fetched_at])
             started = time.perf_counter()
-            client.observe(household_name, _timestamp(d_index, day.minutes[t], base_date), day.activities[t],
+            client.observe(household_name, _timestamp(dates[d_index], day.minutes[t]), day.activities[t],
                            dict(zip(household.objects, day.locations[t])))
             pred = client.prediction(household_name)
             report.latencies_s.append(time.perf_counter() - started)

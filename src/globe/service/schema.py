@@ -120,6 +120,11 @@ MIGRATIONS: list[str] = [
     """
     ALTER TABLE fetches ADD COLUMN settled INTEGER NOT NULL DEFAULT 0;
     """,
+    # 6: the date of an uploaded training day, when the client gave it (ISO 8601; NULL: not known):
+    # models that know the day of the week count it
+    """
+    ALTER TABLE training_days ADD COLUMN date TEXT;
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 

@@ -69,6 +69,8 @@ class HouseholdCreate(_Body):
     nodes: list[NodeIn] = Field(..., min_length=1, description="the household's map: the rows of nodes.csv")
     days: list[str] = Field(default_factory=list,
                             description="optional training logs: the text of day files (minute,activity,...)")
+    dates: list[dt.date] | None = Field(None, description="optional: the date of each training day, in the order "
+                                                          "of days (models that know the day of the week use them)")
 
 
 class HouseholdInfo(_Body):
@@ -220,6 +222,8 @@ class ModelFile(_Body):
     kind: str
     params: dict[str, Any]
     data: list[Any] = Field(..., description="the observed sequences the model counted")
+    weekdays: list[int | None] | None = Field(None, description="each day's day of the week (Monday 0), for a "
+                                                                "model that knows it")
 
 
 class ModelOut(_Body):
@@ -252,6 +256,8 @@ class HouseholdExport(_Body):
     nodes: str = Field(..., description="the map as stored (JSON text: a list of nodes)")
     objects: str = Field(..., description="the object columns as stored (JSON text)")
     days: list[str] = Field(..., description="the training days' texts (day-file CSV)")
+    dates: list[str | None] = Field(default_factory=list, description="each training day's date, as stored (null: "
+                                                                      "not given)")
     observations: list[StoredObservation]
     feedback: list[StoredFeedback]
 

@@ -242,8 +242,9 @@ class Store:
 
     def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
                       encoded: Sequence[bytes] | None = None, shadow: bool = True) -> None:
-        """Store the map and the training days (as their CSV text: compact, re-validated on load);
-        ``encoded`` is :meth:`encode_days` of ``day_texts`` when the caller has it already."""
+        """Store the map and the training days (as their CSV text: compact, re-validated on load;
+        with the date of each of ``household.train`` named by one); ``encoded`` is
+        :meth:`encode_days` of ``day_texts`` when the caller has it already."""
         blobs = self.encode_days(day_texts) if encoded is None else encoded
         if len(blobs) != len(day_texts):
             raise ValueError(f"{len(blobs)} encoded days for {len(day_texts)} day texts")
@@ -252,8 +253,11 @@ class Store:
              (household.name, json.dumps([{f: getattr(n, f) for f in _NODE_FIELDS} for n in household.nodes]),
               json.dumps(household.objects), _now(), timezone, int(shadow))),
         ]
-        stmts += [("INSERT INTO training_days (household, position, day) VALUES (?, ?, ?)", (household.name, i, blob))
-                  for i, blob in enumerate(blobs)]
+        dates = [None if d.calendar_date is None else d.calendar_date.isoformat() for d in household.train]
+        if len(dates) != len(blobs):
+            raise ValueError(f"{len(blobs)} day texts for {len(dates)} training days")
+        stmts += [("INSERT INTO training_days (household, position, day, date) VALUES (?, ?, ?, ?)",
+                   (household.name, i, blob, when)) for i, (blob, when) in enumerate(zip(blobs, dates))]
         self._transaction(f"store household {household.name!r}", stmts, household.name)
 
     def households(self) -> list[HouseholdRow]:
@@ -288,6 +292,11 @@ class Store:
         rows = self._read("SELECT day FROM training_days WHERE household = ? ORDER BY position", (name,))
         return [_text(r[0]) for r in rows]
 
+    def training_dates(self, name: str) -> list[str | None]:
+        """The date of each stored training day, in :meth:`training_days`' order (None: not given)."""
+        return [r[0] for r in self._read("SELECT date FROM training_days WHERE household = ? ORDER BY position",
+                                         (name,))]
+
     def export_household(self, name: str) -> dict | None:
         """Everything stored about a household, as stored (nothing is parsed, so a damaged row is
         exported too): its map's JSON text, its training days' texts, its observations and
@@ -302,7 +311,7 @@ class Store:
                               (name,))
         return {
             "name": name_, "timezone": timezone, "created_at": created_at, "nodes": nodes, "objects": objects,
-            "days": self.training_days(name),
+            "days": self.training_days(name), "dates": self.training_dates(name),
             "observations": [{"id": i, "time": t, "activity": a, "locations": loc, "received_at": r, "client_id": c,
                               "quarantined": bool(q)} for i, t, a, loc, r, c, q in observations],
             "feedback": [{"object": o, "accepted": bool(a), "received_at": r} for o, a, r in feedback],

@@ -8,6 +8,7 @@ the server's disk: clients never name a path.
 from __future__ import annotations
 
 import csv
+import datetime as dt
 import io
 import operator
 import sys
@@ -198,9 +199,10 @@ class DayParser:
 
 
 def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str], *, max_label: int = 128,
-                   step_minutes: int | None = None) -> Household:
+                   step_minutes: int | None = None, dates: Sequence[dt.date | None] | None = None) -> Household:
     """A validated household (its days as ``train``) from a map and day texts; every day must
-    keep the household's step (``step_minutes``, else the most common gap), as on disk."""
+    keep the household's step (``step_minutes``, else the most common gap), as on disk. A day
+    with a date (``dates``, one per text) is named by it, so that models can read its weekday."""
     objects = tuple(n.cls for n in nodes if n.movable)
     owners = {n.cls: n.node for n in nodes if n.movable}
     locations = frozenset(n.node for n in nodes)
@@ -213,5 +215,10 @@ def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str],
             lineno = next(n for n, a in zip(parsed[i][1], d.activities) if len(a) > max_label)
             raise LimitError(f"activity longer than {max_label} characters", source=f"days[{i}]", line=lineno,
                              field="activity")
-    days = tuple(Day(d.name, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source) for d in days)
+    if dates is not None and len(dates) != len(days):
+        raise DataError(f"{len(dates)} dates for {len(days)} days; give one date per day, or none", field="dates")
+    given = [None] * len(days) if dates is None else dates
+    names = [d.name if when is None else when.isoformat() for d, when in zip(days, given)]
+    days = tuple(Day(n, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source)
+                 for n, d in zip(names, days))
     return Household(name, nodes, objects, days, (), "upload")
