@@ -340,6 +340,11 @@ def test_movement_model_partial_fit_equals_fit():
         TOY_DAYS[1:], OBJECTS)
     np.testing.assert_array_equal(whole.hazard_, parts.hazard_)
     assert whole.destinations_ == parts.destinations_
+    one_by_one = MovementModel(run_end=True, run_memory=True, run_next=True).fit(TOY_DAYS[:1], OBJECTS)
+    for day in TOY_DAYS[1:]:
+        one_by_one.partial_fit([day], OBJECTS)
+    np.testing.assert_array_equal(whole.hazard_, one_by_one.hazard_)
+    assert whole.destinations_ == one_by_one.destinations_ and list(one_by_one.training_data_) == list(TOY_DAYS)
     with pytest.raises(ValueError, match="object columns"):
         parts.partial_fit(TOY_DAYS, ("cup",))
 

@@ -237,6 +237,11 @@ def test_packed_days_give_back_the_days_packed(seed):
     with pytest.raises(IndexError):
         packed[len(days)]
     assert list(PackedDays([])) == []
+    # extending a packing gives back the same days as packing them all at once, one day or several at a time
+    grown = PackedDays(days[:2])
+    for k in (3, 4, 6):
+        grown = grown.extended(days[len(grown):k])
+    assert list(grown) == days and grown.offsets == packed.offsets and list(PackedDays().extended(days)) == days
     # the numbered view gives back every step's row, day by day
     steps, table, labels = packed.coded_rows(3)
     for i, day in enumerate(days):

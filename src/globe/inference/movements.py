@@ -63,7 +63,7 @@ class MovementModel(CountingModel):
         if hasattr(self, "training_data_"):
             if tuple(objects) != self.objects_:
                 raise ValueError("MovementModel.partial_fit: the object columns differ from the ones it was fitted on")
-            days = tuple(self.training_data_) + tuple(days)
+            days = self.training_data_.extended(days)
         self._validate_params()
         # a tenth of the memory of the parsed days (a packing made with the rest of a fit is reused)
         packed = self.training_data_ = days if isinstance(days, PackedDays) else PackedDays(days)

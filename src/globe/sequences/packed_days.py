@@ -48,6 +48,37 @@ class PackedDays(Sequence[Day]):
     def __len__(self) -> int:
         return len(self._meta)
 
+    def extended(self, days: Iterable[Day]) -> "PackedDays":
+        """These days and then ``days``, packed: the days packed already are not read back (an
+        online model learning a day a time would otherwise unpack and pack all its days again)."""
+        labels = list(self._labels)
+        ids = {label: i for i, label in enumerate(labels)}
+        rows = {tuple(labels[x] for x in self._row_labels[a:b]): r
+                for r, (a, b) in enumerate(zip(self._row_start, self._row_start[1:]))}
+        out = PackedDays()
+        out._meta, out._minutes = list(self._meta), array("i", self._minutes)
+        out._activities = array("i", self._activities)
+        out._offsets, out._rows = array("q", self._offsets), array("i", self._rows)
+        out._row_start, out._row_labels = array("i", self._row_start), array("i", self._row_labels)
+        for d in days:
+            for label in chain(d.activities, chain.from_iterable(d.locations)):
+                if label not in ids:
+                    ids[label] = len(labels)
+                    labels.append(label)
+            for row in d.locations:
+                number = rows.get(row)
+                if number is None:
+                    number = rows[row] = len(rows)
+                    out._row_labels.extend(map(ids.__getitem__, row))
+                    out._row_start.append(len(out._row_labels))
+                out._rows.append(number)
+            out._meta.append((d.name, d.source))
+            out._offsets.append(out._offsets[-1] + len(d))
+            out._minutes.extend(d.minutes)
+            out._activities.extend(map(ids.__getitem__, d.activities))
+        out._labels = labels
+        return out
+
     def coded_rows(self, width: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """The locations as numbers, for counting without hashing rows again: each step's
         distinct-row number (all days in order; day i is steps ``offsets[i] .. offsets[i + 1]``),
