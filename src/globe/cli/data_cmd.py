@@ -121,10 +121,15 @@ def import_casas_cmd(
     test_days: TestDaysOption = None,
     test_fraction: TestFractionOption = None,
     overlaps: OverlapsOption = "error",
+    skip_bad_lines: Annotated[bool, typer.Option(
+        "--skip-bad-lines", help="leave out lines that break a rule (corrupt values, events out of order, an "
+                                 "activity that ends without beginning), listed in import.json, instead of stopping "
+                                 "at the first")] = False,
 ) -> None:
     """A CASAS event log (without --objects, item sensors I... are the objects)."""
     options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
-    _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects))
+    _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects,
+                          skip_bad_lines=skip_bad_lines))
 
 
 @import_app.command("kasteren")

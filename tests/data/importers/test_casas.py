@@ -207,3 +207,34 @@ def test_a_mapped_sensor_missing_from_the_log_is_an_error_in_the_mapping(tmp_pat
 def test_a_log_with_no_complete_annotated_day_is_refused(tmp_path):
     err = _error(tmp_path, "2010-11-04 05:00:00 M001 ON\n2010-11-05 01:00:00 M001 OFF\n")
     assert "no day to import" in err.message and "1 no annotation" in err.message
+
+
+def test_skip_bad_lines_leaves_out_exactly_the_bad_lines_and_lists_them(tmp_path):
+    """Corrupt lines of every kind, spread through the log: with --skip-bad-lines the household is
+    the one the log without them gives, each left-out line is named in the report, and an
+    activity that never ends is left out too; without it the first bad line stops the import."""
+    bad = ["2010-11-04 06:30:00 M001 OFcF", "2010-11-04 06:31:00 M001", "2010-11-04 06:32:00 M0/1 ON",
+           "2010-11-04 06:00:00 M001 OFF", "2010-11-04 06:33:00 M001 OFF Relax end",
+           "2010-11-04 06:34:00 M001 OFF Sleeping stop", "2010-11-04 07:10:00 I001 12.5",
+           "2010-11-04 07:20:00 M004 ON Meal_Preparation begin"]
+    lines = LOG.splitlines()
+    dirty = [*lines[:2], *bad[:6], *lines[2:5], *bad[6:], *lines[5:-1], lines[-1] + " Relax begin"]  # never ends
+    expected_dir, dirty_dir = tmp_path / "clean", tmp_path / "dirty"
+    expected_dir.mkdir(), dirty_dir.mkdir()
+    _, want = _import(expected_dir)
+    result, got = _import(dirty_dir, "\n".join(dirty) + "\n", skip_bad_lines=True)
+    def content(days):
+        return [(d.name, d.minutes, d.activities, d.locations) for d in days]
+
+    assert content(got.train) == content(want.train) and content(got.test) == content(want.test)
+    assert got.objects == want.objects
+    sensors = [{k: json.loads((d / "home" / "import.json").read_text())[k] for k in ("objects", "sensors_left_out")}
+               for d in (expected_dir, dirty_dir)]
+    assert sensors[0] == sensors[1]
+    note = next(n for n in result.notes if "lines left out" in n)
+    assert note.startswith(f"{len(bad) + 1} lines left out")
+    for number in [3, 4, 5, 6, 7, 8, 12, 13, len(dirty)]:
+        assert f"data.txt:{number}:" in note
+    with pytest.raises(DataError) as err:
+        _import(tmp_path, "\n".join(dirty) + "\n")
+    assert err.value.line == 3 and "--skip-bad-lines" in err.value.message

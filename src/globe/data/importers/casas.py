@@ -29,7 +29,7 @@ from pathlib import Path
 
 from globe.data.csv_logs import _label
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
-from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
+from globe.data.importers.objects import Choice, ObjectSelection, Sensor, read_mapping
 from globe.data.importers.text import parse_date_time, read_lines, show
 from globe.errors import DataError
 
@@ -43,6 +43,7 @@ KINDS = {"M": "motion", "MA": "motion", "D": "door", "T": "temperature", "L": "l
 DEFAULT_RULE = ("CASAS item sensors (I...) are objects, named by their id in lower case; motion (M, MA), door (D), "
                 "temperature (T), light (L, LS), analog (AD) and unknown sensors are not")
 PROGRESS_EVERY = 500_000
+SKIPPED_SHOWN = 20  # lines left out that the report names one by one
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _SENSOR = re.compile(r"[\w.-]+")
 _LETTERS = re.compile(r"[A-Za-z]+")
@@ -63,62 +64,89 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
     return False, "unknown CASAS sensor type (map it with --objects to include it)"
 
 
-def read_casas(path: Path, selection: ObjectSelection) -> SensorLog:
-    """Every event and annotation of a CASAS log, checked line by line."""
+def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = False) -> SensorLog:
+    """Every event and annotation of a CASAS log, checked line by line. A line that breaks a rule
+    is an error naming it; with ``skip_bad_lines`` it is left out instead (as is an activity that
+    never ends), and the report lists what was left out: real logs carry a few corrupt lines."""
     source = str(path)
     sensor_log = SensorLog("casas", (source,), annotation_field="activity")
     open_since: dict[str, datetime] = {}  # object sensor -> when it went on
     begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
     previous: tuple[datetime, int] | None = None
+    skipped: list[DataError] = []
     lines = read_lines(path)
     for count, (line, text) in enumerate(lines, start=1):
-        fields = text.split()
-        if len(fields) < 4:
-            raise DataError(f"missing field (a CASAS event is 'date time sensor value [activity begin|end]', "
-                            f"found {len(fields)} fields)", source=source, line=line, field=FIELDS[len(fields)])
-        if len(fields) == 5:
-            raise DataError(f"{show(fields[4])} after the value must be followed by 'begin' or 'end'", source=source,
-                            line=line, field="begin/end")
-        if len(fields) > 6:
-            raise DataError(f"{len(fields)} fields; a CASAS event has 4, or 6 with 'activity begin|end'", source=source,
-                            line=line, field="begin/end")
-        moment = parse_date_time(fields[0], fields[1], source=source, line=line)
-        if previous is not None and moment < previous[0]:
-            raise DataError(f"{moment} is before the previous event's {previous[0]} (line {previous[1]}): events must "
-                            "be in time order", source=source, line=line, field="time")
+        try:  # every check first: a line left out changes nothing
+            moment, key, value, choice, marker = _event(text, source, line, previous, selection)
+            if marker is not None:
+                _check_annotation(begun, *marker, source, line)
+        except DataError as err:
+            if not skip_bad_lines:
+                raise
+            skipped.append(err)
+            continue
         previous = (moment, line)
+        selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
         sensor_log.saw(moment)
-        key, value = fields[2], fields[3].upper()
-        if not _SENSOR.fullmatch(key):
-            raise DataError(f"{show(key)} is not a sensor id (letters, digits, '_', '-', '.')", source=source,
-                            line=line, field="sensor")
-        binary = value in ACTIVE or value in INACTIVE
-        if not binary and not _NUMBER.fullmatch(value):
-            raise DataError(f"{show(fields[3])} is not ON, OFF, OPEN, CLOSE, ABSENT, PRESENT or a number",
-                            source=source, line=line, field="value")
         sensor_log.events[key] += 1
-        choice = selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
         if choice.object is not None:
-            if not binary:
-                raise DataError(f"{show(fields[3])} is a reading, not a use: sensor {key!r} (object {choice.object!r}) "
-                                "must be ON/OFF, OPEN/CLOSE or ABSENT/PRESENT", source=source, line=line, field="value")
             _activation(sensor_log, open_since, key, moment, value in ACTIVE)
-        if len(fields) == 6:
-            _annotation(sensor_log, begun, fields[4], fields[5], moment, source, line)
+        if marker is not None:
+            _annotation(sensor_log, begun, *marker, moment, source, line)
         if count % PROGRESS_EVERY == 0:
             log.info("%s: %d of %d lines read", source, count, len(lines))
-    if begun:
-        activity, (start, line) = next(iter(begun.items()))
-        raise DataError(f"{activity!r} begins here (at {start}) but never ends (no '{activity} end' before the end of "
-                        "the file)", source=source, line=line, field="activity")
+    for activity, (start, line) in list(begun.items()):
+        unended = DataError(f"{activity!r} begins here (at {start}) but never ends (no '{activity} end' before the "
+                            "end of the file)", source=source, line=line, field="activity")
+        if not skip_bad_lines:
+            raise unended
+        skipped.append(unended)
     for key, start in open_since.items():
         assert sensor_log.last is not None
         sensor_log.activations.setdefault(key, []).append(Activation(start, sensor_log.last))
         sensor_log.notes.append(f"sensor {key} is still on at the end of the log (since {start}): counted as on until "
                                 "the log ends")
+    if skipped:
+        shown = "; ".join(str(err) for err in skipped[:SKIPPED_SHOWN])
+        more = f"; and {len(skipped) - SKIPPED_SHOWN} more" if len(skipped) > SKIPPED_SHOWN else ""
+        sensor_log.notes.append(f"{len(skipped)} lines left out (--skip-bad-lines): {shown}{more}")
+        log.warning("%s: %d lines left out (--skip-bad-lines), the first: %s", source, len(skipped), skipped[0])
     log.info("%s: %d events, %d sensors, %d annotations", source, len(lines), len(sensor_log.events),
              len(sensor_log.annotations))
     return sensor_log
+
+
+def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | None, selection: ObjectSelection
+           ) -> tuple[datetime, str, str, Choice, tuple[str, str] | None]:
+    """One line checked: (time, sensor, value in upper case, what the sensor is, (activity,
+    begin|end) or None). Changes nothing."""
+    fields = text.split()
+    if len(fields) < 4:
+        raise DataError(f"missing field (a CASAS event is 'date time sensor value [activity begin|end]', "
+                        f"found {len(fields)} fields)", source=source, line=line, field=FIELDS[len(fields)])
+    if len(fields) == 5:
+        raise DataError(f"{show(fields[4])} after the value must be followed by 'begin' or 'end'", source=source,
+                        line=line, field="begin/end")
+    if len(fields) > 6:
+        raise DataError(f"{len(fields)} fields; a CASAS event has 4, or 6 with 'activity begin|end'", source=source,
+                        line=line, field="begin/end")
+    moment = parse_date_time(fields[0], fields[1], source=source, line=line)
+    if previous is not None and moment < previous[0]:
+        raise DataError(f"{moment} is before the previous event's {previous[0]} (line {previous[1]}): events must "
+                        "be in time order", source=source, line=line, field="time")
+    key, value = fields[2], fields[3].upper()
+    if not _SENSOR.fullmatch(key):
+        raise DataError(f"{show(key)} is not a sensor id (letters, digits, '_', '-', '.')", source=source,
+                        line=line, field="sensor")
+    binary = value in ACTIVE or value in INACTIVE
+    if not binary and not _NUMBER.fullmatch(value):
+        raise DataError(f"{show(fields[3])} is not ON, OFF, OPEN, CLOSE, ABSENT, PRESENT or a number (a corrupt "
+                        "line? --skip-bad-lines leaves such lines out)", source=source, line=line, field="value")
+    choice = selection.decide(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
+    if choice.object is not None and not binary:
+        raise DataError(f"{show(fields[3])} is a reading, not a use: sensor {key!r} (object {choice.object!r}) "
+                        "must be ON/OFF, OPEN/CLOSE or ABSENT/PRESENT", source=source, line=line, field="value")
+    return moment, key, value, choice, (fields[4], fields[5]) if len(fields) == 6 else None
 
 
 def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,
@@ -131,31 +159,40 @@ def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str
     sensor_log.activations.setdefault(key, []).append(Activation(start, moment))
 
 
-def _annotation(sensor_log: SensorLog, begun: dict[str, tuple[datetime, int]], activity: str, marker: str,
-                moment: datetime, source: str, line: int) -> None:
+def _check_annotation(begun: dict[str, tuple[datetime, int]], activity: str, marker: str, source: str,
+                      line: int) -> None:
+    """That an annotation can be applied: a valid label, begun once, ended after it began."""
     _label(activity, source, line, "activity", "activity")
     if marker.lower() == "begin":
         if activity in begun:
             raise DataError(f"{activity!r} begins again before it ended (it began at line {begun[activity][1]})",
                             source=source, line=line, field="activity")
-        begun[activity] = (moment, line)
     elif marker.lower() == "end":
         if activity not in begun:
             raise DataError(f"{activity!r} ends but never began (no open '{activity} begin')", source=source, line=line,
                             field="activity")
-        start, first = begun.pop(activity)
-        sensor_log.annotations.append(Annotation(activity, start, moment, source, first, activity))
     else:
         raise DataError(f"{show(marker)} is not 'begin' or 'end'", source=source, line=line, field="begin/end")
 
 
-def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = None, objects: Path | None = None
-                 ) -> ImportResult:
+def _annotation(sensor_log: SensorLog, begun: dict[str, tuple[datetime, int]], activity: str, marker: str,
+                moment: datetime, source: str, line: int) -> None:
+    """Apply an annotation :func:`_check_annotation` accepted."""
+    if marker.lower() == "begin":
+        begun[activity] = (moment, line)
+    else:
+        start, first = begun.pop(activity)
+        sensor_log.annotations.append(Annotation(activity, start, moment, source, first, activity))
+
+
+def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = None, objects: Path | None = None,
+                 skip_bad_lines: bool = False) -> ImportResult:
     """Import a CASAS log into the household folder ``dest`` (see :mod:`globe.data.importers.grid`
-    for the grid's rules). ``objects`` is a mapping file; without it, item sensors are objects."""
+    for the grid's rules). ``objects`` is a mapping file; without it, item sensors are objects.
+    ``skip_bad_lines`` leaves out lines that break a rule (listed in the report) instead of stopping."""
     options = options if options is not None else GridOptions()
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
-    sensor_log = read_casas(log_file, selection)
+    sensor_log = read_casas(log_file, selection, skip_bad_lines)
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest)

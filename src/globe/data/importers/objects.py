@@ -138,6 +138,14 @@ class ObjectSelection:
 
     def choose(self, sensor: Sensor, *, source: str, line: int) -> Choice:
         """The choice for a sensor first met at ``source:line`` (later calls return it unchanged)."""
+        choice = self.decide(sensor, source=source, line=line)
+        if sensor.key not in self.choices:
+            self.choices[sensor.key] = choice
+            self.first_seen[sensor.key] = (source, line)
+        return choice
+
+    def decide(self, sensor: Sensor, *, source: str, line: int) -> Choice:
+        """What :meth:`choose` answers, without recording the sensor (its line is still being checked)."""
         known = self.choices.get(sensor.key)
         if known is not None:
             return known
@@ -156,8 +164,6 @@ class ObjectSelection:
                 raise DataError(f"sensor {show(sensor.key)} has no usable name for an object; map it with --objects",
                                 source=source, line=line)
             choice = Choice(name if is_object else None, room_of_log or DEFAULT_ROOM, "", why)
-        self.choices[sensor.key] = choice
-        self.first_seen[sensor.key] = (source, line)
         return choice
 
     def objects(self) -> tuple[ObjectSpec, ...]:
