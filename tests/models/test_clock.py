@@ -124,6 +124,10 @@ def test_the_day_type_travels_with_the_state_through_paths_and_the_filter():
         step = 1 + k
         p = p @ np.array([[typed_by_hand(a, step * 10 // 20, 2.0)[b] for b in labels] for a in labels])
         assert got == pytest.approx(p)
+    one_step = {path[0]: p for p, path in paths.paths(("sleep",), 1, 5)}
+    assert one_step == pytest.approx(model.predict_proba(("sleep",), 5))
+    assert model.confidence(("sleep",), 5) == pytest.approx(max(one_step.values()))
+    assert model.predict(("sleep",), 5) == max(one_step, key=one_step.get)
     day = Day("test/2024-01-06", (360, 370, 380, 390), DAYS[0], ((),) * 4)  # a Saturday
     rows, _ = filtered_beliefs(ActivityFilter(model), [day], [[True] * 4], ())
     scan = model.scan_proba(day.activities, day.weekday)

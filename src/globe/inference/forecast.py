@@ -139,10 +139,11 @@ class Forecaster:
         self.max_paths = max_paths
         self._paths = ActivityPaths(activity, min_path_probability=min_path_probability, max_paths=max_paths)
 
-    def paths(self, history: Sequence[str], steps: int) -> list[tuple[float, tuple[str, ...]]]:
+    def paths(self, history: Sequence[str], steps: int,
+              weekday: int | None = None) -> list[tuple[float, tuple[str, ...]]]:
         """The next ``steps`` activities after ``history``: (probability, path), most likely first,
         probabilities summing to 1 (the forward pass; pruned as configured)."""
-        return self._paths.paths(history, steps)
+        return self._paths.paths(history, steps, weekday)
 
     def roots(self, histories: Sequence[Sequence[str]], starts: Sequence[int],
               weekdays: Sequence[int | None] | None = None) -> Roots:

@@ -154,10 +154,12 @@ class ActivityPaths:
             levels.append(beam)
         return levels
 
-    def paths(self, history: Sequence[str], steps: int) -> list[tuple[float, tuple[str, ...]]]:
-        """The next ``steps`` activities after ``history``: (probability, path), most likely first."""
+    def paths(self, history: Sequence[str], steps: int,
+              weekday: int | None = None) -> list[tuple[float, tuple[str, ...]]]:
+        """The next ``steps`` activities after ``history`` (on a day of ``weekday``, when known):
+        (probability, path), most likely first."""
         space = self._current()
-        levels = self.forward(np.array([space.state(history)]), steps)
+        levels = self.forward(np.array([space.state(history, weekday)]), steps)
         if not levels or not len(levels[-1]):
             return []
         out = []

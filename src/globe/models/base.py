@@ -195,14 +195,14 @@ class ActivityModelBase(CountingModel):
             prior = memo[(step, window)] = windowed_prior(by_step, step, window, self.classes_)
         return prior
 
-    def predict(self, history: Sequence[str]) -> str | None:
+    def predict(self, history: Sequence[str], weekday: int | None = None) -> str | None:
         """Most probable next activity (ties: training frequency, then name)."""
-        ranked = self.ranked(self.predict_proba(history))
+        ranked = self.ranked(self.predict_proba(history, weekday))
         return ranked[0] if ranked else None
 
-    def confidence(self, history: Sequence[str]) -> float:
+    def confidence(self, history: Sequence[str], weekday: int | None = None) -> float:
         """The top probability: what the gate and the robot's action threshold look at."""
-        return max(self.predict_proba(history).values(), default=0.0)
+        return max(self.predict_proba(history, weekday).values(), default=0.0)
 
 
 _VERSIONS = itertools.count(1)
