@@ -91,9 +91,10 @@ def _random_blocks(rng: random.Random, labels: tuple[str, ...]) -> list[_Block]:
     return blocks
 
 
-def _day(name: str, blocks: list[_Block], step: int) -> Day:
+def _day(name: str, blocks: list[_Block], step: int, covering: bool = False) -> Day:
     """The blocks on the grid: each row takes the activity under way at its start; an object is in
-    use in a row when one of its uses (a minute long) falls inside it, and at home otherwise."""
+    use in a row when one of its uses (a minute long) falls inside it, and at home otherwise; with
+    ``covering``, each row also names the block covering most of its step, as importers do."""
     minutes = tuple(range(START, END + 1, step))
     starts = [b.start for b in blocks]
     activities = []
@@ -105,7 +106,18 @@ def _day(name: str, blocks: list[_Block], step: int) -> Day:
     for m in minutes:
         rows.append(tuple(IN_USE if any(o == obj and m <= at < m + step for o, at in uses) else HOME_PLACES[obj]
                           for obj in OBJECTS))
-    return Day(name, minutes, tuple(activities), tuple(rows))
+    most = None
+    if covering:
+        ends = [*starts[1:], float("inf")]
+        most = []
+        for m, start_label in zip(minutes, activities):
+            share: dict[str, float] = {}
+            for b, s, e in zip(blocks, starts, ends):
+                overlap = min(e, m + step) - max(s, m)
+                if overlap > 0:
+                    share[b.activity] = share.get(b.activity, 0.0) + overlap
+            most.append(max(share, key=lambda a: (share[a], a == start_label, a)) if share else start_label)
+    return Day(name, minutes, tuple(activities), tuple(rows), covering=None if most is None else tuple(most))
 
 
 def _household(name: str, days: list[Day], test: int) -> Household:
@@ -113,13 +125,13 @@ def _household(name: str, days: list[Day], test: int) -> Household:
 
 
 def clock_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0, drift: float = 0.0,
-               dated: bool = False) -> Household:
+               dated: bool = False, covering: bool = False) -> Household:
     """A home whose routine is a clock (see the module doc); day i is weekday i % 7 (with
     ``dated``, named by its date from Monday 2024-01-01 on, as imported days are); ``drift``
     switches an hour between idle and relax make its quiet hours as unsettled as real ones."""
     rng = random.Random(seed)
     names = [(date(2024, 1, 1) + timedelta(days=i)).isoformat() if dated else f"day{i:03d}" for i in range(days)]
-    return _household("Clock", [_day(name, _unsettled(rng, _clock_blocks(rng, i % 7), drift), step)
+    return _household("Clock", [_day(name, _unsettled(rng, _clock_blocks(rng, i % 7), drift), step, covering)
                                 for i, name in enumerate(names)], test)
 
 

@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, f
 
 from globe.errors import ConfigError
 
-Alignment = Literal["previous", "current", "hybrid"]
+Alignment = Literal["previous", "current", "hybrid", "most"]
 ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine", "clock"]
 ObjectEstimator = Literal["longest", "witten_bell"]
 DayTypes = Literal["none", "weekend", "weekday"]
@@ -43,7 +43,9 @@ class DataConfig(_Section):
 
 class SequenceConfig(_Section):
     alignment: Alignment = Field(
-        "previous", description="which step's activity a movement at step t belongs to"
+        "previous", description="which step's activity a movement at step t belongs to: 'previous' (t-1), 'current' "
+        "(t), 'hybrid' (t-1 unless idle) or 'most' (the activity covering most of step t, from an imported day's "
+        "covering column; else as 'current')"
     )
 
 
@@ -111,8 +113,9 @@ class SelectionConfig(_Section):
         14, ge=7, le=3660, description="training days named by distinct dates before day types are tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
     alignments: tuple[Alignment, ...] = Field(
-        ("previous", "current", "hybrid"), description="routine family: movement alignments tried after the models "
-        "(sequences.alignment first, winning ties; one value = no search)")
+        ("previous", "current", "hybrid", "most"), description="routine family: movement alignments tried after the "
+        "models (sequences.alignment first, winning ties; one value = no search; 'most' only where every training day "
+        "has a covering column, as imported days do)")
     run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
     gate_thresholds: tuple[float, ...] = Field((0.25, 0.5), description="gate thresholds d tried")
     combine_weights: tuple[float, ...] = Field((1.0, 4.0), description="weights of n-gram log p tried (combine)")

@@ -144,3 +144,29 @@ def test_missing_data_folder_is_reported(tmp_path, monkeypatch):
         resolve_data_root(tmp_path / "nowhere")
     monkeypatch.setenv("GLOBE_DATA", str(tmp_path))
     assert resolve_data_root(None) == tmp_path
+
+
+def test_a_covering_column_round_trips_and_is_checked(home, households):
+    """The optional column after ``activity`` (the activity covering most of each step) is read,
+    written and resampled with the day; a bad label in it names its field."""
+    from dataclasses import replace
+
+    from globe.data.csv_logs import check_step, parse_day_text
+
+    h = households["A"]
+    day = h.train[0]
+    covered = replace(day, covering=day.activities[1:] + day.activities[-1:])
+    text = format_day(covered, h.objects)
+    assert text.splitlines()[0].startswith("minute,activity,covering,")
+    back, _ = parse_day_text(text, h.objects, h.locations, day.name, day.source)
+    assert back == covered and parse_day_text(format_day(day, h.objects), h.objects, h.locations, day.name,
+                                              day.source)[0].covering is None
+    coarse = check_step(replace(covered, minutes=covered.minutes[:3] + covered.minutes[4:5],
+                                activities=covered.activities[:3] + covered.activities[4:5],
+                                locations=covered.locations[:3] + covered.locations[4:5],
+                                covering=covered.covering[:3] + covered.covering[4:5]), (), 10, "locf")
+    assert coarse.covering == covered.covering[:3] + covered.covering[2:3] + covered.covering[4:5]
+    bad = text.replace(f",{covered.covering[2]},", ",\x01,", 1)
+    with pytest.raises(DataError) as err:
+        parse_day_text(bad, h.objects, h.locations, day.name, "x.csv")
+    assert err.value.field == "covering"

@@ -106,3 +106,19 @@ def test_where_days_carry_dates_the_day_of_the_week_is_offered_and_chosen_when_i
     assert dated[2] < 0.75 * undated[2]
     assert dated[1] < undated[1]
     assert chosen(clock_home(75, 10, 10, 1, 3.0, dated=True))[1] <= chosen(clock_home(75, 10, 10, 1, 3.0))[1] + 0.01
+
+
+def test_most_is_searched_only_where_the_days_say_what_covers_each_step():
+    """Days written with a covering column (as imported days are) add 'most' to the alignments
+    cross-validation tries, and its choice is again the best on the test days."""
+    home = clock_home(45, 8, 10, 5, covering=True)
+    chosen = run_methods(GlobeConfig(), [home], ["routine"], None, Memo())[0]
+    search = chosen.selection["alignment"]
+    assert [c["alignment"] for c, _ in search.scores] == ["previous", "current", "hybrid", "most"]
+    test_f1 = {}
+    for alignment in ("previous", "current", "hybrid", "most"):
+        cfg = GlobeConfig().with_overrides({"sequences.alignment": alignment, "selection.alignments": [alignment]})
+        run = run_methods(cfg, [home], ["routine"], None, Memo())[0]
+        test_f1[alignment] = f1([r.true for r in run.evaluation.objects], [r.predicted for r in run.evaluation.objects])
+    assert test_f1[search.best["alignment"]] >= max(test_f1.values()) - 0.01
+    assert test_f1["most"] != test_f1["current"]  # the covering labels changed what was credited

@@ -73,3 +73,18 @@ def test_moved_steps_memo_answers_as_without_it_even_for_days_built_on_the_fly()
     memo: dict = {}
     for shift in range(30):
         assert moved_steps(fresh_day(shift), OBJECTS, memo) == moved_steps(fresh_day(shift), OBJECTS)
+
+
+def test_most_credits_the_activity_covering_most_of_the_step():
+    """Step 3 is idle at its start but reading, which begins during it, covers most of it: the cup
+    used then joins reading; steps 2 and 4 are covered mostly by their own start labels; a
+    covering activity that is neither (a short one the grid never shows) leaves the start label;
+    without covering, 'most' is 'current'."""
+    late = Day("toy", DAY.minutes, ACTS, LOCS, covering=("idle", "breakfast", "breakfast", "reading", "reading"))
+    assert [(e.step, e.obj, e.activity_step, e.activity) for e in extract_movements(late, OBJECTS, "most")] == [
+        (2, "cup", 2, "breakfast"), (2, "plate", 2, "breakfast"), (3, "cup", 4, "reading"), (4, "book", 4, "reading")]
+    short = Day("toy", DAY.minutes, ACTS, LOCS, covering=("idle", "breakfast", "breakfast", "tea", "reading"))
+    assert [e.activity_step for e in extract_movements(short, OBJECTS, "most")] == [2, 2, 3, 4]
+    assert extract_movements(DAY, OBJECTS, "most") == extract_movements(DAY, OBJECTS, "current")
+    assert run_objects(late, OBJECTS, "most") == [(r.activity, r.objects) for r in activity_runs(late, OBJECTS, "most")]
+    assert run_objects(late, OBJECTS, "most")[-1] == ("reading", ("cup", "book"))

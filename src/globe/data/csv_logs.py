@@ -26,6 +26,9 @@ from globe.errors import DataError
 
 NODE_COLUMNS = ("node", "class", "category", "movable", "start_location")
 FIXED_COLUMNS = ("minute", "activity")
+COVERING = "covering"
+"""An optional column after ``activity``: the activity covering most of the row's step (the
+importers write it; a movement can be credited to it, ``sequences.alignment = "most"``)."""
 DAY_MINUTES = 1440  # minutes are 0..1440 (1440 = midnight at the end of the day)
 ROOM_CATEGORIES = frozenset({"rooms", "room"})
 HOME_CATEGORIES = frozenset({"home"})
@@ -278,10 +281,13 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
     """One day from its text, and the line of each row. ``owners`` maps each object column to its
     node label (an object cannot be inside itself or inside an object that is inside it)."""
     rows, header = csv_table(text, source, FIXED_COLUMNS + objects)
-    extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects]
+    optional = () if COVERING in objects else (COVERING,)
+    extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects and h not in optional]
     if extra:
         raise DataError("not a movable node of this home (see nodes.csv)", source=source, line=1, field=extra[0])
     i_min, i_act = header.index("minute"), header.index("activity")
+    i_cov = header.index(COVERING) if optional and COVERING in header else None
+    covering: list[str] = []
     obj_idx = [header.index(o) for o in objects]
     shared = {loc: loc for loc in locations}  # one string object per label, shared by every step
     owners = owners or {}
@@ -303,6 +309,8 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
             raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source,
                             line=lineno, field="minute")
         activity = activity_label(row[i_act], source, lineno)
+        if i_cov is not None:
+            covering.append(activity_label(row[i_cov], source, lineno, COVERING))
         cells = tuple(row[first: first + len(obj_idx)]) if contiguous else tuple(row[i] for i in obj_idx)
         state = known.get(cells)
         if state is None:
@@ -320,7 +328,8 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
         lines.append(lineno)
     if not minutes:
         raise DataError("no observation rows after the header", source=source, line=2)
-    return Day(name, tuple(minutes), tuple(activities), tuple(states), source), tuple(lines)
+    return (Day(name, tuple(minutes), tuple(activities), tuple(states), source,
+                None if i_cov is None else tuple(covering)), tuple(lines))
 
 
 def _check_nesting(state: Sequence[str], objects: tuple[str, ...], owners: dict[str, str], column_of: dict[str, int],
@@ -372,7 +381,7 @@ def check_step(day: Day, lines: Sequence[int], step: int, resample: Resample = "
         raise DataError(f"{minute} is {minute - previous} minutes after {previous}; this household's step is "
                         f"{step} minutes (fix the log, or set data.resample = \"locf\" to resample to the step)",
                         source=day.source, line=lines[irregular], field="minute")
-    minutes, activities, states = [], [], []
+    minutes, activities, states, covering = [], [], [], []
     t = 0
     for grid in range(day.minutes[0], day.minutes[-1] + 1, step):
         while t + 1 < len(day) and day.minutes[t + 1] <= grid:
@@ -380,7 +389,9 @@ def check_step(day: Day, lines: Sequence[int], step: int, resample: Resample = "
         minutes.append(grid)
         activities.append(day.activities[t])
         states.append(day.locations[t])
-    return Day(day.name, tuple(minutes), tuple(activities), tuple(states), day.source)
+        covering.append(day.covering[t] if day.covering is not None else "")
+    return Day(day.name, tuple(minutes), tuple(activities), tuple(states), day.source,
+               None if day.covering is None else tuple(covering))
 
 
 # -- a household folder ----------------------------------------------------------------------------
@@ -463,15 +474,17 @@ def format_day(day: Day, objects: tuple[str, ...]) -> str:
     distinct row (and activity) is formatted once and the lines are joined from those pieces (the
     writer formats each field on its own, so the pieces join to the same text)."""
     rows: dict[tuple[str, ...], str] = {}
-    names: dict[str, str] = {}
-    parts = [_csv_line(FIXED_COLUMNS + objects) + "\n"]
-    for minute, activity, state in zip(day.minutes, day.activities, day.locations):
+    names: dict[tuple[str, ...], str] = {}
+    covered = day.covering is not None
+    parts = [_csv_line(FIXED_COLUMNS + ((COVERING,) if covered else ()) + objects) + "\n"]
+    labels = zip(day.activities, day.covering) if day.covering is not None else ((a,) for a in day.activities)
+    for minute, label, state in zip(day.minutes, labels, day.locations):
         text = rows.get(state)
         if text is None:  # formatted after a first field, so a lone empty cell is written as a row's middle cell is
             text = rows[state] = _csv_line(("0", *state))[1:]
-        head = names.get(activity)
+        head = names.get(label)
         if head is None:
-            head = names[activity] = _csv_line(("0", activity))[1:]
+            head = names[label] = _csv_line(("0", *label))[1:]
         parts.append(f"{minute}{head}{text}\n")
     return "".join(parts)
 

@@ -43,6 +43,7 @@ class Day:
     activities: tuple[str, ...]
     locations: tuple[tuple[str, ...], ...]  # [step][object column]
     source: str = ""
+    covering: tuple[str, ...] | None = None  # per step: the activity covering most of it (imported logs), if known
 
     def __len__(self) -> int:
         return len(self.minutes)

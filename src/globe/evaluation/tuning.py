@@ -203,7 +203,8 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
                     object_measure, sel.object_criterion)
     models = models.model_copy(update=obj.best)
     selections = {"activity": act, "objects": obj}
-    if family == "routine" and set(sel.alignments) - {alignment}:
+    offered = [a for a in sel.alignments if a != "most" or all(d.covering is not None for d in h.train)]
+    if family == "routine" and set(offered) - {alignment}:
         # Which activity a use is credited to depends on how the log was made (HOMER+'s rows: the
         # step before; an imported sensor log: the step itself): scored through the protocol, with
         # the chosen models, so the activity a use is credited to must itself be predicted.
@@ -214,7 +215,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
                 return best
             return object_cv_scores(h, cfg, models, params["alignment"], memo, step)
 
-        tried = [{"alignment": a} for a in dict.fromkeys((alignment, *sel.alignments))]
+        tried = [{"alignment": a} for a in dict.fromkeys((alignment, *offered))]
         selections["alignment"] = select_by(tried, alignment_measure, sel.object_criterion)
     out = (models, selections)
     memo.put(key, out)

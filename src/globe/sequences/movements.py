@@ -9,8 +9,8 @@ from typing import Literal, Sequence
 
 from globe.data.records import Day
 
-Alignment = Literal["previous", "current", "hybrid"]
-ALIGNMENTS: tuple[Alignment, ...] = ("previous", "current", "hybrid")
+Alignment = Literal["previous", "current", "hybrid", "most"]
+ALIGNMENTS: tuple[Alignment, ...] = ("previous", "current", "hybrid", "most")
 IDLE = "idle"
 
 
@@ -28,11 +28,15 @@ class MovementEvent:
     activity: str
 
 
-def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignment) -> int:
+def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignment,
+                      covering: tuple[str, ...] | None = None) -> int:
     """Which step's activity a movement observed at ``step`` belongs to.
 
     ``previous`` (default, as SLaTe-PRO): the activity in progress when the ten-minute interval
     began (t-1). ``current``: the activity at t. ``hybrid``: t-1 unless that is ``idle``.
+    ``most``: the activity covering most of step t (``covering``, written by the importers, whose
+    rows mark a use inside their own step): t + 1 when the activity that began during step t
+    covers most of it, else t (``current``, also for a day without ``covering``).
     """
     if alignment == "previous":
         return step - 1
@@ -40,6 +44,10 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
         return step
     if alignment == "hybrid":
         return step if activities[step - 1] == IDLE else step - 1
+    if alignment == "most":
+        later = covering is not None and step + 1 < len(activities) and covering[step] != activities[step] \
+            and covering[step] == activities[step + 1]
+        return step + 1 if later else step
     raise ValueError(f"unknown alignment {alignment!r}; expected one of {', '.join(ALIGNMENTS)}")
 
 
@@ -73,7 +81,7 @@ def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment =
         before, after = rows[t - 1], rows[t]
         if before is after or before == after:  # most steps: nothing moved
             continue
-        s = activity_step_for(day.activities, t, alignment)
+        s = activity_step_for(day.activities, t, alignment, day.covering)
         name, minute, activity = day.name, day.minutes[t], day.activities[s]
         events.extend(MovementEvent(name, t, minute, obj, b, a, s, activity)
                       for obj, b, a in zip(objects, before, after) if b != a)

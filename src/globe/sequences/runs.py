@@ -71,7 +71,7 @@ def run_objects(day: Day, objects: tuple[str, ...], alignment: Alignment = "prev
     acts = day.activities
     by_step: dict[int, list[str]] = defaultdict(list)
     for t, moved in moved_steps(day, objects) if moves is None else moves:
-        by_step[activity_step_for(acts, t, alignment)].extend(moved)
+        by_step[activity_step_for(acts, t, alignment, day.covering)].extend(moved)
     return [(acts[s], moved) for s, _, moved in _per_run(acts, by_step)]
 
 

@@ -219,6 +219,6 @@ def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str],
         raise DataError(f"{len(dates)} dates for {len(days)} days; give one date per day, or none", field="dates")
     given = [None] * len(days) if dates is None else dates
     names = [d.name if when is None else when.isoformat() for d, when in zip(days, given)]
-    days = tuple(Day(n, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source)
+    days = tuple(Day(n, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source, d.covering)
                  for n, d in zip(names, days))
     return Household(name, nodes, objects, days, (), "upload")

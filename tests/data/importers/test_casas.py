@@ -238,3 +238,15 @@ def test_skip_bad_lines_leaves_out_exactly_the_bad_lines_and_lists_them(tmp_path
     with pytest.raises(DataError) as err:
         _import(tmp_path, "\n".join(dirty) + "\n")
     assert err.value.line == 3 and "--skip-bad-lines" in err.value.message
+
+
+def test_each_row_also_names_the_activity_covering_most_of_its_step(tmp_path):
+    """07:00 is idle at its start but the meal (from 07:02) covers 8 of its 10 minutes; 06:20 is
+    half sleep, half nothing: a tie goes to the row's own activity; 07:30 holds one minute of the
+    meal: idle."""
+    _, home = _import(tmp_path)
+    day = home.train[0]
+    rows = dict(zip(day.minutes, zip(day.activities, day.covering or ())))
+    assert rows[420] == ("idle", "Meal_Preparation") and rows[380] == ("Sleeping", "Sleeping")
+    assert rows[450] == ("Meal_Preparation", "idle") and rows[390] == ("idle", "idle")
+    assert all(c == a for m, (a, c) in rows.items() if m not in (420, 450))

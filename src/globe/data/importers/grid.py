@@ -8,7 +8,9 @@ every format and are written once:
   (06:00, 06:10, ..., 24:00 by default, as HOMER+); the row at minute m stands for the step
   ``[m, m + step)``. Event times never add rows.
 - A row's activity is the annotation covering the step's *start* (the current convention of the
-  CSV logs); a step no annotation covers is ``idle``. Annotations may not overlap, unless
+  CSV logs); a step no annotation covers is ``idle``. Its ``covering`` cell is the activity that
+  covers most of the step (``idle`` for time no annotation covers; ties: the row's activity, then
+  the name), so a use can be credited to it (``sequences.alignment = "most"``). Annotations may not overlap, unless
   ``overlaps="latest"``: then the one that began last wins while it lasts (ties: the later line).
 - An object is used in a step when one of its sensors fires, or is on, at any time inside the
   step; its cell is then its room's ``in_use`` place, otherwise its home place.
@@ -187,6 +189,7 @@ class _Grid:
     bases: dict[date, datetime]  # kept date -> its first step's start
     activities: dict[date, list[str]]
     used: dict[str, dict[date, set[int]]]
+    shares: dict[date, list[dict[str, float]]] = field(default_factory=dict)  # seconds of each step each label covers
 
     @property
     def step(self) -> timedelta:
@@ -269,6 +272,11 @@ def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, 
             for k in range(first, stop):
                 row[k] = ann.activity
                 placed = True
+            shares = grid.shares.setdefault(day, [{} for _ in range(steps)])
+            for k in range(max(0, (ann.start - base) // grid.step), stop):
+                lo, hi = max(ann.start, base + k * grid.step), min(ann.end, base + (k + 1) * grid.step)
+                if hi > lo:
+                    shares[k][ann.activity] = shares[k].get(ann.activity, 0.0) + (hi - lo).total_seconds()
         if touched and not placed:
             stats.on_no_row += 1
     return per_label
@@ -369,7 +377,19 @@ def _day(grid: _Grid, day: date, columns: tuple[str, ...], home: HomeMap, split:
     in_use = tuple(home.in_use_of[obj] for obj in columns)
     locations = tuple(tuple(in_use[i] if k in marks[i] else at_home[i] for i in range(len(columns)))
                       for k in range(options.steps))
-    return Day(f"{split}/{day.isoformat()}", minutes, tuple(grid.activities[day]), locations)
+    return Day(f"{split}/{day.isoformat()}", minutes, tuple(grid.activities[day]), locations,
+               covering=_covering(grid, day))
+
+
+def _covering(grid: _Grid, day: date) -> tuple[str, ...]:
+    """Each row's activity covering most of its step (see the module doc)."""
+    seconds = grid.step.total_seconds()
+    out = []
+    for k, start_label in enumerate(grid.activities[day]):
+        shares = dict(grid.shares[day][k]) if day in grid.shares else {}
+        shares[IDLE] = shares.get(IDLE, 0.0) + max(0.0, seconds - sum(shares.values()))
+        out.append(max(shares, key=lambda a: (shares[a], a == start_label, a)))
+    return tuple(out)
 
 
 def _report(sensor_log: SensorLog, selection: ObjectSelection, objects: Sequence[ObjectSpec], home: HomeMap,
