@@ -112,6 +112,7 @@ def test_import_takes_each_day_files_date_from_its_name(tmp_path):
         cli("household", "import", "--db", str(tmp_path / "db.sqlite3"), "--name", name, "--timezone", "UTC",
             str(folder))
     store = Store(tmp_path / "db.sqlite3")
-    assert store.training_dates("dated") == [d.name for d in h.train] and h.train[0].name == "2024-01-01"
-    assert store.training_dates("numbered") == [None] * len(h.train)
+    assert [d.date for d in store.training_days("dated")] == [d.name for d in h.train]
+    assert h.train[0].name == "2024-01-01"
+    assert [d.date for d in store.training_days("numbered")] == [None] * len(h.train)
     store.close()

@@ -136,12 +136,11 @@ class Registry:
         days = []
         parser = DayParser(objects, locations, owners)
         set_aside = 0
-        dates = self.store.training_dates(row.name)
-        for i, text in enumerate(self.store.training_days(row.name)):
+        for i, kept in enumerate(self.store.training_days(row.name)):
             try:
+                text = kept.text
                 day = legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0]
-                when = dates[i] if i < len(dates) else None
-                days.append(day if when is None else dataclasses.replace(day, name=when))
+                days.append(day if kept.date is None else dataclasses.replace(day, name=kept.date))
             except (GlobeError, ValueError, KeyError, TypeError) as err:
                 log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
                 set_aside += 1

@@ -153,6 +153,14 @@ class FoundObservation:
 
 
 @dataclass(frozen=True, slots=True)
+class StoredDay:
+    """A stored training day: its text and its date (ISO 8601; None: not given)."""
+
+    text: str
+    date: str | None
+
+
+@dataclass(frozen=True, slots=True)
 class StoredObservation:
     id: int
     time: str

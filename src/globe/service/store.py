@@ -39,6 +39,7 @@ from globe.service.schema import (
     FoundObservation,
     HouseholdRow,
     StepPrediction,
+    StoredDay,
     StoredObservation,
     TokenRow,
 )
@@ -286,21 +287,16 @@ class Store:
             raise StoreError(f"the stored map of household {name!r} is damaged ({type(err).__name__}: {err})") from None
         return nodes, tuple(objects)
 
-    def training_days(self, name: str) -> list[str]:
-        """Each stored day: CSV text (stored zlib-compressed: a tenth of the size; or, from schema
-        1-2 files, a JSON-encoded :class:`Day`)."""
-        rows = self._read("SELECT day FROM training_days WHERE household = ? ORDER BY position", (name,))
-        return [_text(r[0]) for r in rows]
-
-    def training_dates(self, name: str) -> list[str | None]:
-        """The date of each stored training day, in :meth:`training_days`' order (None: not given)."""
-        return [r[0] for r in self._read("SELECT date FROM training_days WHERE household = ? ORDER BY position",
-                                         (name,))]
+    def training_days(self, name: str) -> list[StoredDay]:
+        """Each stored day: its CSV text (stored zlib-compressed: a tenth of the size; or, from
+        schema 1-2 files, a JSON-encoded :class:`Day`) and its date, if given."""
+        rows = self._read("SELECT day, date FROM training_days WHERE household = ? ORDER BY position", (name,))
+        return [StoredDay(_text(day), date) for day, date in rows]
 
     def export_household(self, name: str) -> dict | None:
         """Everything stored about a household, as stored (nothing is parsed, so a damaged row is
-        exported too): its map's JSON text, its training days' texts, its observations and
-        feedback. None if there is no such household."""
+        exported too): its map's JSON text, its training days' texts and dates, its observations
+        and feedback. None if there is no such household."""
         rows = self._read("SELECT name, timezone, created_at, nodes, objects FROM households WHERE name = ?", (name,))
         if not rows:
             return None
@@ -309,9 +305,10 @@ class Store:
                                   "FROM observations WHERE household = ? ORDER BY id", (name,))
         feedback = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? ORDER BY id",
                               (name,))
+        days = self.training_days(name)
         return {
             "name": name_, "timezone": timezone, "created_at": created_at, "nodes": nodes, "objects": objects,
-            "days": self.training_days(name), "dates": self.training_dates(name),
+            "days": [d.text for d in days], "dates": [d.date for d in days],
             "observations": [{"id": i, "time": t, "activity": a, "locations": loc, "received_at": r, "client_id": c,
                               "quarantined": bool(q)} for i, t, a, loc, r, c, q in observations],
             "feedback": [{"object": o, "accepted": bool(a), "received_at": r} for o, a, r in feedback],
