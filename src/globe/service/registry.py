@@ -214,15 +214,14 @@ class Registry:
             raise LimitError(f"{len(node_rows)} nodes (at most {s.max_nodes})", field="nodes")
         if len(day_texts) > s.max_days:
             raise LimitError(f"{len(day_texts)} days (at most {s.max_days})", field="days")
-        if dates is not None and len(dates) != len(day_texts):
-            raise DataError(f"{len(dates)} dates for {len(day_texts)} days; give one date per day, or none",
-                            field="dates")
         zone = timepolicy.check_timezone(timezone or s.timezone)
         nodes = parse_nodes(node_rows, max_label=s.max_label_length)
         try:
             household = household_from(name, nodes, day_texts, max_label=s.max_label_length, dates=dates)
         except DataError as err:
-            where = err.source or "days"
+            if err.source is None:  # not about one day's text (the dates): it names its own field
+                raise
+            where = err.source
             detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
             raise type(err)(detail, field=f"{where}.{err.field}" if err.field else where) from None
         assistant = self.create(household, zone, day_texts)
