@@ -381,17 +381,14 @@ def check_step(day: Day, lines: Sequence[int], step: int, resample: Resample = "
         raise DataError(f"{minute} is {minute - previous} minutes after {previous}; this household's step is "
                         f"{step} minutes (fix the log, or set data.resample = \"locf\" to resample to the step)",
                         source=day.source, line=lines[irregular], field="minute")
-    minutes, activities, states, covering = [], [], [], []
-    t = 0
-    for grid in range(day.minutes[0], day.minutes[-1] + 1, step):
-        while t + 1 < len(day) and day.minutes[t + 1] <= grid:
+    grid = range(day.minutes[0], day.minutes[-1] + 1, step)
+    rows, t = [], 0  # the row each grid point takes
+    for minute in grid:
+        while t + 1 < len(day) and day.minutes[t + 1] <= minute:
             t += 1
-        minutes.append(grid)
-        activities.append(day.activities[t])
-        states.append(day.locations[t])
-        covering.append(day.covering[t] if day.covering is not None else "")
-    return Day(day.name, tuple(minutes), tuple(activities), tuple(states), day.source,
-               None if day.covering is None else tuple(covering))
+        rows.append(t)
+    return Day(day.name, tuple(grid), tuple(day.activities[t] for t in rows), tuple(day.locations[t] for t in rows),
+               day.source, None if day.covering is None else tuple(day.covering[t] for t in rows))
 
 
 # -- a household folder ----------------------------------------------------------------------------

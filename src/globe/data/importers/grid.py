@@ -10,8 +10,9 @@ every format and are written once:
 - A row's activity is the annotation covering the step's *start* (the current convention of the
   CSV logs); a step no annotation covers is ``idle``. Its ``covering`` cell is the activity that
   covers most of the step (``idle`` for time no annotation covers; ties: the row's activity, then
-  the name), so a use can be credited to it (``sequences.alignment = "most"``). Annotations may not overlap, unless
-  ``overlaps="latest"``: then the one that began last wins while it lasts (ties: the later line).
+  the name), so a use can be credited to it (``sequences.alignment = "most"``). Annotations may
+  not overlap, unless ``overlaps="latest"``: then the one that began last wins while it lasts
+  (ties: the later line).
 - An object is used in a step when one of its sensors fires, or is on, at any time inside the
   step; its cell is then its room's ``in_use`` place, otherwise its home place.
 - A day with no annotation at all is left out, and so is a day the log does not cover from its
