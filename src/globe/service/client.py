@@ -35,11 +35,11 @@ def replay_dates(days: Sequence[Day], last: dt.date) -> list[dt.date]:
     """The calendar dates a replay posts ``days`` on, the last on or before ``last``: consecutive
     dates, unless every day is named by its date (in order): then their own dates moved by whole
     weeks, so a model that knows the day of the week sees each replayed day as it was."""
-    named = [d.calendar_date for d in days]
-    if not named or None in named or any(b <= a for a, b in zip(named, named[1:])):  # type: ignore[operator]
+    named = [when for when in (d.calendar_date for d in days) if when is not None]
+    if not named or len(named) < len(days) or any(b <= a for a, b in zip(named, named[1:])):
         return [last - dt.timedelta(days=len(days) - 1 - i) for i in range(len(days))]
-    shift = dt.timedelta(days=(last - named[-1]).days // 7 * 7)  # type: ignore[operator]
-    return [when + shift for when in named if when is not None]
+    shift = dt.timedelta(days=(last - named[-1]).days // 7 * 7)
+    return [when + shift for when in named]
 
 
 def household_payload(household: Household) -> dict[str, Any]:
