@@ -3,9 +3,12 @@ are stored compactly and read back identically."""
 
 import datetime as dt
 import json
+import threading
+import time
 from dataclasses import asdict
 
 from globe.config import GlobeConfig
+from globe.errors import StoreError
 from globe.service.registry import Registry
 from globe.service.schema import APPLICATION_ID, SCHEMA_VERSION
 from globe.service.store import Store
@@ -63,7 +66,7 @@ def test_day_encoding_shared_by_threads_gives_the_blobs_of_encode_days(household
     import threading
 
     from globe.data.csv_logs import format_day
-    from globe.service.store import DayEncoding
+    from globe.service.stored_days import DayEncoding
 
     texts = [format_day(d, households["B"].objects) for d in households["B"].train]
     shared = DayEncoding(texts)
@@ -111,3 +114,62 @@ def test_training_days_keep_their_dates_through_a_restart_and_an_export(tmp_path
     again.load_all()
     assert again.get("W").activity_model.weekdays_ == want
     store.close()
+
+
+def _bare_household(store: Store, name: str) -> None:
+    store._transaction("add", [("INSERT INTO households (name, nodes, objects, created_at) VALUES (?, '[]', '[]', '')",
+                                (name,))])
+
+
+def test_concurrent_writes_are_each_committed_once_with_their_own_row_ids(tmp_path):
+    store = Store(tmp_path / "g.sqlite3")
+    for i in range(8):
+        _bare_household(store, f"h{i}")
+    returned: list[int] = []
+    lock = threading.Lock()
+
+    def write(i: int) -> None:
+        ids = [store.add_feedback(f"h{i}", f"o{k}", k % 2 == 0) for k in range(40)]
+        with lock:
+            returned.extend(ids)
+
+    threads = [threading.Thread(target=write, args=(i,)) for i in range(8)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    rows = store._read("SELECT id, household, object FROM feedback")
+    assert len(rows) == 320 and sorted(returned) == sorted(r[0] for r in rows)
+    assert {(h, o) for _, h, o in rows} == {(f"h{i}", f"o{k}") for i in range(8) for k in range(40)}
+
+
+def test_a_failing_write_queued_with_others_fails_alone(tmp_path):
+    """Writes queued while the lock is held are committed together; one breaking a constraint
+    is retried alone and fails, and the others are committed."""
+    store = Store(tmp_path / "g.sqlite3")
+    store.add_token("t1", "hash-1", None, admin=True)
+    outcome: dict[str, object] = {}
+
+    def run(key: str, call) -> None:
+        try:
+            outcome[key] = call()
+        except StoreError as err:
+            outcome[key] = err
+
+    _bare_household(store, "h")
+    calls = {"same id": lambda: store.add_token("t1", "hash-2", None, admin=True),
+             "feedback": lambda: store.add_feedback("h", "cup", True),
+             "new token": lambda: store.add_token("t2", "hash-3", None, admin=False)}
+    with store._lock:  # a commit under way: the three queue up
+        threads = [threading.Thread(target=run, args=item) for item in calls.items()]
+        for th in threads:
+            th.start()
+        deadline = time.monotonic() + 10
+        while len(store._queue) < 3 and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert len(store._queue) == 3
+    for th in threads:
+        th.join()
+    assert isinstance(outcome["same id"], StoreError) and "store the token" in str(outcome["same id"])
+    assert isinstance(outcome["feedback"], int) and outcome["feedback"] > 0
+    assert [t.id for t in store.tokens()] == ["t1", "t2"] and store.problem() is None

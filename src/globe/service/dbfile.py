@@ -5,6 +5,7 @@ a damaged one aside instead of starting over in its place."""
 from __future__ import annotations
 
 import datetime as dt
+import os
 from pathlib import Path
 
 from globe.errors import DamagedDatabaseError, StoreError
@@ -42,6 +43,40 @@ def check_database_file(path: Path) -> None:
     if pages and changes == valid_for and size < page_size * pages:
         raise DamagedDatabaseError(f"{path}: the database file is truncated ({size} bytes; its header says "
                                    f"{page_size * pages}); {fix}")
+
+
+def _file_id(path: Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+class DatabaseFiles:
+    """The database file and its side files as first seen (device and inode), so that one going
+    away or being replaced while the service runs is noticed; a side file SQLite has not created
+    yet is noted when it appears."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._known = {suffix: _file_id(Path(str(self.path) + suffix)) for suffix in ("", *SIDE_FILES)}
+
+    def database_intact(self) -> bool:
+        return _file_id(self.path) == self._known[""]
+
+    def problem(self) -> str | None:
+        """Which file went away or was replaced, or None."""
+        for suffix, known in self._known.items():
+            name = Path(str(self.path) + suffix)
+            now = _file_id(name)
+            if known is None and suffix:
+                self._known[suffix] = now
+            elif now is None:
+                return f"database file {name} has disappeared"
+            elif now != known:
+                return f"database file {name} was replaced while the service ran"
+        return None
 
 
 def set_aside_database(path: Path) -> Path:

@@ -53,7 +53,8 @@ from globe.service.schemas import (
     StatsOut,
     check_household_name,
 )
-from globe.service.store import DayEncoding, Store, legacy_day
+from globe.service.store import Store
+from globe.service.stored_days import DayEncoding, legacy_day
 from globe.service.upload import DayParser, household_from, parse_nodes
 
 log = logging.getLogger(__name__)

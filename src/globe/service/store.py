@@ -13,22 +13,19 @@ replaced while the service runs, what was acknowledged stays durable and later w
 from __future__ import annotations
 
 import datetime as dt
-import itertools
 import json
 import logging
 import math
-import os
 import sqlite3
 import threading
 import time
-import zlib
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
-from globe.data.records import Day, Household, Node
+from globe.data.records import Household, Node
 from globe.errors import StoreError, StoreUnavailableError
-from globe.service.dbfile import SIDE_FILES, check_database_file
+from globe.service.dbfile import DatabaseFiles, check_database_file
 from globe.service.schema import (
     APPLICATION_ID,
     MIGRATIONS,
@@ -43,6 +40,7 @@ from globe.service.schema import (
     StoredObservation,
     TokenRow,
 )
+from globe.service.stored_days import decode_day, encode_day
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +49,29 @@ _NODE_FIELDS = tuple(f.name for f in fields(Node))
 
 def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat()
+
+
+@dataclass(slots=True, eq=False)
+class _Write:
+    """One caller's transaction, queued for the next commit."""
+
+    what: str
+    statements: Sequence[tuple[str, tuple]]
+    household: str | None
+    row: int = 0  # the row id the first statement inserted
+    changed: int = 0  # how many rows the first statement changed
+    error: Exception | None = None
+    done: bool = False
+
+    @staticmethod
+    def settle(batch: list[_Write], error: Callable[[_Write], Exception | None],
+               cause: Exception | None = None) -> None:
+        """Settle every write of ``batch`` with its own error (None: committed)."""
+        for w in batch:
+            w.error = error(w)
+            if w.error is not None and cause is not None:
+                w.error.__cause__ = cause
+            w.done = True
 
 
 class Store:
@@ -70,6 +91,8 @@ class Store:
         check_database_file(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
+        self._queue: list[_Write] = []  # writes waiting for the next commit (group commit)
+        self._queue_lock = threading.Lock()
         self._lost: str | None = None  # why writes stopped for good (a file went away), once seen
         self._failed_write: str | None = None  # the last write's error, until a write succeeds
         self._shadows: dict[str, bool] = {}  # shadow flags read, valid while data_version stays
@@ -96,8 +119,7 @@ class Store:
         # before its body is read), and a reader in WAL mode never waits for a write under way.
         self._token_db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
         self._token_lock = threading.Lock()
-        self._files: dict[str, tuple[int, int] | None] = {"": self._file_id(self.path)}
-        self._files.update({suffix: self._file_id(Path(str(self.path) + suffix)) for suffix in SIDE_FILES})
+        self._files = DatabaseFiles(self.path)
 
     # -- identity and schema -------------------------------------------------------------------
     def _check_identity(self) -> None:
@@ -133,36 +155,14 @@ class Store:
                     self._db.execute("ROLLBACK")
                     raise
 
-    @staticmethod
-    def _file_id(path: Path) -> tuple[int, int] | None:
-        try:
-            st = os.stat(path)
-        except OSError:
-            return None
-        return st.st_dev, st.st_ino
-
-    def _files_problem(self) -> str | None:
-        """Which of the database's files went away or was replaced (a side file SQLite has not
-        created yet is noted when it appears)."""
-        for suffix, known in self._files.items():
-            name = Path(str(self.path) + suffix)
-            now = self._file_id(name)
-            if known is None and suffix:
-                self._files[suffix] = now
-            elif now is None:
-                return f"database file {name} has disappeared"
-            elif now != known:
-                return f"database file {name} was replaced while the service ran"
-        return None
-
     def _check_files(self) -> str | None:
         """(Under the lock.) Once a file is gone, what the write-ahead log holds is copied into
         the database file (the acknowledged writes stay durable) and writes stop for good."""
         if self._lost is None:
-            reason = self._files_problem()
+            reason = self._files.problem()
             if reason is not None:
                 saved = ""
-                if self._file_id(self.path) == self._files[""]:  # the database file itself is still there
+                if self._files.database_intact():
                     try:
                         busy, _, copied = self._db.execute("PRAGMA wal_checkpoint(FULL)").fetchone()
                         saved = "" if busy else f"; the {copied} pages its log held were copied into {self.path.name}"
@@ -194,38 +194,75 @@ class Store:
                 f"{reason}; restart the service (writes are refused so nothing is lost silently)")
 
     def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> int:
-        """Run ``statements`` in one transaction; ``household``: whose row they may change (its
-        remembered shadow flag is dropped with the commit, under the same lock)."""
+        """Run ``statements`` in one transaction, durable when this returns; returns the row id
+        the first one inserted. ``household``: whose row they may change (its remembered shadow
+        flag is dropped with the commit, under the same lock).
+
+        Group commit: writes that arrive while another is being committed queue up, and the
+        first of them to get the lock commits them all in one transaction (one sync of the log
+        for all instead of one each); each caller still returns only once its write is durable."""
+        return self._write(what, statements, household).row
+
+    def _write(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> _Write:
+        """:meth:`_transaction`, returning the settled write."""
+        write = _Write(what, statements, household)
+        with self._queue_lock:
+            self._queue.append(write)
         with self._lock:
+            if not write.done:  # not committed by an earlier holder of the lock: commit every queued write
+                with self._queue_lock:
+                    batch, self._queue = self._queue, []
+                try:
+                    self._commit(batch)
+                finally:
+                    unsettled = [w for w in batch if not w.done]
+                    if unsettled:  # interrupted by something other than a database error
+                        if self._db.in_transaction:
+                            self._db.execute("ROLLBACK")
+                        _Write.settle(unsettled, lambda w: StoreError(f"cannot {w.what}: the commit was interrupted"))
+        if write.error is not None:
+            raise write.error
+        return write
+
+    def _commit(self, batch: list[_Write]) -> None:
+        """(Under the lock.) ``batch`` in one transaction; if that fails, each write alone, so
+        that one write's error (a constraint) fails only that write."""
+        try:
             self._writable()
-            db = self._db
-            try:
-                db.execute("BEGIN IMMEDIATE")
-                last = 0
-                for sql, params in statements:
-                    last = db.execute(sql, params).lastrowid or last
-                db.execute("COMMIT")
-                self._shadows.pop(household or "", None)
-            except sqlite3.Error as err:
-                if db.in_transaction:
-                    db.execute("ROLLBACK")
-                self._note_failure(what, err)
-                raise StoreError(f"cannot {what}: {err}") from err
-            self._failed_write = None
-            self._written(what)
-            return last
+        except StoreUnavailableError as err:
+            refused = str(err)
+            return _Write.settle(batch, lambda w: StoreUnavailableError(refused))
+        db = self._db
+        try:
+            db.execute("BEGIN IMMEDIATE")
+            for w in batch:
+                cursors = [db.execute(sql, params) for sql, params in w.statements]
+                if cursors:
+                    w.row, w.changed = cursors[0].lastrowid or 0, cursors[0].rowcount
+            db.execute("COMMIT")
+        except sqlite3.Error as err:
+            if db.in_transaction:
+                db.execute("ROLLBACK")
+            if len(batch) > 1:
+                for w in batch:
+                    self._commit([w])
+                return None
+            self._note_failure(batch[0].what, err)
+            failure = err
+            return _Write.settle(batch, lambda w: StoreError(f"cannot {w.what}: {failure}"), failure)
+        for w in batch:
+            self._shadows.pop(w.household or "", None)
+        self._failed_write = None
+        if self._check_files() and not self._files.database_intact():  # the log was lost with this commit in it
+            return _Write.settle(batch, lambda w: StoreUnavailableError(
+                f"{self._lost}; cannot {w.what} durably (restart the service)"))
+        return _Write.settle(batch, lambda w: None)
 
     def _note_failure(self, what: str, err: sqlite3.Error) -> None:
         """A write that failed for the database's sake (not a constraint): reported by /health."""
         if not isinstance(err, sqlite3.IntegrityError):
             self._failed_write = f"the last write failed ({what}: {err}) at {_now()}"
             log.error("%s", self._failed_write)
-
-    def _written(self, what: str) -> None:
-        """After a commit: if a file went away meanwhile, the log was just copied into the
-        database file (this write too), unless the database file itself is gone."""
-        if self._check_files() and self._file_id(self.path) != self._files[""]:
-            raise StoreUnavailableError(f"{self._lost}; cannot {what} durably (restart the service)")
 
     def _read(self, sql: str, params: tuple = ()) -> list[tuple]:
         with self._lock:
@@ -239,7 +276,7 @@ class Store:
     def encode_days(day_texts: Sequence[str]) -> list[bytes]:
         """Training days as they are stored: their CSV text, zlib-compressed (a tenth of the size).
         Compression releases the GIL: :class:`DayEncoding` shares the work between threads."""
-        return [_encode_day(text) for text in day_texts]
+        return [encode_day(text) for text in day_texts]
 
     def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
                       encoded: Sequence[bytes] | None = None, shadow: bool = True) -> None:
@@ -291,7 +328,7 @@ class Store:
         """Each stored day: its CSV text (stored zlib-compressed: a tenth of the size; or, from
         schema 1-2 files, a JSON-encoded :class:`Day`) and its date, if given."""
         rows = self._read("SELECT day, date FROM training_days WHERE household = ? ORDER BY position", (name,))
-        return [StoredDay(_text(day), date) for day, date in rows]
+        return [StoredDay(decode_day(day), date) for day, date in rows]
 
     def export_household(self, name: str) -> dict | None:
         """Everything stored about a household, as stored (nothing is parsed, so a damaged row is
@@ -327,27 +364,11 @@ class Store:
                         client_id: str | None, ack: dict, also: Sequence[tuple[str, tuple]] = ()) -> int:
         """Store an observation, with ``also`` (the scores it settles) in the same transaction;
         returns the observation's row id."""
-        with self._lock:
-            self._writable()
-            db = self._db
-            try:
-                db.execute("BEGIN IMMEDIATE")
-                row = db.execute(
-                    "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?)",
-                    (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id,
-                     json.dumps(ack))).lastrowid
-                for sql, params in also:
-                    db.execute(sql, params)
-                db.execute("COMMIT")
-            except sqlite3.Error as err:
-                if db.in_transaction:
-                    db.execute("ROLLBACK")
-                self._note_failure("store the observation", err)
-                raise StoreError(f"cannot store the observation: {err}") from err
-            self._failed_write = None
-            self._written("store the observation")
-            return row or 0
+        return self._transaction("store the observation", [(
+            "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id,
+             json.dumps(ack))), *also])
 
     def find_observation(self, household: str, client_id: str) -> FoundObservation | None:
         rows = self._read("SELECT id, ack, time, activity, locations FROM observations "
@@ -513,17 +534,8 @@ class Store:
 
     def revoke_token(self, token_id: str | None = None, digest: str | None = None) -> int:
         """Revoke by id or hash; returns how many tokens were revoked (0 if none matched)."""
-        with self._lock:
-            self._writable()
-            try:
-                cur = self._db.execute("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) "
-                                       "AND revoked_at IS NULL", (_now(), token_id, digest))
-            except sqlite3.Error as err:
-                self._note_failure("revoke the token", err)
-                raise StoreError(f"cannot revoke the token: {err}") from err
-            self._failed_write = None
-            self._written("revoke the token")
-            return cur.rowcount
+        return self._write("revoke the token", [("UPDATE tokens SET revoked_at = ? WHERE (id = ? OR hash = ?) "
+                                                 "AND revoked_at IS NULL", (_now(), token_id, digest))]).changed
 
     def tokens(self) -> list[TokenRow]:
         rows = self._read("SELECT id, household, admin, created_at, revoked_at FROM tokens ORDER BY created_at")
@@ -550,48 +562,3 @@ def _household_row(name: str, timezone: object, created_at: object, shadow: obje
         return HouseholdRow(name, str(timezone), dt.datetime.fromtimestamp(0, dt.timezone.utc),
                             f"its stored creation time {str(created_at)[:40]!r} cannot be read ({err})", bool(shadow))
     return HouseholdRow(name, str(timezone), created, shadow=bool(shadow))
-
-
-def _encode_day(text: str) -> bytes:
-    return zlib.compress(text.encode("utf-8"), 1)
-
-
-class DayEncoding:
-    """:meth:`Store.encode_days` of ``day_texts``, shared by the threads that call :meth:`run`:
-    each call compresses days no other call has taken, so a thread that would wait for a helper
-    helps it instead. A helper started before other work gets little done while that work holds
-    the GIL (it needs the GIL back after every day); the days left are then compressed by both
-    threads at once. The blobs are those of :meth:`Store.encode_days`, whoever made them."""
-
-    def __init__(self, day_texts: Sequence[str]) -> None:
-        self._texts = list(day_texts)
-        self._taken = itertools.count()  # next() is atomic: each day goes to one thread
-        self.blobs: list[bytes] = [b""] * len(self._texts)
-        self._stopped = False
-
-    def run(self) -> None:
-        for i in self._taken:
-            if i >= len(self._texts) or self._stopped:
-                return
-            self.blobs[i] = _encode_day(self._texts[i])
-
-    def stop(self) -> None:
-        """Take no more days (the blobs are then incomplete): the household will not be stored."""
-        self._stopped = True
-
-
-def _text(stored: bytes | str) -> str:
-    """A stored day's text; a damaged blob becomes "" (then refused, logged and set aside by the loader)."""
-    if not isinstance(stored, bytes):
-        return stored
-    try:
-        return zlib.decompress(stored).decode("utf-8")
-    except (zlib.error, UnicodeDecodeError):
-        return ""
-
-
-def legacy_day(payload: str) -> Day:
-    """A day stored by schema 1-2 (a JSON-encoded :class:`Day`)."""
-    d = json.loads(payload)
-    locations = tuple(tuple(s) for s in d["locations"])
-    return Day(d["name"], tuple(d["minutes"]), tuple(d["activities"]), locations, d.get("source", ""))
