@@ -143,11 +143,9 @@ def test_concurrent_writes_are_each_committed_once_with_their_own_row_ids(tmp_pa
     assert {(h, o) for _, h, o in rows} == {(f"h{i}", f"o{k}") for i in range(8) for k in range(40)}
 
 
-def test_a_failing_write_queued_with_others_fails_alone(tmp_path):
-    """Writes queued while the lock is held are committed together; one breaking a constraint
-    is retried alone and fails, and the others are committed."""
-    store = Store(tmp_path / "g.sqlite3")
-    store.add_token("t1", "hash-1", None, admin=True)
+def _queued_together(store: Store, calls: dict) -> dict[str, object]:
+    """Run ``calls`` in threads while a commit is under way, so that they are committed together;
+    what each returned or raised."""
     outcome: dict[str, object] = {}
 
     def run(key: str, call) -> None:
@@ -156,20 +154,39 @@ def test_a_failing_write_queued_with_others_fails_alone(tmp_path):
         except StoreError as err:
             outcome[key] = err
 
-    _bare_household(store, "h")
-    calls = {"same id": lambda: store.add_token("t1", "hash-2", None, admin=True),
-             "feedback": lambda: store.add_feedback("h", "cup", True),
-             "new token": lambda: store.add_token("t2", "hash-3", None, admin=False)}
-    with store._lock:  # a commit under way: the three queue up
-        threads = [threading.Thread(target=run, args=item) for item in calls.items()]
-        for th in threads:
-            th.start()
-        deadline = time.monotonic() + 10
-        while len(store._queue) < 3 and time.monotonic() < deadline:
-            time.sleep(0.005)
-        assert len(store._queue) == 3
+    with store._queued:
+        store._committing = True
+    threads = [threading.Thread(target=run, args=item) for item in calls.items()]
+    for th in threads:
+        th.start()
+    deadline = time.monotonic() + 10
+    while len(store._queue) < len(calls) and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert len(store._queue) == len(calls)
+    with store._queued:
+        store._committing = False
+        store._queued.notify_all()
     for th in threads:
         th.join()
+    return outcome
+
+
+def test_a_failing_write_queued_with_others_fails_alone(tmp_path):
+    """Writes queued behind a commit are committed together; one that breaks a constraint, or
+    holds a value SQLite cannot take, is retried alone and fails, and the others are committed."""
+    store = Store(tmp_path / "g.sqlite3")
+    store.add_token("t1", "hash-1", None, admin=True)
+    _bare_household(store, "h")
+    outcome = _queued_together(store, {
+        "same id": lambda: store.add_token("t1", "hash-2", None, admin=True),
+        "feedback": lambda: store.add_feedback("h", "cup", True),
+        "too large": lambda: store.add_fetch("h", "2026-01-01", 2**64, "cup", None, None, False),
+        "shadow": lambda: store.set_shadow("h", False),
+        "new token": lambda: store.add_token("t2", "hash-3", None, admin=False)})
     assert isinstance(outcome["same id"], StoreError) and "store the token" in str(outcome["same id"])
-    assert isinstance(outcome["feedback"], int) and outcome["feedback"] > 0
+    assert isinstance(outcome["too large"], StoreError) and "store the fetch decision" in str(outcome["too large"])
+    assert outcome["shadow"] == 0  # an UPDATE adds no row: not the feedback's row id
+    feedback = store._read("SELECT id FROM feedback")
+    assert feedback == [(outcome["feedback"],)]
     assert [t.id for t in store.tokens()] == ["t1", "t2"] and store.problem() is None
+    assert store._read("SELECT shadow FROM households") == [(0,)] and not store._db.in_transaction

@@ -51,6 +51,13 @@ def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat()
 
 
+def _inserted_row(sql: str, cursor: sqlite3.Cursor) -> int:
+    """The row id a plain INSERT added; 0 for any other statement (SQLite's last row id would
+    then be another statement's, perhaps another caller's in the same commit)."""
+    plain = sql.lstrip()[:12].upper() == "INSERT INTO " and "ON CONFLICT" not in sql.upper()
+    return (cursor.lastrowid or 0) if plain and cursor.rowcount == 1 else 0
+
+
 @dataclass(slots=True, eq=False)
 class _Write:
     """One caller's transaction, queued for the next commit."""
@@ -58,7 +65,7 @@ class _Write:
     what: str
     statements: Sequence[tuple[str, tuple]]
     household: str | None
-    row: int = 0  # the row id the first statement inserted
+    row: int = 0  # the row id a plain INSERT as first statement added
     changed: int = 0  # how many rows the first statement changed
     error: Exception | None = None
     done: bool = False
@@ -92,7 +99,8 @@ class Store:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
         self._queue: list[_Write] = []  # writes waiting for the next commit (group commit)
-        self._queue_lock = threading.Lock()
+        self._queued = threading.Condition(threading.Lock())  # guards the queue and _committing
+        self._committing = False
         self._lost: str | None = None  # why writes stopped for good (a file went away), once seen
         self._failed_write: str | None = None  # the last write's error, until a write succeeds
         self._shadows: dict[str, bool] = {}  # shadow flags read, valid while data_version stays
@@ -195,38 +203,47 @@ class Store:
 
     def _transaction(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> int:
         """Run ``statements`` in one transaction, durable when this returns; returns the row id
-        the first one inserted. ``household``: whose row they may change (its remembered shadow
-        flag is dropped with the commit, under the same lock).
+        the first one added if it is a plain INSERT (else 0). ``household``: whose row they may
+        change (its remembered shadow flag is dropped with the commit, under the same lock).
 
-        Group commit: writes that arrive while another is being committed queue up, and the
-        first of them to get the lock commits them all in one transaction (one sync of the log
-        for all instead of one each); each caller still returns only once its write is durable."""
+        Group commit: writes that arrive while a commit is under way queue up, and when it ends
+        one of them commits them all in one transaction, in the order they came (one sync of the
+        log for all instead of one each); each caller returns once its own write is durable."""
         return self._write(what, statements, household).row
 
     def _write(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> _Write:
         """:meth:`_transaction`, returning the settled write."""
         write = _Write(what, statements, household)
-        with self._queue_lock:
+        with self._queued:
             self._queue.append(write)
-        with self._lock:
-            if not write.done:  # not committed by an earlier holder of the lock: commit every queued write
-                with self._queue_lock:
-                    batch, self._queue = self._queue, []
-                try:
+            try:
+                while self._committing and not write.done:
+                    self._queued.wait()
+            except BaseException:  # interrupted while waiting: not written, so never written later
+                if not write.done:
+                    self._queue.remove(write)
+                raise
+            lead = not write.done
+            if lead:  # nobody is committing: commit every queued write
+                batch, self._queue, self._committing = self._queue, [], True
+        if lead:
+            try:
+                with self._lock:
                     self._commit(batch)
-                finally:
-                    unsettled = [w for w in batch if not w.done]
-                    if unsettled:  # interrupted by something other than a database error
-                        if self._db.in_transaction:
-                            self._db.execute("ROLLBACK")
-                        _Write.settle(unsettled, lambda w: StoreError(f"cannot {w.what}: the commit was interrupted"))
+            finally:
+                with self._queued:
+                    _Write.settle([w for w in batch if not w.done],
+                                  lambda w: StoreError(f"cannot {w.what}: the commit was interrupted"))
+                    self._committing = False
+                    self._queued.notify_all()
         if write.error is not None:
             raise write.error
         return write
 
     def _commit(self, batch: list[_Write]) -> None:
-        """(Under the lock.) ``batch`` in one transaction; if that fails, each write alone, so
-        that one write's error (a constraint) fails only that write."""
+        """(Under the lock.) ``batch`` in one transaction. A statement that fails (a constraint,
+        a value SQLite cannot take) fails only its own write: the batch is rolled back and each
+        write committed alone. A failing BEGIN or COMMIT (a full disk, a locked file) fails all."""
         try:
             self._writable()
         except StoreUnavailableError as err:
@@ -235,21 +252,27 @@ class Store:
         db = self._db
         try:
             db.execute("BEGIN IMMEDIATE")
+        except sqlite3.Error as err:
+            return self._failed(batch, err)
+        try:
             for w in batch:
-                cursors = [db.execute(sql, params) for sql, params in w.statements]
-                if cursors:
-                    w.row, w.changed = cursors[0].lastrowid or 0, cursors[0].rowcount
+                for i, (sql, params) in enumerate(w.statements):
+                    cursor = db.execute(sql, params)
+                    if i == 0:
+                        w.row, w.changed = _inserted_row(sql, cursor), cursor.rowcount
+        except Exception as err:  # noqa: BLE001 - whatever one write's statements raise fails that write alone
+            db.execute("ROLLBACK")
+            if len(batch) == 1:
+                return self._failed(batch, err)
+            for w in batch:
+                self._commit([w])
+            return None
+        try:
             db.execute("COMMIT")
         except sqlite3.Error as err:
             if db.in_transaction:
                 db.execute("ROLLBACK")
-            if len(batch) > 1:
-                for w in batch:
-                    self._commit([w])
-                return None
-            self._note_failure(batch[0].what, err)
-            failure = err
-            return _Write.settle(batch, lambda w: StoreError(f"cannot {w.what}: {failure}"), failure)
+            return self._failed(batch, err)
         for w in batch:
             self._shadows.pop(w.household or "", None)
         self._failed_write = None
@@ -257,6 +280,11 @@ class Store:
             return _Write.settle(batch, lambda w: StoreUnavailableError(
                 f"{self._lost}; cannot {w.what} durably (restart the service)"))
         return _Write.settle(batch, lambda w: None)
+
+    def _failed(self, batch: list[_Write], err: Exception) -> None:
+        if isinstance(err, sqlite3.Error):
+            self._note_failure(batch[0].what if len(batch) == 1 else f"{len(batch)} writes", err)
+        _Write.settle(batch, lambda w: StoreError(f"cannot {w.what}: {err}"), err)
 
     def _note_failure(self, what: str, err: sqlite3.Error) -> None:
         """A write that failed for the database's sake (not a constraint): reported by /health."""
