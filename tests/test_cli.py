@@ -265,3 +265,10 @@ def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
     assert {r["household"] for r in rows} - {"mean"} == {"Mine"}
     empty = globe("evaluate", "--data", str(tmp_path / "homes" / "notes"), "--out", str(tmp_path / "o2"))
     assert empty.returncode != 0 and "no household folder" in empty.stderr
+
+
+def test_a_listed_label_holding_a_comma_is_quoted_as_in_csv():
+    from globe.cli.model_cmd import _split
+
+    assert _split('sleeping, "Watching TV, couch" ,away') == ("sleeping", "Watching TV, couch", "away")
+    assert _split("a,,b") == ("a", "b") and _split("") == ()

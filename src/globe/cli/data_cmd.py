@@ -104,8 +104,8 @@ def _summary(result: ImportResult) -> None:
     say(f"wrote {result.train_days} training and {result.test_days} test days to {result.dest} ({objects}; activities: "
         f"{', '.join(result.activities)})")
     if result.dropped_days:
-        say(f"left out {result.dropped_days} days (unannotated, or not covered by the log from first to last row): "
-            f"see {result.report}")
+        say(f"left out {result.dropped_days} days (unannotated, only carrying an annotation over from the day before, "
+            f"or not covered by the log from first to last row): see {result.report}")
     for note in result.notes:
         say(f"note: {note}")
 
@@ -125,11 +125,14 @@ def import_casas_cmd(
         "--skip-bad-lines", help="leave out lines that break a rule (corrupt values, events out of order, an "
                                  "activity that ends without beginning), listed in import.json, instead of stopping "
                                  "at the first")] = False,
+    timezone: Annotated[str | None, typer.Option("--timezone", help="the IANA time zone of the log's local times, "
+                                                                    "so that the hour logged twice when the clocks go "
+                                                                    "back is read in order")] = None,
 ) -> None:
     """A CASAS event log (without --objects, item sensors I... are the objects)."""
     options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
     _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects,
-                          skip_bad_lines=skip_bad_lines))
+                          skip_bad_lines=skip_bad_lines, timezone=timezone))
 
 
 @import_app.command("kasteren")

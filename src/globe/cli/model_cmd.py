@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import datetime as dt
 from pathlib import Path
 from typing import Annotated
@@ -38,7 +39,10 @@ def train(
 
 
 def _split(text: str | None) -> tuple[str, ...]:
-    return tuple(x.strip() for x in text.split(",") if x.strip()) if text else ()
+    """A comma-separated list; a label holding a comma is quoted as in CSV (``a,"b, c"``)."""
+    if not text:
+        return ()
+    return tuple(x.strip() for x in next(csv.reader([text], skipinitialspace=True)) if x.strip())
 
 
 def _known(values: tuple[str, ...], known: tuple[str, ...] | list[str], what: str, option: str) -> None:
@@ -59,7 +63,8 @@ def _weekday(text: str | None) -> int | None:
 
 def predict(
     model_dir: ModelDir,
-    history: Annotated[str, typer.Option("--history", help="the day's activities so far, comma-separated")] = "",
+    history: Annotated[str, typer.Option("--history", help="the day's activities so far, comma-separated (quote a "
+                                                                 "label holding a comma: 'a,\"b, c\"')")] = "",
     objects: Annotated[str, typer.Option("--objects", help="objects moved so far in the current activity run")] = "",
     top: Annotated[int, typer.Option("--top", min=1, help="how many candidates to list")] = 3,
     date: Annotated[str | None, typer.Option(

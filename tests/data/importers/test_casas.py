@@ -8,7 +8,7 @@ import pytest
 
 from globe.data.csv_logs import load_household
 from globe.data.importers import GridOptions, import_casas
-from globe.errors import DataError
+from globe.errors import ConfigError, DataError
 
 # Four dates. 11-04 and 11-06 are kept; 11-05 has no annotation; 11-07 is partial (the log ends at
 # 00:30, before its last row at 24:00). 11-04 is covered from 05:50, before its first row at 06:00.
@@ -216,7 +216,7 @@ def test_skip_bad_lines_leaves_out_exactly_the_bad_lines_and_lists_them(tmp_path
     bad = ["2010-11-04 06:30:00 M001 OFcF", "2010-11-04 06:31:00 M001", "2010-11-04 06:32:00 M0/1 ON",
            "2010-11-04 06:00:00 M001 OFF", "2010-11-04 06:33:00 M001 OFF Relax end",
            "2010-11-04 06:34:00 M001 OFF Sleeping stop", "2010-11-04 07:10:00 I001 12.5",
-           "2010-11-04 07:20:00 M004 ON Meal_Preparation begin"]
+           "2010-11-04 07:20:00 M004 ON Meal_Preparation"]
     lines = LOG.splitlines()
     dirty = [*lines[:2], *bad[:6], *lines[2:5], *bad[6:], *lines[5:-1], lines[-1] + " Relax begin"]  # never ends
     expected_dir, dirty_dir = tmp_path / "clean", tmp_path / "dirty"
@@ -250,3 +250,76 @@ def test_each_row_also_names_the_activity_covering_most_of_its_step(tmp_path):
     assert rows[420] == ("idle", "Meal_Preparation") and rows[380] == ("Sleeping", "Sleeping")
     assert rows[450] == ("Meal_Preparation", "idle") and rows[390] == ("idle", "idle")
     assert all(c == a for m, (a, c) in rows.items() if m not in (420, 450))
+
+
+def test_a_begin_whose_end_was_lost_is_left_out_with_skip_bad_lines(tmp_path):
+    """The first night's 'Sleeping end' is lost: the next 'Sleeping begin' shows it. Pairing the first
+    begin with the next night's end would make one annotation of a day and a half; the first begin is
+    left out instead, and named in the report."""
+    text = ("2010-11-04 05:50:00 M001 ON Sleeping begin\n"
+            "2010-11-04 07:00:00 M002 ON Cook begin\n"
+            "2010-11-04 07:30:00 M002 OFF Cook end\n"
+            "2010-11-04 22:00:00 M001 ON Sleeping begin\n"
+            "2010-11-05 06:25:00 M001 OFF Sleeping end\n"
+            "2010-11-05 07:00:00 M002 ON Cook begin\n"
+            "2010-11-05 07:30:00 M002 OFF Cook end\n"
+            "2010-11-06 00:30:00 M001 OFF\n")
+    err = _error(tmp_path, text)
+    assert (err.line, err.field) == (4, "activity") and "--skip-bad-lines" in err.message
+    result, home = _import(tmp_path, text, skip_bad_lines=True)
+    first, second = home.train[0], home.test[0]
+    assert _rows(first, {360, 420, 1440}) == {360: "idle", 420: "Cook", 1440: "Sleeping"}
+    assert second.activities[0] == "Sleeping"  # 06:00 of the second day: the night that did end
+    note = next(n for n in result.notes if "lines left out" in n)
+    assert "data.txt:1:" in note and "end was lost" in note
+
+
+# US daylight saving time ended on 2010-11-07 at 02:00: 01:00-02:00 was logged twice.
+FALL_BACK = """\
+2010-11-06 05:50:00 M001 ON Sleeping begin
+2010-11-06 06:25:00 M001 OFF Sleeping end
+2010-11-06 07:00:00 M002 ON Cook begin
+2010-11-06 07:30:00 M002 OFF Cook end
+2010-11-07 01:50:00 M003 ON Toilet begin
+2010-11-07 01:05:00 M003 OFF Toilet end
+2010-11-07 01:40:00 M003 ON
+2010-11-07 07:00:00 M002 ON Cook begin
+2010-11-07 07:30:00 M002 OFF Cook end
+2010-11-08 00:30:00 M001 OFF
+"""
+
+
+def test_the_hour_logged_twice_when_clocks_go_back_is_read_in_order_given_the_time_zone(tmp_path):
+    err = _error(tmp_path, FALL_BACK)
+    assert (err.line, err.field) == (6, "time") and "--timezone" in err.message
+    err = _error(tmp_path, FALL_BACK, timezone="Europe/Amsterdam")  # clocks went back a week earlier there
+    assert (err.line, err.field) == (6, "time")
+    result, home = _import(tmp_path, FALL_BACK, timezone="America/Los_Angeles")
+    assert [d.name.split("/")[1] for d in home.train + home.test] == ["2010-11-06", "2010-11-07"]
+    assert any("2 events logged in the hour repeated" in n for n in result.notes)
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    assert report["settings"]["timezone"] == "America/Los_Angeles"
+    (tmp_path / "x").mkdir()
+    with pytest.raises(ConfigError, match="unknown time zone"):
+        _import(tmp_path / "x", FALL_BACK, timezone="Mars/Olympus")
+
+
+def test_an_activity_spelled_decomposed_and_composed_is_one_activity(tmp_path):
+    nfd, nfc = "De\u0301tente", "D\u00e9tente"
+    text = (f"2010-11-04 05:50:00 M001 ON {nfd} begin\n2010-11-04 07:00:00 M001 OFF {nfc} end\n"
+            "2010-11-05 00:30:00 M001 OFF\n")
+    _, home = _import(tmp_path, text)
+    assert home.train[0].activities[0] == nfc
+
+
+def test_an_item_taken_again_before_it_was_put_back_counts_the_first_taking_as_one_firing(tmp_path):
+    """I001's PRESENT after breakfast is lost; it is taken again in the evening. The pot is used at
+    07:10, not all day, and at 18:00 until it is put back."""
+    text = ("2010-11-04 05:50:00 M001 ON Sleeping begin\n2010-11-04 06:25:00 M001 OFF Sleeping end\n"
+            "2010-11-04 07:10:00 I001 ABSENT\n2010-11-04 18:00:00 I001 ABSENT\n2010-11-04 18:25:00 I001 PRESENT\n"
+            "2010-11-05 00:30:00 M001 OFF\n")
+    result, home = _import(tmp_path, text)
+    day = home.train[0]
+    used = [m for m, row in zip(day.minutes, day.locations) if row[0].startswith("in_use")]
+    assert used == [430, 1080, 1090, 1100]  # 07:10; 18:00-18:25
+    assert any("went on while on" in n and "I001 1x" in n for n in result.notes)

@@ -115,3 +115,18 @@ def test_days_outside_the_log_and_unannotated_days_are_dropped_and_listed(tmp_pa
         {"date": "2024-01-04",
          "why": "partial: the log ends at 2024-01-04 00:30:00, before this day's last row (24:00)"},
     ]
+
+
+def test_a_day_that_only_carries_an_annotation_over_is_dropped(tmp_path):
+    """Annotating stopped on the third evening: the fourth day has sleeping until 07:00 carried
+    over from the night before and nothing that begins on it, so it is no day of the routine."""
+    sensor_log, selection = _log(4)
+    sensor_log.annotations.pop(3)
+    night = START + timedelta(days=2, hours=22)
+    sensor_log.annotations.append(Annotation("sleeping", night, night + timedelta(hours=9), "made-up", 9, "sleeping"))
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    why = {d["date"]: d["why"] for d in report["dropped_days"]}
+    assert why.keys() == {"2024-01-04", "2024-01-05"} and why["2024-01-05"].startswith("partial")
+    assert why["2024-01-04"].startswith("no annotation begins on it")
+    assert result.train_days + result.test_days == 3

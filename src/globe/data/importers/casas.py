@@ -10,27 +10,32 @@ One event a line, fields separated by spaces or tabs::
 ``date time sensor value``, then optionally ``activity begin`` or ``activity end`` (on any
 event line). Values are ON/OFF, OPEN/CLOSE, ABSENT/PRESENT (item sensors) or numbers
 (temperature, light level, analog sensors); anything else is an error. Events must be in time
-order; an activity may not begin twice before it ends, end without beginning, or be left open
-at the end of the file.
+order (given the log's time zone, the hour logged twice when the clocks go back is read in
+order); an activity may not begin twice before it ends, end without beginning, or be left open
+at the end of the file (with ``--skip-bad-lines``, a begin whose end never came is left out).
+Activity names are NFC-normalised before a begin is paired with its end.
 
 CASAS names a sensor's type by the letters of its id. Without a mapping, only item sensors
 (``I...``, placed on things a person takes: a medicine box, a pot) become objects, named by
 their id in lower case, in one room; motion (M, MA), door (D), temperature (T), light (L, LS),
 analog (AD) and unknown sensors stay out. An object sensor is *on* from ON/OPEN/ABSENT to the
-next OFF/CLOSE/PRESENT and fires at every event; a numeric sensor cannot be an object.
+next OFF/CLOSE/PRESENT (an ON while on means the OFF was lost: the earlier ON is one firing) and
+fires at every event; a numeric sensor cannot be an object.
 """
 
 from __future__ import annotations
 
 import logging
 import re
-from datetime import datetime
+import unicodedata
+from collections import Counter
+from datetime import datetime, timedelta, tzinfo
 from pathlib import Path
 
 from globe.data.csv_logs import _label
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
 from globe.data.importers.objects import Choice, ObjectSelection, Sensor, read_mapping
-from globe.data.importers.text import parse_date_time, read_lines, show
+from globe.data.importers.text import clocks_went_back, parse_date_time, read_lines, show, time_zone
 from globe.errors import DataError
 
 log = logging.getLogger(__name__)
@@ -64,35 +69,45 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
     return False, "unknown CASAS sensor type (map it with --objects to include it)"
 
 
-def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = False) -> SensorLog:
+def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = False,
+               zone: tzinfo | None = None) -> SensorLog:
     """Every event and annotation of a CASAS log, checked line by line. A line that breaks a rule
     is an error naming it; with ``skip_bad_lines`` it is left out instead (as is an activity that
-    never ends), and the report lists what was left out: real logs carry a few corrupt lines."""
+    never ends), and the report lists what was left out: real logs carry a few corrupt lines.
+    With the log's time ``zone``, the events of the hour logged twice when the clocks went back
+    are kept in order: those of its second pass are held at the last time of the first."""
     source = str(path)
     sensor_log = SensorLog("casas", (source,), annotation_field="activity")
     open_since: dict[str, datetime] = {}  # object sensor -> when it went on
     begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
     previous: tuple[datetime, int] | None = None
     skipped: list[DataError] = []
+    held = 0  # events of a repeated hour held in order
+    lost_offs: Counter[str] = Counter()  # object sensor -> ONs that came while it was on
     lines = read_lines(path)
     for count, (line, text) in enumerate(lines, start=1):
         try:  # every check first: a line left out changes nothing
-            moment, key, value, choice, marker = _event(text, source, line, previous, selection)
+            moment, key, value, choice, marker = _event(text, source, line, previous, selection, zone)
             if marker is not None:
-                _check_annotation(begun, *marker, source, line)
+                _check_annotation(begun, *marker, source, line, lost_ends=skip_bad_lines)
         except DataError as err:
             if not skip_bad_lines:
                 raise
             skipped.append(err)
             continue
+        if previous is not None and moment < previous[0]:  # the hour the clocks went back over, again
+            held += 1
+            moment = previous[0]
         previous = (moment, line)
         selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
         sensor_log.saw(moment)
         sensor_log.events[key] += 1
-        if choice.object is not None:
-            _activation(sensor_log, open_since, key, moment, value in ACTIVE)
+        if choice.object is not None and _activation(sensor_log, open_since, key, moment, value in ACTIVE):
+            lost_offs[key] += 1
         if marker is not None:
-            _annotation(sensor_log, begun, *marker, moment, source, line)
+            lost = _annotation(sensor_log, begun, *marker, moment, source, line)
+            if lost is not None:
+                skipped.append(lost)
         if count % PROGRESS_EVERY == 0:
             log.info("%s: %d of %d lines read", source, count, len(lines))
     for activity, (start, line) in list(begun.items()):
@@ -106,6 +121,13 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
         sensor_log.activations.setdefault(key, []).append(Activation(start, sensor_log.last))
         sensor_log.notes.append(f"sensor {key} is still on at the end of the log (since {start}): counted as on until "
                                 "the log ends")
+    if lost_offs:
+        counts = ", ".join(f"{key} {n}x" for key, n in lost_offs.items())
+        sensor_log.notes.append("an object sensor went on while on (its OFF, CLOSE or PRESENT was lost), so the "
+                                f"earlier event counts as one firing: {counts}")
+    if held:
+        sensor_log.notes.append(f"{held} events logged in the hour repeated when the clocks went back are held at "
+                                "the last time of its first pass")
     if skipped:
         shown = "; ".join(str(err) for err in skipped[:SKIPPED_SHOWN])
         more = f"; and {len(skipped) - SKIPPED_SHOWN} more" if len(skipped) > SKIPPED_SHOWN else ""
@@ -116,8 +138,8 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     return sensor_log
 
 
-def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | None, selection: ObjectSelection
-           ) -> tuple[datetime, str, str, Choice, tuple[str, str] | None]:
+def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | None, selection: ObjectSelection,
+           zone: tzinfo | None = None) -> tuple[datetime, str, str, Choice, tuple[str, str] | None]:
     """One line checked: (time, sensor, value in upper case, what the sensor is, (activity,
     begin|end) or None). Changes nothing."""
     fields = text.split()
@@ -131,9 +153,12 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
         raise DataError(f"{len(fields)} fields; a CASAS event has 4, or 6 with 'activity begin|end'", source=source,
                         line=line, field="begin/end")
     moment = parse_date_time(fields[0], fields[1], source=source, line=line)
-    if previous is not None and moment < previous[0]:
+    if previous is not None and moment < previous[0] and not (zone and clocks_went_back(previous[0], moment, zone)):
+        fold_like = previous[0] - moment <= timedelta(hours=1) and moment.hour < 4  # clocks go back at night
+        hint = ("; if the log is in local time and the clocks went back here (daylight saving time ended), give its "
+                "time zone with --timezone" if zone is None and fold_like else "")
         raise DataError(f"{moment} is before the previous event's {previous[0]} (line {previous[1]}): events must "
-                        "be in time order", source=source, line=line, field="time")
+                        f"be in time order{hint}", source=source, line=line, field="time")
     key, value = fields[2], fields[3].upper()
     if not _SENSOR.fullmatch(key):
         raise DataError(f"{show(key)} is not a sensor id (letters, digits, '_', '-', '.')", source=source,
@@ -146,26 +171,37 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
     if choice.object is not None and not binary:
         raise DataError(f"{show(fields[3])} is a reading, not a use: sensor {key!r} (object {choice.object!r}) "
                         "must be ON/OFF, OPEN/CLOSE or ABSENT/PRESENT", source=source, line=line, field="value")
-    return moment, key, value, choice, (fields[4], fields[5]) if len(fields) == 6 else None
+    marker = (unicodedata.normalize("NFC", fields[4]), fields[5]) if len(fields) == 6 else None  # one spelling
+    return moment, key, value, choice, marker
 
 
 def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,
-                active: bool) -> None:
-    """An event of an object sensor: it fires now, and is on from an ON until the next OFF."""
+                active: bool) -> bool:
+    """An event of an object sensor: it fires now, and is on from an ON until the next OFF. An ON
+    while on means the OFF between was lost: the earlier ON then counts as one firing, not as a
+    use lasting until now (a lost PRESENT would hold an item in use for hours). Returns whether an
+    OFF was lost."""
     if active:
-        open_since.setdefault(key, moment)
-        return
+        earlier = open_since.setdefault(key, moment)
+        if earlier == moment:
+            return False
+        sensor_log.activations.setdefault(key, []).append(Activation(earlier, earlier))
+        open_since[key] = moment
+        return True
     start = open_since.pop(key, moment)
     sensor_log.activations.setdefault(key, []).append(Activation(start, moment))
+    return False
 
 
 def _check_annotation(begun: dict[str, tuple[datetime, int]], activity: str, marker: str, source: str,
-                      line: int) -> None:
-    """That an annotation can be applied: a valid label, begun once, ended after it began."""
+                      line: int, lost_ends: bool = False) -> None:
+    """That an annotation can be applied: a valid label, begun once (unless ``lost_ends``: then a
+    second begin means the first one's end was lost), ended after it began."""
     _label(activity, source, line, "activity", "activity")
     if marker.lower() == "begin":
-        if activity in begun:
-            raise DataError(f"{activity!r} begins again before it ended (it began at line {begun[activity][1]})",
+        if activity in begun and not lost_ends:
+            raise DataError(f"{activity!r} begins again before it ended (it began at line {begun[activity][1]}; if "
+                            "its end line is lost or corrupt, --skip-bad-lines leaves that begin out)",
                             source=source, line=line, field="activity")
     elif marker.lower() == "end":
         if activity not in begun:
@@ -176,23 +212,35 @@ def _check_annotation(begun: dict[str, tuple[datetime, int]], activity: str, mar
 
 
 def _annotation(sensor_log: SensorLog, begun: dict[str, tuple[datetime, int]], activity: str, marker: str,
-                moment: datetime, source: str, line: int) -> None:
-    """Apply an annotation :func:`_check_annotation` accepted."""
+                moment: datetime, source: str, line: int) -> DataError | None:
+    """Apply an annotation :func:`_check_annotation` accepted; returns why an earlier begin of the
+    same activity is left out (its end was lost: pairing it with this one's end would make one
+    annotation of both and all between)."""
     if marker.lower() == "begin":
+        earlier = begun.get(activity)
         begun[activity] = (moment, line)
+        if earlier is not None:
+            return DataError(f"{activity!r} begins here (at {earlier[0]}) and again at line {line} before it ends: its "
+                             "end was lost, so this begin is left out", source=source, line=earlier[1],
+                             field="activity")
     else:
         start, first = begun.pop(activity)
         sensor_log.annotations.append(Annotation(activity, start, moment, source, first, activity))
+    return None
 
 
 def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = None, objects: Path | None = None,
-                 skip_bad_lines: bool = False) -> ImportResult:
+                 skip_bad_lines: bool = False, timezone: str | None = None) -> ImportResult:
     """Import a CASAS log into the household folder ``dest`` (see :mod:`globe.data.importers.grid`
     for the grid's rules). ``objects`` is a mapping file; without it, item sensors are objects.
-    ``skip_bad_lines`` leaves out lines that break a rule (listed in the report) instead of stopping."""
+    ``skip_bad_lines`` leaves out lines that break a rule (listed in the report) instead of stopping.
+    ``timezone``: the IANA zone of the log's local times, so that the hour logged twice when the
+    clocks go back is read in order."""
     options = options if options is not None else GridOptions()
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
-    sensor_log = read_casas(log_file, selection, skip_bad_lines)
-    return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest)
+    zone = time_zone(timezone) if timezone is not None else None
+    sensor_log = read_casas(log_file, selection, skip_bad_lines, zone)
+    return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest,
+                        settings={"timezone": timezone})

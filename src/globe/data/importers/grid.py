@@ -15,8 +15,10 @@ every format and are written once:
   (ties: the later line).
 - An object is used in a step when one of its sensors fires, or is on, at any time inside the
   step; its cell is then its room's ``in_use`` place, otherwise its home place.
-- A day with no annotation at all is left out, and so is a day the log does not cover from its
-  first step to its last (the log's first and last days, usually). Both are listed in the report.
+- A day with no annotation at all is left out, and so is a day on whose date no annotation
+  begins (one carried over from the day before is all it has: annotating stopped, or the
+  recorder was down), and a day the log does not cover from its first step to its last (the log's first
+  and last days, usually). All are listed in the report.
 - The last ``test_days`` kept days (default: the last 20 %, at least one when two or more days are
   kept) are test days; the rest are training days.
 
@@ -220,12 +222,15 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
     offset = timedelta(minutes=options.day_start_minute)
     last_row = timedelta(minutes=options.day_end_minute)
     window = timedelta(minutes=options.step_minutes * options.steps)
-    annotated: set[date] = set()
+    annotated: set[date] = set()  # days an annotation meets
+    begun: set[date] = set()  # days on whose date an annotation begins (before the window ends)
     for ann in ordered:
         for day in _touched_dates(ann.start, ann.end, offset, window):
             base = datetime.combine(day, time()) + offset
             if _meets(ann, base, window):
                 annotated.add(day)
+                if ann.start.date() == day:
+                    begun.add(day)
     kept: dict[date, datetime] = {}
     dropped: list[dict[str, str]] = []
     for day in _day_dates(sensor_log.first, sensor_log.last):
@@ -238,6 +243,9 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
                    f"({_clock(options.day_end_minute)})")
         elif day not in annotated:
             why = "no annotation"
+        elif day not in begun:
+            why = ("no annotation begins on it: it only carries one over from the day before (annotating stopped, "
+                   "or the log has a gap)")
         else:
             kept[day] = midnight + offset
             continue

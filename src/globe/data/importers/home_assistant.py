@@ -29,16 +29,15 @@ from __future__ import annotations
 
 import logging
 import re
-from datetime import datetime, tzinfo
+from datetime import datetime
 from pathlib import Path
 from typing import Callable
-from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from globe.data.csv_logs import _clean, _label, _ragged, csv_table
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
-from globe.data.importers.text import parse_iso_8601, read_text, show
-from globe.errors import ConfigError, DataError
+from globe.data.importers.text import parse_iso_8601, read_text, show, time_zone
+from globe.errors import DataError
 
 log = logging.getLogger(__name__)
 
@@ -54,14 +53,6 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
     return False, "not mapped (map binary sensors on cupboards, the fridge or appliances with --objects)"
 
 
-def _zone(timezone: str) -> tzinfo:
-    try:
-        return ZoneInfo(timezone)
-    except (ZoneInfoNotFoundError, ValueError) as err:
-        raise ConfigError(f"unknown time zone {timezone!r}: give an IANA name such as Europe/Amsterdam (on a system "
-                          "without zone data, pip install tzdata)") from err
-
-
 def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_entity: str,
                         timezone: str | None = None) -> SensorLog:
     """The activity entity's states as annotations and the mapped entities' on-intervals."""
@@ -72,7 +63,7 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
     extra = [h for h in header if h not in COLUMNS]
     if extra:
         sensor_log.notes.append(f"columns not used: {', '.join(extra)}")
-    zone = _zone(timezone) if timezone is not None else None
+    zone = time_zone(timezone) if timezone is not None else None
     local: Callable[[datetime], datetime] = (lambda t: t) if zone is None else (
         lambda t: t.astimezone(zone).replace(tzinfo=None) if t.tzinfo is not None else t)
     aware: bool | None = None

@@ -10,12 +10,13 @@ passed to a lenient parser that would accept ``2010-11-4`` or a bare date.
 from __future__ import annotations
 
 import re
-from datetime import datetime
+from datetime import datetime, timedelta, tzinfo
 from pathlib import Path
 from typing import Iterator, Sequence
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from globe.data.csv_logs import _clean, _decode, _ragged, _read_bytes
-from globe.errors import DataError
+from globe.errors import ConfigError, DataError
 
 _ISO_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
 _CLOCK = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,6}))?")
@@ -23,6 +24,30 @@ _MONTHS = {name: i for i, name in enumerate(
     ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec"), start=1)}
 _DMY_DATE = re.compile(r"(\d{1,2})-([A-Za-z]{3})-(\d{4})")
 _ISO_8601 = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{1,9})?)?(?:Z|[+-]\d{2}:?\d{2})?")
+
+
+def time_zone(name: str) -> tzinfo:
+    """An IANA time zone by name, or a one-line error."""
+    try:
+        return ZoneInfo(name)
+    except (ZoneInfoNotFoundError, ValueError) as err:
+        raise ConfigError(f"unknown time zone {name!r}: give an IANA name such as Europe/Amsterdam (on a system "
+                          "without zone data, pip install tzdata)") from err
+
+
+def repeated_for(moment: datetime, zone: tzinfo) -> timedelta:
+    """How long the local wall time ``moment`` comes back in ``zone`` when the clocks go back over
+    it (daylight saving time ends): zero for every other time, a skipped one included."""
+    first, second = (moment.replace(tzinfo=zone, fold=f).utcoffset() for f in (0, 1))
+    assert first is not None and second is not None
+    return max(first - second, timedelta(0))
+
+
+def clocks_went_back(before: datetime, moment: datetime, zone: tzinfo) -> bool:
+    """Whether local time ``moment``, logged after ``before`` but earlier on the clock, is the
+    second pass of the hour the clocks went back over."""
+    fold = repeated_for(moment, zone)
+    return bool(fold) and bool(repeated_for(before, zone)) and timedelta(0) < before - moment <= fold
 
 
 def show(text: str, limit: int = 48) -> str:
