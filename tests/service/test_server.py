@@ -1,4 +1,4 @@
-"""The service process's allocator setting: large blocks mapped on their own where glibc allows it."""
+"""The service process's allocator settings: large blocks mapped on their own and one arena, where glibc allows it."""
 
 import platform
 
@@ -8,8 +8,8 @@ from globe.service import server
 
 
 @pytest.mark.skipif(platform.system() != "Linux" or platform.libc_ver()[0] != "glibc", reason="glibc only")
-def test_glibc_takes_the_mmap_threshold():
-    assert server.map_large_blocks() is True
+def test_glibc_takes_the_mmap_threshold_and_the_arenas():
+    assert server.tune_allocator() is True
 
 
 def test_a_c_library_without_mallopt_changes_nothing(monkeypatch):
@@ -18,4 +18,4 @@ def test_a_c_library_without_mallopt_changes_nothing(monkeypatch):
             pass
 
     monkeypatch.setattr(server.ctypes, "CDLL", NoMallopt)
-    assert server.map_large_blocks() is False
+    assert server.tune_allocator() is False

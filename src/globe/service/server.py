@@ -4,10 +4,13 @@ uvicorn's HTTP protocol (httptools) gets limits on what it reads before the app 
 the size of the request line and headers (431 above ``service.max_header_bytes``) and the time
 they may take (``service.header_timeout_s``; a silent or half-sent request is closed).
 
-The process also fixes glibc's mmap threshold (:func:`map_large_blocks`): a household upload is
-megabytes of request body, freed once the household is built, and glibc's default threshold
+The process also tunes glibc's allocator (:func:`tune_allocator`). A household upload is
+megabytes of request body, freed once the household is built, and glibc's default mmap threshold
 rises after the first such block is freed, so later bodies land in the heap between the models
-of the households built meanwhile and stay in the process as freed, unusable memory."""
+of the households built meanwhile and stay in the process as freed, unusable memory: the
+threshold is fixed instead. And the request threads share one malloc arena: Python threads run
+one at a time (the GIL), so an arena per thread buys no parallelism, only freed memory kept
+apart in each."""
 
 from __future__ import annotations
 
@@ -108,21 +111,22 @@ def guarded_protocol(service: ServiceConfig) -> type[asyncio.Protocol]:
     return GuardedHttpToolsProtocol
 
 
-M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter (malloc.h)
+M_MMAP_THRESHOLD, M_ARENA_MAX = -3, -8  # glibc's mallopt parameters (malloc.h)
 MMAP_THRESHOLD_BYTES = 1 << 20
 """Blocks from 1 MiB up (request bodies, not the ~100 KB day texts) are mapped on their own and
 returned to the system when freed (benchmarks/bench_service.py: memory per household)."""
 
 
-def map_large_blocks(threshold: int = MMAP_THRESHOLD_BYTES) -> bool:
-    """Fix glibc's mmap threshold at ``threshold`` bytes (see the module doc); False where the C
-    library has no ``mallopt`` (musl, macOS) or refuses, which changes nothing else."""
+def tune_allocator(threshold: int = MMAP_THRESHOLD_BYTES, arenas: int = 1) -> bool:
+    """Fix glibc's mmap threshold at ``threshold`` bytes and its arenas at ``arenas`` (see the
+    module doc); False where the C library has no ``mallopt`` (musl, macOS) or refuses, which
+    changes nothing else."""
     try:
         mallopt = ctypes.CDLL(None).mallopt  # the process's own symbols: its C library's, whatever its name
     except (OSError, AttributeError):
         return False
     mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
-    return bool(mallopt(M_MMAP_THRESHOLD, threshold))
+    return bool(mallopt(M_MMAP_THRESHOLD, threshold)) and bool(mallopt(M_ARENA_MAX, arenas))
 
 
 def run(app: Any, service: ServiceConfig, sock: socket.socket) -> None:
@@ -131,6 +135,6 @@ def run(app: Any, service: ServiceConfig, sock: socket.socket) -> None:
         import uvicorn
     except ImportError as err:
         raise MissingExtraError("uvicorn", "service") from err
-    map_large_blocks()
+    tune_allocator()
     config = uvicorn.Config(app, http=guarded_protocol(service), log_level="warning")
     uvicorn.Server(config).run(sockets=[sock])
