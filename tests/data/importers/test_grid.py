@@ -130,3 +130,21 @@ def test_a_day_that_only_carries_an_annotation_over_is_dropped(tmp_path):
     assert why.keys() == {"2024-01-04", "2024-01-05"} and why["2024-01-05"].startswith("partial")
     assert why["2024-01-04"].startswith("no annotation begins on it")
     assert result.train_days + result.test_days == 3
+
+
+def test_a_stretch_without_events_far_longer_than_usual_is_listed(tmp_path):
+    """Events every 30 minutes, but none from 10:00 to 20:00 on the second day (10 hours) and none
+    from 12:00 to 17:00 on the first (5 hours): the usual day's longest silence is 5 hours (the
+    median), so only the 10 hours (past 1.5 times that) are listed."""
+    sensor_log, selection = _log(3)
+    quiet = {0: (12 * 60, 17 * 60), 1: (10 * 60, 20 * 60)}
+    for day in range(3):
+        for half_hours in range(48):
+            lo, hi = quiet.get(day, (0, 0))
+            if not lo < 30 * half_hours < hi:
+                sensor_log.saw(START + timedelta(days=day, minutes=30 * half_hours))
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    assert report["silent_stretches"] == [{"date": "2024-01-02", "from": "2024-01-02 10:00:00",
+                                           "to": "2024-01-02 20:00:00"}]
+    assert any(n.startswith("1 kept day has a stretch of 7.5 hours or more") for n in result.notes)

@@ -19,6 +19,9 @@ every format and are written once:
   begins (one carried over from the day before is all it has: annotating stopped, or the
   recorder was down), and a day the log does not cover from its first step to its last (the log's first
   and last days, usually). All are listed in the report.
+- A kept day whose longest stretch without an event from any sensor is far longer than the
+  home's usual (1.5 times the median day's longest, and 6 hours at least) is listed in the
+  report (``silent_stretches``): a recorder outage, or nobody home.
 - The last ``test_days`` kept days (default: the last 20 %, at least one when two or more days are
   kept) are test days; the rest are training days.
 
@@ -33,11 +36,14 @@ import json
 import logging
 import os
 import shutil
+from array import array
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import date, datetime, time, timedelta
 from pathlib import Path
 from typing import Any, Literal, Sequence
+
+import numpy as np
 
 from globe.data.csv_logs import DAY_MINUTES, write_day, write_nodes
 from globe.data.importers.objects import HomeMap, ObjectSelection, ObjectSpec, build_map
@@ -52,6 +58,11 @@ DEFAULT_DAY_END = 1440  # 24:00, HOMER+'s last row
 DEFAULT_TEST_FRACTION = 0.2
 IDLE = "idle"
 REPORT_FILE = "import.json"
+SILENCE_NOTED, SILENCE_FACTOR = timedelta(hours=6), 1.5
+"""A kept day's longest stretch with no event from any sensor is listed in the report (a recorder
+outage, or nobody home; the day is kept) when it lasts this long and this many times the median
+day's longest."""
+_EPOCH = datetime(1970, 1, 1)
 Overlaps = Literal["error", "latest"]
 
 
@@ -120,8 +131,10 @@ class SensorLog:
     last: datetime | None = None
     notes: list[str] = field(default_factory=list)  # what else the report must say
     annotation_field: str = "start"  # the field an overlap error names (CASAS: 'activity')
+    moments: array = field(default_factory=lambda: array("d"))  # every record's time, seconds since 1970
 
     def saw(self, moment: datetime) -> None:
+        self.moments.append((moment - _EPOCH).total_seconds())
         if self.first is None or moment < self.first:
             self.first = moment
         if self.last is None or moment > self.last:
@@ -348,6 +361,12 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
         raise DataError(f"no day to import: none of the {len(dropped)} days is both annotated and covered by the log "
                         f"from its first row ({_clock(options.day_start_minute)}) to its last "
                         f"({_clock(options.day_end_minute)}): {counts}", source=", ".join(sensor_log.sources))
+    silent, limit_h = _silent_stretches(sensor_log, kept, options)
+    if silent:
+        n = len(silent)
+        sensor_log.notes.append(f"{n} kept {'day has' if n == 1 else 'days have'} a stretch of {limit_h:.1f} hours or "
+                                "more with no event from any sensor, far longer than the home's usual (a recorder "
+                                "outage, or nobody home): see silent_stretches in the report")
     grid = _Grid(options, kept, {day: [IDLE] * options.steps for day in kept}, {})
     per_label = _place_annotations(grid, ordered)
     _place_uses(grid, objects, sensor_log.activations)
@@ -363,7 +382,7 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
             for day in days:
                 write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
         report = _report(sensor_log, selection, objects, home, options, settings or {}, grid, per_label, splits,
-                         dropped)
+                         dropped) | {"silent_stretches": silent}
         (tmp / REPORT_FILE).write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
         if Path(dest).exists():
             Path(dest).rmdir()
@@ -376,6 +395,28 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
     labels = tuple(sorted({a for row in grid.activities.values() for a in row}))
     return ImportResult(Path(dest), len(splits["train"]), len(splits["test"]), columns, labels, len(dropped),
                         Path(dest) / REPORT_FILE, tuple(sensor_log.notes))
+
+
+def _silent_stretches(sensor_log: SensorLog, kept: dict[date, datetime], options: GridOptions
+                      ) -> tuple[list[dict[str, str]], float]:
+    """Each kept day's longest stretch of its rows with no event from any sensor, where it is far
+    longer than the home's usual one (:data:`SILENCE_FACTOR` times the median day's longest, and
+    at least :data:`SILENCE_NOTED`); and that limit in hours."""
+    times = np.sort(np.frombuffer(sensor_log.moments, dtype=np.float64))
+    window = options.step_minutes * options.steps * 60.0
+    longest: dict[date, tuple[float, float, float]] = {}  # day -> (seconds, from, to)
+    for day, base in kept.items():
+        lo = (base - _EPOCH).total_seconds()
+        inside = times[np.searchsorted(times, lo, side="right"):np.searchsorted(times, lo + window)]
+        edges = np.concatenate(([lo], inside, [lo + window]))
+        k = int(np.argmax(np.diff(edges)))
+        longest[day] = (float(edges[k + 1] - edges[k]), float(edges[k]), float(edges[k + 1]))
+    usual = float(np.median([g for g, _, _ in longest.values()])) if longest else 0.0
+    limit = max(SILENCE_NOTED.total_seconds(), SILENCE_FACTOR * usual)
+    moment = lambda seconds: f"{_EPOCH + timedelta(seconds=seconds):%Y-%m-%d %H:%M:%S}"  # noqa: E731
+    silent = [{"date": day.isoformat(), "from": moment(lo), "to": moment(hi)}
+              for day, (gap, lo, hi) in sorted(longest.items()) if gap >= limit]
+    return silent, limit / 3600
 
 
 def _day(grid: _Grid, day: date, columns: tuple[str, ...], home: HomeMap, split: str) -> Day:
