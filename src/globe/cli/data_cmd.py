@@ -128,11 +128,14 @@ def import_casas_cmd(
     timezone: Annotated[str | None, typer.Option("--timezone", help="the IANA time zone of the log's local times, "
                                                                     "so that the hour logged twice when the clocks go "
                                                                     "back is read in order")] = None,
+    resident: Annotated[str | None, typer.Option("--resident", help="in a multi-resident log, the resident whose "
+                                                                    "annotations to take (R1: R1_Sleep becomes Sleep; "
+                                                                    "other residents' are left out)")] = None,
 ) -> None:
     """A CASAS event log (without --objects, item sensors I... are the objects)."""
     options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
     _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects,
-                          skip_bad_lines=skip_bad_lines, timezone=timezone))
+                          skip_bad_lines=skip_bad_lines, timezone=timezone, resident=resident))
 
 
 @import_app.command("kasteren")

@@ -323,3 +323,20 @@ def test_an_item_taken_again_before_it_was_put_back_counts_the_first_taking_as_o
     used = [m for m, row in zip(day.minutes, day.locations) if row[0].startswith("in_use")]
     assert used == [430, 1080, 1090, 1100]  # 07:10; 18:00-18:25
     assert any("went on while on" in n and "I001 1x" in n for n in result.notes)
+
+
+def test_one_resident_of_a_multi_resident_log(tmp_path):
+    """R1 and R2 overlap all morning; --resident R1 takes R1's annotations without the prefix, and
+    the ones named for no one."""
+    text = ("2010-11-04 05:50:00 M001 ON R1_Sleep begin\n2010-11-04 05:55:00 M009 ON R2_Sleep begin\n"
+            "2010-11-04 06:25:00 M001 OFF R1_Sleep end\n2010-11-04 06:40:00 M002 ON r1_Meal begin\n"
+            "2010-11-04 07:10:00 M002 OFF R1_Meal end\n2010-11-04 07:30:00 M009 OFF R2_Sleep end\n"
+            "2010-11-04 08:00:00 D001 OPEN Leave_Home begin\n2010-11-04 08:01:00 D001 CLOSE Leave_Home end\n"
+            "2010-11-05 00:30:00 M001 OFF\n")
+    assert _error(tmp_path, text).field == "activity"  # R2_Sleep overlaps R1's annotations
+    result, home = _import(tmp_path, text, resident="R1")
+    assert _rows(home.train[0], {360, 400, 480, 490}) == {360: "Sleep", 400: "Meal", 480: "Leave_Home", 490: "idle"}
+    assert any("other residents left out (--resident R1): R2 2" in n for n in result.notes)
+    (tmp_path / "x").mkdir()
+    with pytest.raises(ConfigError, match="--resident"):
+        _import(tmp_path / "x", text, resident="Alice")

@@ -36,7 +36,7 @@ from globe.data.csv_logs import _label
 from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
 from globe.data.importers.objects import Choice, ObjectSelection, Sensor, read_mapping
 from globe.data.importers.text import clocks_went_back, parse_date_time, read_lines, show, time_zone
-from globe.errors import DataError
+from globe.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +52,7 @@ SKIPPED_SHOWN = 20  # lines left out that the report names one by one
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _SENSOR = re.compile(r"[\w.-]+")
 _LETTERS = re.compile(r"[A-Za-z]+")
+_RESIDENT = re.compile(r"(R\d+)_(.+)", re.IGNORECASE)  # a multi-resident log's R1_Sleep, R2_Meal
 
 
 def sensor_kind(key: str) -> str:
@@ -70,12 +71,14 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
 
 
 def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = False,
-               zone: tzinfo | None = None) -> SensorLog:
+               zone: tzinfo | None = None, resident: str | None = None) -> SensorLog:
     """Every event and annotation of a CASAS log, checked line by line. A line that breaks a rule
     is an error naming it; with ``skip_bad_lines`` it is left out instead (as is an activity that
     never ends), and the report lists what was left out: real logs carry a few corrupt lines.
     With the log's time ``zone``, the events of the hour logged twice when the clocks went back
-    are kept in order: those of its second pass are held at the last time of the first."""
+    are kept in order: those of its second pass are held at the last time of the first. With
+    ``resident`` (``R1``), annotations named for another resident of a multi-resident log
+    (``R2_Sleep``) are left out, and the resident's own lose the prefix."""
     source = str(path)
     sensor_log = SensorLog("casas", (source,), annotation_field="activity")
     open_since: dict[str, datetime] = {}  # object sensor -> when it went on
@@ -84,10 +87,13 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     skipped: list[DataError] = []
     held = 0  # events of a repeated hour held in order
     lost_offs: Counter[str] = Counter()  # object sensor -> ONs that came while it was on
+    others: Counter[str] = Counter()  # other residents' annotations left out
     lines = read_lines(path)
     for count, (line, text) in enumerate(lines, start=1):
         try:  # every check first: a line left out changes nothing
             moment, key, value, choice, marker = _event(text, source, line, previous, selection, zone)
+            if marker is not None and resident is not None:
+                marker = _of_resident(marker, resident, others)
             if marker is not None:
                 _check_annotation(begun, *marker, source, line, lost_ends=skip_bad_lines)
         except DataError as err:
@@ -125,6 +131,9 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
         counts = ", ".join(f"{key} {n}x" for key, n in lost_offs.items())
         sensor_log.notes.append("an object sensor went on while on (its OFF, CLOSE or PRESENT was lost), so the "
                                 f"earlier event counts as one firing: {counts}")
+    if others:
+        sensor_log.notes.append(f"annotations of other residents left out (--resident {resident}): "
+                                + ", ".join(f"{who} {n}" for who, n in sorted(others.items())))
     if held:
         sensor_log.notes.append(f"{held} events logged in the hour repeated when the clocks went back are held at "
                                 "the last time of its first pass")
@@ -173,6 +182,18 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
                         "must be ON/OFF, OPEN/CLOSE or ABSENT/PRESENT", source=source, line=line, field="value")
     marker = (unicodedata.normalize("NFC", fields[4]), fields[5]) if len(fields) == 6 else None  # one spelling
     return moment, key, value, choice, marker
+
+
+def _of_resident(marker: tuple[str, str], resident: str, others: Counter[str]) -> tuple[str, str] | None:
+    """A multi-resident log's annotation for ``resident``: ``R1_Sleep`` is ``Sleep`` for R1 and left
+    out (counted in ``others``) for anyone else; a label without such a prefix is everyone's."""
+    match = _RESIDENT.fullmatch(marker[0])
+    if match is None:
+        return marker
+    if match.group(1).upper() != resident.upper():
+        others[match.group(1).upper()] += 1
+        return None
+    return match.group(2), marker[1]
 
 
 def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,
@@ -230,17 +251,21 @@ def _annotation(sensor_log: SensorLog, begun: dict[str, tuple[datetime, int]], a
 
 
 def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = None, objects: Path | None = None,
-                 skip_bad_lines: bool = False, timezone: str | None = None) -> ImportResult:
+                 skip_bad_lines: bool = False, timezone: str | None = None,
+                 resident: str | None = None) -> ImportResult:
     """Import a CASAS log into the household folder ``dest`` (see :mod:`globe.data.importers.grid`
     for the grid's rules). ``objects`` is a mapping file; without it, item sensors are objects.
     ``skip_bad_lines`` leaves out lines that break a rule (listed in the report) instead of stopping.
     ``timezone``: the IANA zone of the log's local times, so that the hour logged twice when the
-    clocks go back is read in order."""
+    clocks go back is read in order. ``resident``: in a multi-resident log, whose annotations
+    (``R1``: those named ``R1_...``, and those named for no one) make the household's activities."""
     options = options if options is not None else GridOptions()
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
     zone = time_zone(timezone) if timezone is not None else None
-    sensor_log = read_casas(log_file, selection, skip_bad_lines, zone)
+    if resident is not None and not re.fullmatch(r"R\d+", resident, re.IGNORECASE):
+        raise ConfigError(f"--resident {resident!r}: name a resident as the log does, e.g. R1")
+    sensor_log = read_casas(log_file, selection, skip_bad_lines, zone, resident)
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest,
-                        settings={"timezone": timezone})
+                        settings={"timezone": timezone, "resident": resident})
