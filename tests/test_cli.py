@@ -200,6 +200,11 @@ def test_data_import_reports_bad_options_and_bad_lines_in_one_line(tmp_path):
     res = globe("data", "import", "casas", str(log), str(tmp_path / "home"))
     assert res.returncode == 1 and res.stderr.startswith(f"error: {log}:2: column 'time': ")
     assert not (tmp_path / "home").exists()
+    res = globe("data", "import", "casas", str(log), str(tmp_path / "home"), "--timezone", "Mars/Olympus")
+    assert res.returncode == 1 and "unknown time zone 'Mars/Olympus'" in res.stderr
+    res = globe("data", "import", "casas", str(log), str(tmp_path / "home"), "--resident", "R1",
+                "--timezone", "America/Chicago")  # 05:00 -> 04:00 is no repeated hour: still out of order
+    assert res.returncode == 1 and "column 'time'" in res.stderr and "--timezone" not in res.stderr
 
 
 def test_tables_keep_full_method_names_in_a_file_or_a_pipe(monkeypatch, capsys):
@@ -269,6 +274,9 @@ def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
 
 def test_a_listed_label_holding_a_comma_is_quoted_as_in_csv():
     from globe.cli.model_cmd import _split
+    from globe.errors import DataError
 
     assert _split('sleeping, "Watching TV, couch" ,away') == ("sleeping", "Watching TV, couch", "away")
     assert _split("a,,b") == ("a", "b") and _split("") == ()
+    with pytest.raises(DataError, match="cannot read the list"):
+        _split("a,b\nc")

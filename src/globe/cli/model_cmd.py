@@ -42,7 +42,11 @@ def _split(text: str | None) -> tuple[str, ...]:
     """A comma-separated list; a label holding a comma is quoted as in CSV (``a,"b, c"``)."""
     if not text:
         return ()
-    return tuple(x.strip() for x in next(csv.reader([text], skipinitialspace=True)) if x.strip())
+    try:
+        fields = next(csv.reader([text], skipinitialspace=True))
+    except csv.Error as err:
+        raise DataError(f"cannot read the list {text[:60]!r}: {err}") from None
+    return tuple(x.strip() for x in fields if x.strip())
 
 
 def _known(values: tuple[str, ...], known: tuple[str, ...] | list[str], what: str, option: str) -> None:

@@ -216,7 +216,7 @@ def test_skip_bad_lines_leaves_out_exactly_the_bad_lines_and_lists_them(tmp_path
     bad = ["2010-11-04 06:30:00 M001 OFcF", "2010-11-04 06:31:00 M001", "2010-11-04 06:32:00 M0/1 ON",
            "2010-11-04 06:00:00 M001 OFF", "2010-11-04 06:33:00 M001 OFF Relax end",
            "2010-11-04 06:34:00 M001 OFF Sleeping stop", "2010-11-04 07:10:00 I001 12.5",
-           "2010-11-04 07:20:00 M004 ON Meal_Preparation"]
+           "2010-11-04 07:20:00 M004 ON Meal_Preparation begin"]  # a duplicated begin, nothing between
     lines = LOG.splitlines()
     dirty = [*lines[:2], *bad[:6], *lines[2:5], *bad[6:], *lines[5:-1], lines[-1] + " Relax begin"]  # never ends
     expected_dir, dirty_dir = tmp_path / "clean", tmp_path / "dirty"
@@ -336,7 +336,9 @@ def test_one_resident_of_a_multi_resident_log(tmp_path):
     assert _error(tmp_path, text).field == "activity"  # R2_Sleep overlaps R1's annotations
     result, home = _import(tmp_path, text, resident="R1")
     assert _rows(home.train[0], {360, 400, 480, 490}) == {360: "Sleep", 400: "Meal", 480: "Leave_Home", 490: "idle"}
-    assert any("other residents left out (--resident R1): R2 2" in n for n in result.notes)
+    assert any("other residents left out (--resident R1): R2 1" in n for n in result.notes)
     (tmp_path / "x").mkdir()
     with pytest.raises(ConfigError, match="--resident"):
         _import(tmp_path / "x", text, resident="Alice")
+    err = _error(tmp_path / "x", text, resident="R3")
+    assert "no annotation is named for resident R3" in err.message and "R1, R2" in err.message

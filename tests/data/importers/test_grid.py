@@ -142,9 +142,33 @@ def test_a_stretch_without_events_far_longer_than_usual_is_listed(tmp_path):
         for half_hours in range(48):
             lo, hi = quiet.get(day, (0, 0))
             if not lo < 30 * half_hours < hi:
-                sensor_log.saw(START + timedelta(days=day, minutes=30 * half_hours))
+                sensor_log.heard(START + timedelta(days=day, minutes=30 * half_hours))
     result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
     report = json.loads(result.report.read_text(encoding="utf-8"))
     assert report["silent_stretches"] == [{"date": "2024-01-02", "from": "2024-01-02 10:00:00",
                                            "to": "2024-01-02 20:00:00"}]
     assert any(n.startswith("1 kept day has a stretch of 7.5 hours or more") for n in result.notes)
+
+
+def test_a_day_one_annotation_covers_whole_is_kept(tmp_path):
+    """Away from the first evening to the third morning: the second day has no annotation of its
+    own, but one covers it to its last row (a day away), so it is a day of the routine."""
+    sensor_log, selection = _log(3)
+    sensor_log.annotations.pop(1)
+    evening = START + timedelta(hours=20)
+    sensor_log.annotations.append(Annotation("away", evening, evening + timedelta(hours=34), "made-up", 9, "away"))
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(overlaps="latest"),
+                          dest=tmp_path / "home")
+    assert "2024-01-02" in json.loads(result.report.read_text(encoding="utf-8"))["days"]["train"]
+
+
+def test_a_sensor_on_for_hours_is_no_silence(tmp_path):
+    sensor_log, selection = _log(3)
+    for day in range(3):
+        for half_hours in range(48):
+            if day != 1 or not 20 < half_hours < 40:
+                sensor_log.heard(START + timedelta(days=day, minutes=30 * half_hours))
+    day2 = START + timedelta(days=1)
+    sensor_log.heard(day2 + timedelta(hours=10), day2 + timedelta(hours=20))  # a pressure mat, on all along
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
+    assert json.loads(result.report.read_text(encoding="utf-8"))["silent_stretches"] == []

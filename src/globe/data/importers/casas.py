@@ -12,7 +12,8 @@ event line). Values are ON/OFF, OPEN/CLOSE, ABSENT/PRESENT (item sensors) or num
 (temperature, light level, analog sensors); anything else is an error. Events must be in time
 order (given the log's time zone, the hour logged twice when the clocks go back is read in
 order); an activity may not begin twice before it ends, end without beginning, or be left open
-at the end of the file (with ``--skip-bad-lines``, a begin whose end never came is left out).
+at the end of the file (with ``--skip-bad-lines``, a begin whose end never came is left out:
+one followed by other annotations, or by a later date, before it begins again).
 Activity names are NFC-normalised before a begin is paired with its end.
 
 CASAS names a sensor's type by the letters of its id. Without a mapping, only item sensors
@@ -83,19 +84,24 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     sensor_log = SensorLog("casas", (source,), annotation_field="activity")
     open_since: dict[str, datetime] = {}  # object sensor -> when it went on
     begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
+    applied = 0  # annotation lines applied
+    opened_at: dict[str, int] = {}  # activity -> ``applied`` after its last line
     previous: tuple[datetime, int] | None = None
     skipped: list[DataError] = []
     held = 0  # events of a repeated hour held in order
     lost_offs: Counter[str] = Counter()  # object sensor -> ONs that came while it was on
-    others: Counter[str] = Counter()  # other residents' annotations left out
+    residents: Counter[str] = Counter()  # annotations named for each resident (with --resident)
     lines = read_lines(path)
     for count, (line, text) in enumerate(lines, start=1):
         try:  # every check first: a line left out changes nothing
             moment, key, value, choice, marker = _event(text, source, line, previous, selection, zone)
             if marker is not None and resident is not None:
-                marker = _of_resident(marker, resident, others)
+                marker = _of_resident(marker, resident, residents)
             if marker is not None:
-                _check_annotation(begun, *marker, source, line, lost_ends=skip_bad_lines)
+                again = marker[1].lower() == "begin" and marker[0] in begun
+                lost_end = skip_bad_lines and again and (opened_at[marker[0]] != applied
+                                                         or begun[marker[0]][0].date() != moment.date())
+                _check_annotation(begun, *marker, source, line, lost_ends=lost_end)
         except DataError as err:
             if not skip_bad_lines:
                 raise
@@ -106,12 +112,14 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
             moment = previous[0]
         previous = (moment, line)
         selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
-        sensor_log.saw(moment)
+        sensor_log.heard(moment)
         sensor_log.events[key] += 1
         if choice.object is not None and _activation(sensor_log, open_since, key, moment, value in ACTIVE):
             lost_offs[key] += 1
         if marker is not None:
             lost = _annotation(sensor_log, begun, *marker, moment, source, line)
+            applied += 1
+            opened_at[marker[0]] = applied
             if lost is not None:
                 skipped.append(lost)
         if count % PROGRESS_EVERY == 0:
@@ -131,9 +139,14 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
         counts = ", ".join(f"{key} {n}x" for key, n in lost_offs.items())
         sensor_log.notes.append("an object sensor went on while on (its OFF, CLOSE or PRESENT was lost), so the "
                                 f"earlier event counts as one firing: {counts}")
-    if others:
-        sensor_log.notes.append(f"annotations of other residents left out (--resident {resident}): "
-                                + ", ".join(f"{who} {n}" for who, n in sorted(others.items())))
+    if resident is not None:
+        if resident.upper() not in residents:
+            named = ", ".join(sorted(residents)) or "none: not a multi-resident log"
+            raise DataError(f"no annotation is named for resident {resident} (R1_Sleep names R1); the log names "
+                            f"{named}", source=source)
+        others = ", ".join(f"{who} {n}" for who, n in sorted(residents.items()) if who != resident.upper())
+        if others:
+            sensor_log.notes.append(f"annotations of other residents left out (--resident {resident}): {others}")
     if held:
         sensor_log.notes.append(f"{held} events logged in the hour repeated when the clocks went back are held at "
                                 "the last time of its first pass")
@@ -184,16 +197,16 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
     return moment, key, value, choice, marker
 
 
-def _of_resident(marker: tuple[str, str], resident: str, others: Counter[str]) -> tuple[str, str] | None:
+def _of_resident(marker: tuple[str, str], resident: str, residents: Counter[str]) -> tuple[str, str] | None:
     """A multi-resident log's annotation for ``resident``: ``R1_Sleep`` is ``Sleep`` for R1 and left
-    out (counted in ``others``) for anyone else; a label without such a prefix is everyone's."""
+    out for anyone else; a label without such a prefix is everyone's. ``residents`` counts the
+    annotations (their begins) named for each."""
     match = _RESIDENT.fullmatch(marker[0])
     if match is None:
         return marker
-    if match.group(1).upper() != resident.upper():
-        others[match.group(1).upper()] += 1
-        return None
-    return match.group(2), marker[1]
+    who = match.group(1).upper()
+    residents[who] += marker[1].lower() == "begin"
+    return (match.group(2), marker[1]) if who == resident.upper() else None
 
 
 def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,
@@ -216,8 +229,9 @@ def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str
 
 def _check_annotation(begun: dict[str, tuple[datetime, int]], activity: str, marker: str, source: str,
                       line: int, lost_ends: bool = False) -> None:
-    """That an annotation can be applied: a valid label, begun once (unless ``lost_ends``: then a
-    second begin means the first one's end was lost), ended after it began."""
+    """That an annotation can be applied: a valid label, begun once (unless ``lost_ends``: a second
+    begin after other annotations, or on a later date, means the first one's end was lost; one
+    right after the first is a duplicated line), ended after it began."""
     _label(activity, source, line, "activity", "activity")
     if marker.lower() == "begin":
         if activity in begun and not lost_ends:

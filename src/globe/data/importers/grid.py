@@ -16,8 +16,9 @@ every format and are written once:
 - An object is used in a step when one of its sensors fires, or is on, at any time inside the
   step; its cell is then its room's ``in_use`` place, otherwise its home place.
 - A day with no annotation at all is left out, and so is a day on whose date no annotation
-  begins (one carried over from the day before is all it has: annotating stopped, or the
-  recorder was down), and a day the log does not cover from its first step to its last (the log's first
+  begins and whose annotations end before its last row (one carried over from the day before is
+  all it has: annotating stopped, or the recorder was down; a day one annotation covers whole,
+  a day away, is kept), and a day the log does not cover from its first step to its last (the log's first
   and last days, usually). All are listed in the report.
 - A kept day whose longest stretch without an event from any sensor is far longer than the
   home's usual (1.5 times the median day's longest, and 6 hours at least) is listed in the
@@ -131,10 +132,20 @@ class SensorLog:
     last: datetime | None = None
     notes: list[str] = field(default_factory=list)  # what else the report must say
     annotation_field: str = "start"  # the field an overlap error names (CASAS: 'activity')
-    moments: array = field(default_factory=lambda: array("d"))  # every record's time, seconds since 1970
+    moments: array = field(default_factory=lambda: array("d"))  # when a sensor was heard, seconds since 1970
+
+    def heard(self, start: datetime, end: datetime | None = None) -> None:
+        """A sensor's record: an event at ``start``, or on from ``start`` to ``end`` (heard
+        throughout: a stretch it is on is no silence)."""
+        end = start if end is None else end
+        self.saw(start)
+        self.saw(end)
+        lo, hi = (start - _EPOCH).total_seconds(), (end - _EPOCH).total_seconds()
+        self.moments.extend(np.arange(lo, hi, 3600.0).tolist() if hi - lo > 3600.0 else [lo])
+        self.moments.append(hi)
 
     def saw(self, moment: datetime) -> None:
-        self.moments.append((moment - _EPOCH).total_seconds())
+        """A record at ``moment`` (the log's span)."""
         if self.first is None or moment < self.first:
             self.first = moment
         if self.last is None or moment > self.last:
@@ -236,13 +247,13 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
     last_row = timedelta(minutes=options.day_end_minute)
     window = timedelta(minutes=options.step_minutes * options.steps)
     annotated: set[date] = set()  # days an annotation meets
-    begun: set[date] = set()  # days on whose date an annotation begins (before the window ends)
+    begun: set[date] = set()  # days on whose date an annotation begins, or that one covers to the last row
     for ann in ordered:
         for day in _touched_dates(ann.start, ann.end, offset, window):
             base = datetime.combine(day, time()) + offset
             if _meets(ann, base, window):
                 annotated.add(day)
-                if ann.start.date() == day:
+                if ann.start.date() == day or ann.end >= base + window:  # a day away is a day
                     begun.add(day)
     kept: dict[date, datetime] = {}
     dropped: list[dict[str, str]] = []
@@ -257,8 +268,8 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
         elif day not in annotated:
             why = "no annotation"
         elif day not in begun:
-            why = ("no annotation begins on it: it only carries one over from the day before (annotating stopped, "
-                   "or the log has a gap)")
+            why = ("no annotation begins on it: it only carries one over from the day before, which ends before "
+                   "its last row (annotating stopped, or the log has a gap)")
         else:
             kept[day] = midnight + offset
             continue

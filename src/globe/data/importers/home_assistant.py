@@ -101,11 +101,12 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
             moment = last_local[entity]
             repeated += 1
         last_local[entity] = moment
-        sensor_log.saw(moment)
         sensor_log.events[entity] += 1
-        if entity == activity_entity:
+        if entity == activity_entity:  # the activity, not a sensor: its rows are no sign of the recorder
+            sensor_log.saw(moment)
             states.append((moment, state, line))
             continue
+        sensor_log.heard(moment)
         if selection.choose(Sensor(entity, entity.split(".", 1)[1], entity.split(".", 1)[0], ""), source=source,
                             line=line).object is None:
             continue

@@ -182,8 +182,7 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
             raise DataError("sensors named differently from the first record's (one log, one form: 'id [1]' or "
                             "'Location Type Place')", source=sources[0], line=record.line, field="sensor")
         sensor = _sensor_of(record, named, sources[0])
-        sensor_log.saw(record.start)
-        sensor_log.saw(record.end)
+        sensor_log.heard(record.start, record.end)
         sensor_log.events[sensor.key] += 1
         if selection.choose(sensor, source=sources[0], line=record.line).object is not None:
             sensor_log.activations.setdefault(sensor.key, []).append(Activation(record.start, record.end))
