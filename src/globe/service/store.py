@@ -261,7 +261,8 @@ class Store:
                     if i == 0:
                         w.row, w.changed = _inserted_row(sql, cursor), cursor.rowcount
         except Exception as err:  # noqa: BLE001 - whatever one write's statements raise fails that write alone
-            db.execute("ROLLBACK")
+            if db.in_transaction:  # some errors (a full disk) roll back on their own
+                db.execute("ROLLBACK")
             if len(batch) == 1:
                 return self._failed(batch, err)
             for w in batch:

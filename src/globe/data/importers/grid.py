@@ -18,8 +18,8 @@ every format and are written once:
 - A day with no annotation at all is left out, and so is a day on whose date no annotation
   begins and whose annotations end before its last row (one carried over from the day before is
   all it has: annotating stopped, or the recorder was down; a day one annotation covers whole,
-  a day away, is kept), and a day the log does not cover from its first step to its last (the log's first
-  and last days, usually). All are listed in the report.
+  a day away, is kept), and a day the log does not cover from its first step to its last (the
+  log's first and last days, usually). All are listed in the report.
 - A kept day whose longest stretch without an event from any sensor is far longer than the
   home's usual (1.5 times the median day's longest, and 6 hours at least) is listed in the
   report (``silent_stretches``): a recorder outage, or nobody home.
