@@ -93,10 +93,12 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     residents: Counter[str] = Counter()  # annotations named for each resident (with --resident)
     lines = read_lines(path)
     for count, (line, text) in enumerate(lines, start=1):
+        named: str | None = None  # the resident this line's annotation names
         try:  # every check first: a line left out changes nothing
             moment, key, value, choice, marker = _event(text, source, line, previous, selection, zone)
+            begins = marker is not None and marker[1].lower() == "begin"
             if marker is not None and resident is not None:
-                marker = _of_resident(marker, resident, residents)
+                marker, named = _of_resident(marker, resident)
             if marker is not None:
                 again = marker[1].lower() == "begin" and marker[0] in begun
                 lost_end = skip_bad_lines and again and (opened_at[marker[0]] != applied
@@ -107,6 +109,8 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
                 raise
             skipped.append(err)
             continue
+        if named is not None:
+            residents[named] += begins
         if previous is not None and moment < previous[0]:  # the hour the clocks went back over, again
             held += 1
             moment = previous[0]
@@ -197,16 +201,15 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
     return moment, key, value, choice, marker
 
 
-def _of_resident(marker: tuple[str, str], resident: str, residents: Counter[str]) -> tuple[str, str] | None:
-    """A multi-resident log's annotation for ``resident``: ``R1_Sleep`` is ``Sleep`` for R1 and left
-    out for anyone else; a label without such a prefix is everyone's. ``residents`` counts the
-    annotations (their begins) named for each."""
+def _of_resident(marker: tuple[str, str], resident: str) -> tuple[tuple[str, str] | None, str | None]:
+    """A multi-resident log's annotation for ``resident``, and the resident it names (None: no
+    one): ``R1_Sleep`` is ``Sleep`` for R1 and left out for anyone else; a label without such a
+    prefix is everyone's."""
     match = _RESIDENT.fullmatch(marker[0])
     if match is None:
-        return marker
+        return marker, None
     who = match.group(1).upper()
-    residents[who] += marker[1].lower() == "begin"
-    return (match.group(2), marker[1]) if who == resident.upper() else None
+    return ((match.group(2), marker[1]) if who == resident.upper() else None), who
 
 
 def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,

@@ -424,10 +424,14 @@ def _silent_stretches(sensor_log: SensorLog, kept: dict[date, datetime], options
         longest[day] = (float(edges[k + 1] - edges[k]), float(edges[k]), float(edges[k + 1]))
     usual = float(np.median([g for g, _, _ in longest.values()])) if longest else 0.0
     limit = max(SILENCE_NOTED.total_seconds(), SILENCE_FACTOR * usual)
-    moment = lambda seconds: f"{_EPOCH + timedelta(seconds=seconds):%Y-%m-%d %H:%M:%S}"  # noqa: E731
-    silent = [{"date": day.isoformat(), "from": moment(lo), "to": moment(hi)}
+    silent = [{"date": day.isoformat(), "from": _clock_time(lo), "to": _clock_time(hi)}
               for day, (gap, lo, hi) in sorted(longest.items()) if gap >= limit]
     return silent, limit / 3600
+
+
+def _clock_time(seconds: float) -> str:
+    """A time of :attr:`SensorLog.moments` as the report writes times."""
+    return f"{_EPOCH + timedelta(seconds=seconds):%Y-%m-%d %H:%M:%S}"
 
 
 def _day(grid: _Grid, day: date, columns: tuple[str, ...], home: HomeMap, split: str) -> Day:
