@@ -50,65 +50,116 @@ static void release(Buf *b) {
     b->held = 0;
 }
 
-/* A weight rounded to 30 significant bits: equal for weights that differ in their last bits. */
-static double tie_key(double w) {
-    int e;
-    double m = frexp(w, &e);
-    return ldexp(nearbyint(ldexp(m, 30)), e - 30);
+/* A weight rounded to 30 significant bits (half to even): equal for weights that differ in their
+ * last bits. A finite normal weight is rounded in its bits; zero, subnormals and the rest by frexp. */
+static inline double tie_key(double w) {
+    uint64_t u;
+    memcpy(&u, &w, sizeof u);
+    uint64_t exponent = u >> 52 & 0x7ff, low = u & ((1ULL << 23) - 1), half = 1ULL << 22;
+    if (exponent == 0 || exponent == 0x7ff) {
+        int e;
+        double m = frexp(w, &e);
+        return ldexp(nearbyint(ldexp(m, 30)), e - 30);
+    }
+    u -= low;
+    if (low > half || (low == half && (u >> 23 & 1))) u += 1ULL << 23; /* a carry moves to the exponent */
+    memcpy(&w, &u, sizeof w);
+    return w;
 }
 
+/* A candidate to sort: by query, then `rank` (0 when sorting by history), then by history in name
+ * order (its parent's `lex`, then its activity's name rank), then `index`. */
 typedef struct {
-    int64_t query, lex, name, index;
-    double key;
+    int64_t query;
+    uint64_t rank;
+    int64_t lex, name, index;
 } Item;
 
-static int by_rank(const void *pa, const void *pb) { /* query, most probable first, then by history */
-    const Item *a = pa, *b = pb;
-    if (a->query != b->query) return a->query < b->query ? -1 : 1;
-    if (a->key != b->key) return a->key > b->key ? -1 : 1;
-    if (a->lex != b->lex) return a->lex < b->lex ? -1 : 1;
-    if (a->name != b->name) return a->name < b->name ? -1 : 1;
-    return a->index < b->index ? -1 : a->index > b->index;
+static inline int before(const Item *a, const Item *b) {
+    if (a->query != b->query) return a->query < b->query;
+    if (a->rank != b->rank) return a->rank < b->rank;
+    if (a->lex != b->lex) return a->lex < b->lex;
+    if (a->name != b->name) return a->name < b->name;
+    return a->index < b->index;
 }
 
-static int by_history(const void *pa, const void *pb) { /* query, then by history in name order */
-    const Item *a = pa, *b = pb;
-    if (a->query != b->query) return a->query < b->query ? -1 : 1;
-    if (a->lex != b->lex) return a->lex < b->lex ? -1 : 1;
-    if (a->name != b->name) return a->name < b->name ? -1 : 1;
-    return a->index < b->index ? -1 : a->index > b->index;
+/* The rank of a weight's key, most probable first (a positive double's bits order it; no
+ * weight at all comes last). */
+static uint64_t rank_of(double key) {
+    uint64_t u;
+    memcpy(&u, &key, sizeof u);
+    return key > 0.0 ? ~u : UINT64_MAX;
 }
 
-/* The groups of (query, child): group[i] for each candidate, first-seen order; returns how many. */
-static Py_ssize_t merge_groups(Py_ssize_t n, const int64_t *query, const int64_t *child, int64_t *group) {
-    Py_ssize_t size = 16;
-    while (size < 2 * n) size <<= 1;
-    int64_t *slot_q = malloc(size * sizeof(int64_t)), *slot_c = malloc(size * sizeof(int64_t)),
-            *slot_g = malloc(size * sizeof(int64_t));
-    if (!slot_q || !slot_c || !slot_g) {
-        free(slot_q);
-        free(slot_c);
-        free(slot_g);
+/* Sorts items[0..n) (merge sort: runs of 16 by insertion, then merged through `tmp`). */
+static void sort_run(Item *items, Item *tmp, Py_ssize_t n) {
+    const Py_ssize_t run = 16;
+    for (Py_ssize_t lo = 0; lo < n; lo += run) {
+        Py_ssize_t hi = lo + run < n ? lo + run : n;
+        for (Py_ssize_t i = lo + 1; i < hi; i++) {
+            Item x = items[i];
+            Py_ssize_t j = i;
+            for (; j > lo && before(&x, &items[j - 1]); j--) items[j] = items[j - 1];
+            items[j] = x;
+        }
+    }
+    Item *src = items, *dst = tmp;
+    for (Py_ssize_t width = run; width < n; width *= 2) {
+        for (Py_ssize_t lo = 0; lo < n; lo += 2 * width) {
+            Py_ssize_t mid = lo + width < n ? lo + width : n, hi = lo + 2 * width < n ? lo + 2 * width : n;
+            Py_ssize_t i = lo, j = mid, k = lo;
+            while (i < mid && j < hi) dst[k++] = before(&src[j], &src[i]) ? src[j++] : src[i++];
+            while (i < mid) dst[k++] = src[i++];
+            while (j < hi) dst[k++] = src[j++];
+        }
+        Item *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != items) memcpy(items, src, n * sizeof(Item));
+}
+
+/* Sorts items[0..n), which come query by query: each query's apart. */
+static void sort_items(Item *items, Item *tmp, Py_ssize_t n) {
+    for (Py_ssize_t lo = 0, hi; lo < n; lo = hi) {
+        for (hi = lo + 1; hi < n && items[hi].query == items[lo].query; hi++)
+            ;
+        sort_run(items + lo, tmp, hi - lo);
+    }
+}
+
+/* The groups of (query, child): group[i] for each candidate, first-seen order; returns how many.
+ * The candidates come query by query, so each query's groups are found in a table of its own,
+ * small enough to stay in cache. */
+typedef struct {
+    int64_t child, group;
+} Slot;
+
+static Py_ssize_t merge_groups(Py_ssize_t n, Py_ssize_t widest, const int64_t *query, const int64_t *child,
+                               int64_t *group) {
+    Py_ssize_t cap = 16;
+    while (cap < 2 * widest) cap <<= 1;
+    Slot *slots = malloc(cap * sizeof(Slot));
+    if (!slots) {
         PyErr_NoMemory();
         return -1;
     }
-    for (Py_ssize_t s = 0; s < size; s++) slot_g[s] = -1;
     Py_ssize_t groups = 0;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        uint64_t h = (uint64_t)query[i] * 0x9E3779B97F4A7C15ULL ^ (uint64_t)child[i] * 0xC2B2AE3D27D4EB4FULL;
-        h ^= h >> 29;
-        Py_ssize_t s = (Py_ssize_t)(h & (uint64_t)(size - 1));
-        while (slot_g[s] >= 0 && (slot_q[s] != query[i] || slot_c[s] != child[i])) s = (s + 1) & (size - 1);
-        if (slot_g[s] < 0) {
-            slot_q[s] = query[i];
-            slot_c[s] = child[i];
-            slot_g[s] = groups++;
+    for (Py_ssize_t lo = 0, hi; lo < n; lo = hi) {
+        for (hi = lo + 1; hi < n && query[hi] == query[lo]; hi++)
+            ;
+        Py_ssize_t size = 16;
+        int shift = 60; /* a slot is the top bits of the child's Fibonacci hash */
+        for (; size < 2 * (hi - lo); shift--) size <<= 1;
+        for (Py_ssize_t s = 0; s < size; s++) slots[s].group = -1;
+        for (Py_ssize_t i = lo; i < hi; i++) {
+            Py_ssize_t s = (Py_ssize_t)((uint64_t)child[i] * 0x9E3779B97F4A7C15ULL >> shift);
+            while (slots[s].group >= 0 && slots[s].child != child[i]) s = (s + 1) & (size - 1);
+            if (slots[s].group < 0) slots[s] = (Slot){child[i], groups++};
+            group[i] = slots[s].group;
         }
-        group[i] = slot_g[s];
     }
-    free(slot_q);
-    free(slot_c);
-    free(slot_g);
+    free(slots);
     return groups;
 }
 
@@ -129,7 +180,7 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     PyObject *out = NULL;
     int64_t *group = NULL, *rep = NULL, *kept_idx = NULL, *kept_lex = NULL;
     double *sum = NULL, *kept_w = NULL, *total = NULL;
-    Item *items = NULL;
+    Item *items = NULL, *tmp = NULL;
     for (int i = 0; i < 7; i++)
         if (get_buf(objs[i], &b[i], kinds[i], names_[i]) < 0) goto done;
     Py_ssize_t n = b[0].n;
@@ -140,27 +191,32 @@ static PyObject *select_(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "beam: the candidate arrays disagree");
         goto done;
     }
-    for (Py_ssize_t i = 0; i < n; i++)
+    Py_ssize_t widest = 1; /* the most candidates of a query */
+    for (Py_ssize_t i = 0, first = 0; i < n; i++) {
         if (query[i] < 0 || query[i] >= nq || entry[i] < 0 || entry[i] >= b[5].n || act[i] < 0 || act[i] >= b[6].n ||
             (i && query[i] < query[i - 1])) {
             PyErr_SetString(PyExc_ValueError, "beam: a candidate's query, entry or activity is out of range");
             goto done;
         }
+        if (query[i] != query[first]) first = i;
+        if (i - first + 1 > widest) widest = i - first + 1;
+    }
     group = malloc((n ? n : 1) * sizeof(int64_t));
     rep = malloc((n ? n : 1) * sizeof(int64_t));
     sum = malloc((n ? n : 1) * sizeof(double));
     items = malloc((n ? n : 1) * sizeof(Item));
+    tmp = malloc(widest * sizeof(Item)); /* a query's items are sorted at a time */
     kept_idx = malloc((n ? n : 1) * sizeof(int64_t));
     kept_w = malloc((n ? n : 1) * sizeof(double));
     kept_lex = malloc((n ? n : 1) * sizeof(int64_t));
     total = calloc(nq ? nq : 1, sizeof(double));
-    if (!group || !rep || !sum || !items || !kept_idx || !kept_w || !kept_lex || !total) {
+    if (!group || !rep || !sum || !items || !tmp || !kept_idx || !kept_w || !kept_lex || !total) {
         PyErr_NoMemory();
         goto done;
     }
     Py_ssize_t groups = n;
     if (merge) {
-        groups = merge_groups(n, query, child, group);
+        groups = merge_groups(n, widest, query, child, group);
         if (groups < 0) goto done;
         for (Py_ssize_t g = 0; g < groups; g++) {
             rep[g] = -1;
@@ -183,15 +239,9 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     }
     for (Py_ssize_t g = 0; g < groups; g++) {
         int64_t i = rep[g];
-        items[g] = (Item){query[i], lex[entry[i]], names[act[i]], g, tie_key(sum[g])};
+        items[g] = (Item){query[i], rank_of(tie_key(sum[g])), lex[entry[i]], names[act[i]], g};
     }
-    /* the groups come query by query (the candidates do, and a group is numbered when first seen):
-     * each query's are sorted apart */
-    for (Py_ssize_t lo = 0, hi; lo < groups; lo = hi) {
-        for (hi = lo + 1; hi < groups && items[hi].query == items[lo].query; hi++)
-            ;
-        qsort(items + lo, hi - lo, sizeof(Item), by_rank);
-    }
+    sort_items(items, tmp, groups);
     /* each query's first `keep`; when merging, those at least `floor` of their total */
     Py_ssize_t k = 0;
     for (Py_ssize_t lo = 0; lo < groups;) {
@@ -224,13 +274,9 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     for (Py_ssize_t r = 0; r < k; r++) {
         int64_t g = kept_idx[r], i = rep[g];
         kept_w[r] = sum[g] / total[query[i]];
-        items[r] = (Item){query[i], lex[entry[i]], names[act[i]], r, 0.0};
+        items[r] = (Item){query[i], 0, lex[entry[i]], names[act[i]], r};
     }
-    for (Py_ssize_t lo = 0, hi; lo < k; lo = hi) {
-        for (hi = lo + 1; hi < k && items[hi].query == items[lo].query; hi++)
-            ;
-        qsort(items + lo, hi - lo, sizeof(Item), by_history);
-    }
+    sort_items(items, tmp, k);
     for (Py_ssize_t r = 0, lo = 0; r < k; r++) {
         if (r && items[r].query != items[r - 1].query) lo = r;
         kept_lex[items[r].index] = r - lo;
@@ -243,6 +289,7 @@ done:
     free(rep);
     free(sum);
     free(items);
+    free(tmp);
     free(kept_idx);
     free(kept_w);
     free(kept_lex);
@@ -255,8 +302,8 @@ done:
  *   histories (row r of `rows`, the next-step distribution of history r, times its weight and,
  *   when `tables` is not empty, the movement likelihood tables[table_of[r], previous[r], act],
  *   where previous -1 reads the table's last row) with weight above 0 and at least `floor` times
- *   its query's best, history by history; a query with a seen activity (pinned[q] >= 0) extends
- *   by it alone. */
+ *   its query's best, history by history (the histories come query by query); a query with a seen
+ *   activity (pinned[q] >= 0) extends by it alone. */
 static PyObject *extend(PyObject *self, PyObject *args) {
     double floor_;
     Py_ssize_t nq;
@@ -268,7 +315,7 @@ static PyObject *extend(PyObject *self, PyObject *args) {
     const char *names_[7] = {"rows", "weight", "query", "pinned", "tables", "table_of", "previous"};
     Buf b[7] = {{0}};
     PyObject *out = NULL;
-    double *best = NULL, *cw = NULL;
+    double *cw = NULL;
     int64_t *ce = NULL, *ca = NULL;
     for (int i = 0; i < 7; i++)
         if (get_buf(objs[i], &b[i], kinds[i], names_[i]) < 0) goto done;
@@ -282,47 +329,48 @@ static PyObject *extend(PyObject *self, PyObject *args) {
         goto done;
     }
     for (Py_ssize_t r = 0; r < n; r++)
-        if (query[r] < 0 || query[r] >= nq || pinned[query[r]] >= width ||
+        if (query[r] < 0 || query[r] >= nq || (r && query[r] < query[r - 1]) || pinned[query[r]] >= width ||
             (lik && (table_of[r] < 0 || table_of[r] >= ntables || previous[r] < -1 || previous[r] >= width))) {
             PyErr_SetString(PyExc_ValueError, "beam: a history's query, label, table or activity is out of range");
             goto done;
         }
     Py_ssize_t cells = n * width;
-    best = calloc(nq ? nq : 1, sizeof(double));
     cw = malloc((cells ? cells : 1) * sizeof(double));
     ce = malloc((cells ? cells : 1) * sizeof(int64_t));
     ca = malloc((cells ? cells : 1) * sizeof(int64_t));
-    if (!best || !cw || !ce || !ca) {
+    if (!cw || !ce || !ca) {
         PyErr_NoMemory();
         goto done;
     }
-    Py_ssize_t k = 0;
-    for (Py_ssize_t r = 0; r < n; r++) {
-        const double *row = rows + r * width;
-        const double *lrow = lik ? tables + (table_of[r] * (width + 1) + (previous[r] < 0 ? width : previous[r])) * width : NULL;
-        int64_t only = pinned[query[r]];
-        for (Py_ssize_t a = only >= 0 ? only : 0; a < (only >= 0 ? only + 1 : width); a++) {
-            if (!(row[a] > 0.0)) continue;
-            double x = weight[r] * row[a];
-            if (lrow) x = x * lrow[a];
-            if (!(x > 0.0)) continue;
-            cw[k] = x;
-            ce[k] = r;
-            ca[k++] = a;
-            if (x > best[query[r]]) best[query[r]] = x;
+    Py_ssize_t m = 0; /* the extensions kept so far; a query's are cut while they are in cache */
+    for (Py_ssize_t lo = 0, hi; lo < n; lo = hi) {
+        Py_ssize_t k = m;
+        double best = 0.0;
+        for (hi = lo; hi < n && query[hi] == query[lo]; hi++) {
+            const double *row = rows + hi * width;
+            const double *lrow = lik ? tables + (table_of[hi] * (width + 1) + (previous[hi] < 0 ? width : previous[hi])) * width : NULL;
+            int64_t only = pinned[query[hi]];
+            for (Py_ssize_t a = only >= 0 ? only : 0; a < (only >= 0 ? only + 1 : width); a++) {
+                if (!(row[a] > 0.0)) continue;
+                double x = weight[hi] * row[a];
+                if (lrow) x = x * lrow[a];
+                if (!(x > 0.0)) continue;
+                cw[k] = x;
+                ce[k] = hi;
+                ca[k++] = a;
+                if (x > best) best = x;
+            }
         }
+        for (Py_ssize_t i = m, end = k; i < end; i++)
+            if (cw[i] >= floor_ * best) {
+                cw[m] = cw[i];
+                ce[m] = ce[i];
+                ca[m++] = ca[i];
+            }
     }
-    Py_ssize_t m = 0;
-    for (Py_ssize_t i = 0; i < k; i++)
-        if (cw[i] >= floor_ * best[query[ce[i]]]) {
-            cw[m] = cw[i];
-            ce[m] = ce[i];
-            ca[m++] = ca[i];
-        }
     out = Py_BuildValue("(NNN)", bytes_of(ce, m), bytes_of(ca, m), bytes_of(cw, m));  /* N: a NULL fails it cleanly */
 done:
     for (int i = 0; i < 7; i++) release(&b[i]);
-    free(best);
     free(cw);
     free(ce);
     free(ca);
@@ -438,7 +486,25 @@ done:
     return out;
 }
 
+/* tie_key(weights) -> bytes of float64: each weight rounded as the selection compares them. */
+static PyObject *tie_keys(PyObject *self, PyObject *arg) {
+    Buf b = {0};
+    if (get_buf(arg, &b, 'd', "weights") < 0) {
+        release(&b);
+        return NULL;
+    }
+    PyObject *out = PyBytes_FromStringAndSize(NULL, b.n * 8);
+    if (out) {
+        double *keys = (double *)PyBytes_AS_STRING(out);
+        const double *w = b.view.buf;
+        for (Py_ssize_t i = 0; i < b.n; i++) keys[i] = tie_key(w[i]);
+    }
+    release(&b);
+    return out;
+}
+
 static PyMethodDef methods[] = {
+    {"tie_key", tie_keys, METH_O, "Weights rounded to 30 significant bits, as the selection compares them."},
     {"select", select_, METH_VARARGS, "Merge, rank, cut and renormalise a beam's extensions."},
     {"extend", extend, METH_VARARGS, "The filter's extensions above its floor."},
     {"extend_paths", extend_paths, METH_VARARGS, "The forecaster's path extensions above the floor."},

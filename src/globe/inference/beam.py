@@ -59,14 +59,11 @@ class Beam:
         return np.bincount(self.query, weights=self.weight, minlength=queries)
 
 
-TIE_BITS = 30
-
-
 def tie_key(weights: np.ndarray) -> np.ndarray:
-    """``weights`` rounded to :data:`TIE_BITS` significant bits: weights that differ only in the
-    last bits of their arithmetic (sums taken in another order) compare equal."""
-    mantissa, exponent = np.frexp(weights)
-    return np.ldexp(np.round(mantissa * (1 << TIE_BITS)), exponent - TIE_BITS)
+    """``weights`` rounded to 30 significant bits (half to even), as the beam step compares them:
+    weights that differ only in the last bits of their arithmetic (sums taken in another order)
+    compare equal."""
+    return np.frombuffer(_beam.tie_key(np.ascontiguousarray(weights, dtype=np.float64)), dtype=np.float64)
 
 
 @dataclass(frozen=True, slots=True)

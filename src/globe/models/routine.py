@@ -197,10 +197,14 @@ class RoutineStates(StateSpace):
         codes = np.asarray(codes, dtype=np.int64)
         same = (start >= 0) & (codes == self._current[context])
         new = self._child[context, codes]
-        for i in np.flatnonzero(~same & (new < 0)).tolist():
-            c, code = int(context[i]), int(codes[i])
-            tokens = (*self._contexts[c], self.labels[code])[-self._model.order:]
-            new[i] = self._child[c, code] = self._context(tokens)
+        missing = np.flatnonzero(~same & (new < 0))
+        if len(missing):  # each new (context, activity) once, numbered in the order first met
+            width = self._child.shape[1]
+            pairs, first = np.unique(context[missing] * width + codes[missing], return_index=True)
+            for c, code in (divmod(p, width) for p in pairs[np.argsort(first)].tolist()):
+                tokens = (*self._contexts[c], self.labels[code])[-self._model.order:]
+                self._child[c, code] = self._context(tokens)
+            new[missing] = self._child[context[missing], codes[missing]]
         return self._pack(np.where(same, context, new), np.where(same, start, step), step + 1)
 
     def child(self, state: int, code: int) -> int:

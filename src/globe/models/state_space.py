@@ -206,9 +206,15 @@ class NumberedStates(StateSpace):
         return self._last[states]
 
     def children(self, states: np.ndarray, codes: np.ndarray) -> np.ndarray:
+        states, codes = np.asarray(states, dtype=np.int64), np.asarray(codes, dtype=np.int64)
         out = self._child[states, codes]
-        for i in np.flatnonzero(out < 0).tolist():
-            out[i] = self.child(int(states[i]), int(codes[i]))
+        missing = np.flatnonzero(out < 0)
+        if len(missing):  # each new (state, activity) once, numbered in the order first met
+            width = self._child.shape[1]
+            pairs, first = np.unique(states[missing] * width + codes[missing], return_index=True)
+            for state, code in (divmod(p, width) for p in pairs[np.argsort(first)].tolist()):
+                self.child(state, code)
+            out[missing] = self._child[states[missing], codes[missing]]
         return out
 
     def child(self, state: int, code: int) -> int:
