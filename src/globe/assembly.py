@@ -136,15 +136,6 @@ def household_emission(filter_cfg: FilterConfig) -> MovementEmission:
                              boundary=fc.emission_boundary, switch=fc.emission_switch)
 
 
-def household_filter(household: Household, config: GlobeConfig, activity: ActivityModelBase,
-                     days: Sequence[Day] | None = None) -> ActivityFilter:
-    """An activity filter over a fitted ``activity`` model for online use (the service), its
-    movement evidence (:func:`household_emission`) counted on ``household``'s training days (or
-    ``days``)."""
-    emission = household_emission(config.filter).fit(household.train if days is None else days, household.objects)
-    return activity_filter(activity, emission, config.filter)
-
-
 def _answer_cache(llm: LLMConfig) -> "AnswerCache | None":
     from globe.reasoning.cache import AnswerCache
 

@@ -349,7 +349,8 @@ def test_online_filter_for_the_service_matches_the_offline_scan(households):
     h, config = households["C"], GlobeConfig()
     model = assembly.activity_model(config.models.model_copy(update={"activity_estimator": "routine"}), 10)
     model.fit([d.activities for d in h.train])
-    flt = assembly.household_filter(h, config, model)
+    emission = assembly.household_emission(config.filter).fit(h.train, h.objects)
+    flt = assembly.activity_filter(model, emission, config.filter)  # as the service builds it
     day = h.test[0]
     offline, _ = filtered_beliefs(flt, [day], [[False] * len(day)], h.objects)
     assert offline is not None
