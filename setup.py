@@ -9,8 +9,10 @@ install stops with the compiler's message.
 
 from setuptools import Extension, setup
 
+ARRAYS = "src/globe/inference/_arrays.h"  # the two inference kernels' argument checks
+
 setup(ext_modules=[
     Extension("globe.models._suffix_automaton", ["src/globe/models/_suffix_automaton.c"]),
-    Extension("globe.inference._beam", ["src/globe/inference/_beam.c"]),
-    Extension("globe.inference._propagate", ["src/globe/inference/_propagate.c"]),
+    Extension("globe.inference._beam", ["src/globe/inference/_beam.c"], depends=[ARRAYS]),
+    Extension("globe.inference._propagate", ["src/globe/inference/_propagate.c"], depends=[ARRAYS]),
 ])

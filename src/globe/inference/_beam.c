@@ -25,30 +25,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct {
-    Py_buffer view;
-    Py_ssize_t n;
-    int held;
-} Buf;
-
-static int get_buf(PyObject *obj, Buf *b, char kind, const char *what) {
-    if (PyObject_GetBuffer(obj, &b->view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
-    b->held = 1;
-    const char *f = b->view.format ? b->view.format : "B";
-    if (*f == '@' || *f == '=' || *f == '<') f++;
-    int ok = kind == 'd' ? (f[0] == 'd' && b->view.itemsize == 8) : ((f[0] == 'l' || f[0] == 'q') && b->view.itemsize == 8);
-    if (!ok || f[1] != 0) {
-        PyErr_Format(PyExc_ValueError, "beam: %s must be a contiguous %s array", what, kind == 'd' ? "float64" : "int64");
-        return -1;
-    }
-    b->n = b->view.len / 8;
-    return 0;
-}
-
-static void release(Buf *b) {
-    if (b->held) PyBuffer_Release(&b->view);
-    b->held = 0;
-}
+#define KERNEL "beam"
+#include "_arrays.h"
 
 /* A weight rounded to 30 significant bits (half to even): equal for weights that differ in their
  * last bits. A finite normal weight is rounded in its bits; zero, subnormals and the rest by frexp. */
@@ -174,7 +152,7 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "pndnOOOOOOO", &merge, &keep, &floor_, &nq, &objs[0], &objs[1], &objs[2], &objs[3],
                           &objs[4], &objs[5], &objs[6]))
         return NULL;
-    const char kinds[7] = {'q', 'q', 'q', 'd', 'q', 'q', 'q'};
+    const Kind kinds[7] = {I64, I64, I64, F64, I64, I64, I64};
     const char *names_[7] = {"query", "entry", "act", "weight", "child", "lex", "names"};
     Buf b[7] = {{0}};
     PyObject *out = NULL;
@@ -182,7 +160,7 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     double *sum = NULL, *kept_w = NULL, *total = NULL;
     Item *items = NULL, *tmp = NULL;
     for (int i = 0; i < 7; i++)
-        if (get_buf(objs[i], &b[i], kinds[i], names_[i]) < 0) goto done;
+        if (buf_get(objs[i], &b[i], kinds[i], 0, names_[i]) < 0) goto done;
     Py_ssize_t n = b[0].n;
     const int64_t *query = b[0].view.buf, *entry = b[1].view.buf, *act = b[2].view.buf, *child = b[4].view.buf,
                   *lex = b[5].view.buf, *names = b[6].view.buf;
@@ -284,7 +262,7 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     for (Py_ssize_t r = 0; r < k; r++) kept_idx[r] = rep[kept_idx[r]];
     out = Py_BuildValue("(NNN)", bytes_of(kept_idx, k), bytes_of(kept_w, k), bytes_of(kept_lex, k));
 done:
-    for (int i = 0; i < 7; i++) release(&b[i]);
+    for (int i = 0; i < 7; i++) buf_release(&b[i]);
     free(group);
     free(rep);
     free(sum);
@@ -311,14 +289,14 @@ static PyObject *extend(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "dnOOOOOOO", &floor_, &nq, &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5],
                           &objs[6]))
         return NULL;
-    const char kinds[7] = {'d', 'd', 'q', 'q', 'd', 'q', 'q'};
+    const Kind kinds[7] = {F64, F64, I64, I64, F64, I64, I64};
     const char *names_[7] = {"rows", "weight", "query", "pinned", "tables", "table_of", "previous"};
     Buf b[7] = {{0}};
     PyObject *out = NULL;
     double *cw = NULL;
     int64_t *ce = NULL, *ca = NULL;
     for (int i = 0; i < 7; i++)
-        if (get_buf(objs[i], &b[i], kinds[i], names_[i]) < 0) goto done;
+        if (buf_get(objs[i], &b[i], kinds[i], 0, names_[i]) < 0) goto done;
     Py_ssize_t n = b[1].n, width = n ? b[0].n / n : 0, ntables = width ? b[4].n / ((width + 1) * width) : 0;
     const double *rows = b[0].view.buf, *weight = b[1].view.buf, *tables = b[4].view.buf;
     const int64_t *query = b[2].view.buf, *pinned = b[3].view.buf, *table_of = b[5].view.buf, *previous = b[6].view.buf;
@@ -370,7 +348,7 @@ static PyObject *extend(PyObject *self, PyObject *args) {
     }
     out = Py_BuildValue("(NNN)", bytes_of(ce, m), bytes_of(ca, m), bytes_of(cw, m));  /* N: a NULL fails it cleanly */
 done:
-    for (int i = 0; i < 7; i++) release(&b[i]);
+    for (int i = 0; i < 7; i++) buf_release(&b[i]);
     free(cw);
     free(ce);
     free(ca);
@@ -387,7 +365,7 @@ static PyObject *extend_paths(PyObject *self, PyObject *args) {
     Py_ssize_t nq;
     PyObject *objs[5];
     if (!PyArg_ParseTuple(args, "dnOOOOO", &floor_, &nq, &objs[0], &objs[1], &objs[2], &objs[3], &objs[4])) return NULL;
-    const char kinds[5] = {'d', 'd', 'q', 'q', 'q'};
+    const Kind kinds[5] = {F64, F64, I64, I64, I64};
     const char *names_[5] = {"rows", "weight", "query", "lex", "names"};
     Buf b[5] = {{0}};
     PyObject *out = NULL;
@@ -395,7 +373,7 @@ static PyObject *extend_paths(PyObject *self, PyObject *args) {
     int64_t *ce = NULL, *ca = NULL, *fe = NULL, *fa = NULL;
     char *found = NULL;
     for (int i = 0; i < 5; i++)
-        if (get_buf(objs[i], &b[i], kinds[i], names_[i]) < 0) goto done;
+        if (buf_get(objs[i], &b[i], kinds[i], 0, names_[i]) < 0) goto done;
     Py_ssize_t n = b[1].n, width = n ? b[0].n / n : 0;
     const double *rows = b[0].view.buf, *weight = b[1].view.buf;
     const int64_t *query = b[2].view.buf, *lex = b[3].view.buf, *names = b[4].view.buf;
@@ -475,7 +453,7 @@ static PyObject *extend_paths(PyObject *self, PyObject *args) {
     }
     out = Py_BuildValue("(NNN)", bytes_of(ce, k), bytes_of(ca, k), bytes_of(cw, k));  /* N: a NULL fails it cleanly */
 done:
-    for (int i = 0; i < 5; i++) release(&b[i]);
+    for (int i = 0; i < 5; i++) buf_release(&b[i]);
     free(cw);
     free(ce);
     free(ca);
@@ -489,8 +467,8 @@ done:
 /* tie_key(weights) -> bytes of float64: each weight rounded as the selection compares them. */
 static PyObject *tie_keys(PyObject *self, PyObject *arg) {
     Buf b = {0};
-    if (get_buf(arg, &b, 'd', "weights") < 0) {
-        release(&b);
+    if (buf_get(arg, &b, F64, 0, "weights") < 0) {
+        buf_release(&b);
         return NULL;
     }
     PyObject *out = PyBytes_FromStringAndSize(NULL, b.n * 8);
@@ -499,7 +477,7 @@ static PyObject *tie_keys(PyObject *self, PyObject *arg) {
         const double *w = b.view.buf;
         for (Py_ssize_t i = 0; i < b.n; i++) keys[i] = tie_key(w[i]);
     }
-    release(&b);
+    buf_release(&b);
     return out;
 }
 

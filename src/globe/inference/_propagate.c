@@ -16,51 +16,17 @@
 
 /* -- buffers ------------------------------------------------------------------------------------- */
 
-typedef enum { F64, I64, BOOL } Kind;
-
-typedef struct {
-    Py_buffer view;
-    Py_ssize_t n; /* items */
-    int held;
-} Buf;
-
-static const char *kind_name(Kind kind) { return kind == F64 ? "float64" : kind == I64 ? "int64" : "bool"; }
-
-/* Borrow `obj`'s memory as a C-contiguous array of `kind` (writable if asked). */
-static int buf_get(PyObject *obj, Buf *b, Kind kind, int writable, const char *what) {
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, &b->view, flags) < 0) {
-        PyErr_Format(PyExc_ValueError, "propagate: %s must be a contiguous %s%s array", what,
-                     writable ? "writable " : "", kind_name(kind));
-        return -1;
-    }
-    b->held = 1;
-    const char *f = b->view.format ? b->view.format : "B";
-    if (*f == '@' || *f == '=' || *f == '<') f++;
-    int ok = kind == F64   ? (f[0] == 'd' && f[1] == 0 && b->view.itemsize == 8)
-             : kind == I64 ? ((f[0] == 'l' || f[0] == 'q') && f[1] == 0 && b->view.itemsize == 8)
-                           : (f[0] == '?' && f[1] == 0 && b->view.itemsize == 1);
-    if (!ok) {
-        PyErr_Format(PyExc_ValueError, "propagate: %s must be %s, not '%s'", what, kind_name(kind), f);
-        return -1;
-    }
-    b->n = b->view.len / b->view.itemsize;
-    return 0;
-}
+#define KERNEL "propagate"
+#include "_arrays.h"
 
 /* The same, and it must hold exactly `n` items. */
 static int buf_sized(PyObject *obj, Buf *b, Kind kind, int writable, Py_ssize_t n, const char *what) {
     if (buf_get(obj, b, kind, writable, what) < 0) return -1;
     if (b->n != n) {
-        PyErr_Format(PyExc_ValueError, "propagate: %s holds %zd items, expected %zd", what, b->n, n);
+        PyErr_Format(PyExc_ValueError, KERNEL ": %s holds %zd items, expected %zd", what, b->n, n);
         return -1;
     }
     return 0;
-}
-
-static void buf_release(Buf *b) {
-    if (b->held) PyBuffer_Release(&b->view);
-    b->held = 0;
 }
 
 #define F64P(b) ((double *)(b).view.buf)
@@ -68,7 +34,7 @@ static void buf_release(Buf *b) {
 #define BOOLP(b) ((const char *)(b).view.buf)
 
 static int bad(const char *what) {
-    PyErr_Format(PyExc_ValueError, "propagate: %s out of range", what);
+    PyErr_Format(PyExc_ValueError, KERNEL ": %s out of range", what);
     return -1;
 }
 
