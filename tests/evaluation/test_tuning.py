@@ -77,7 +77,7 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
     scores are those of models fitted one by one."""
     from globe import assembly
     from globe.evaluation.selection import FitKey, grid
-    from globe.evaluation.tuning import activity_f1, data_folds, fitted_activity, fold_days
+    from globe.evaluation.tuning import activity_scores, data_folds, fitted_activity, fold_days
 
     h = replace(households["A"], train=households["A"].train[:24])
     cfg = GlobeConfig().models
@@ -89,9 +89,9 @@ def test_candidates_sharing_one_fit_per_fold_score_as_if_each_were_fitted_alone(
         models = cfg.model_copy(update=params)
         for fold in data_folds(h, 3):
             train, held_out = fold_days(h, fold)
-            shared = activity_f1(fitted_activity(h, fold, models, memo, 10), held_out)
+            shared = activity_scores(fitted_activity(h, fold, models, memo, 10), held_out)
             alone = assembly.fitted_activity_model(models, 10, train)
-            assert shared == activity_f1(alone, held_out)  # type: ignore[arg-type]
+            assert shared == activity_scores(alone, held_out)  # type: ignore[arg-type]
     counted = [k for k in memo.entries(lambda k: isinstance(k, FitKey) and not k.model.endswith(":predicting")
                                        and k.model != "sequences")]
     assert len(counted) == 2 * 3  # per fold, one n-gram fit (longest and witten_bell share it) and one routine fit

@@ -116,11 +116,6 @@ def activity_scores(model: ScanMemo, days: Sequence[Day]) -> dict[str, float]:
     return {"log_loss": 0.0 if loss is None else loss, "f1": f1(true, pred) or 0.0}
 
 
-def activity_f1(model: ScanMemo, days: Sequence[Day]) -> float:
-    """Weighted F1 of the next activity at steps 1..T-1 of held-out days (0 with nothing to score)."""
-    return activity_scores(model, days)["f1"]
-
-
 def object_scores(household: Household, days: Sequence[Day], activity: ActivityPredictor, chooser: ObjectChooser,
                   alignment: str, rankings: dict) -> dict[str, float]:
     """Log loss (of the object model's probability of the object that moved) and weighted F1 of
