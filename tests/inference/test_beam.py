@@ -53,3 +53,11 @@ def test_an_index_out_of_range_is_an_error_not_a_read():
         _beam.select(True, 1, 0.0, 1, z, np.array([3], dtype=np.int64), z, np.ones(1), z, z, z)
     with pytest.raises(ValueError, match="float64"):
         _beam.select(True, 1, 0.0, 1, z, z, z, np.ones(1, dtype=np.float32), z, z, z)
+
+
+def test_histories_out_of_query_order_are_an_error():
+    rows, w = np.full((2, 1), 1.0), np.ones(2)
+    none, back = np.zeros(0), np.array([1, 0], dtype=np.int64)
+    with pytest.raises(ValueError, match="query by query"):
+        _beam.extend(0.0, 2, rows, w, back, np.full(2, -1, dtype=np.int64), none, none.astype(np.int64),
+                     none.astype(np.int64))

@@ -61,8 +61,8 @@ static inline int before(const Item *a, const Item *b) {
     return a->index < b->index;
 }
 
-/* The rank of a weight's key, most probable first (a positive double's bits order it; no
- * weight at all comes last). */
+/* The rank of a weight's key, most probable first (a positive double's bits order it; a weight
+ * of 0 comes last: weights are never negative). */
 static uint64_t rank_of(double key) {
     uint64_t u;
     memcpy(&u, &key, sizeof u);
@@ -171,9 +171,12 @@ static PyObject *select_(PyObject *self, PyObject *args) {
     }
     Py_ssize_t widest = 1; /* the most candidates of a query */
     for (Py_ssize_t i = 0, first = 0; i < n; i++) {
-        if (query[i] < 0 || query[i] >= nq || entry[i] < 0 || entry[i] >= b[5].n || act[i] < 0 || act[i] >= b[6].n ||
-            (i && query[i] < query[i - 1])) {
+        if (query[i] < 0 || query[i] >= nq || entry[i] < 0 || entry[i] >= b[5].n || act[i] < 0 || act[i] >= b[6].n) {
             PyErr_SetString(PyExc_ValueError, "beam: a candidate's query, entry or activity is out of range");
+            goto done;
+        }
+        if (i && query[i] < query[i - 1]) {
+            PyErr_SetString(PyExc_ValueError, "beam: the candidates must come query by query");
             goto done;
         }
         if (query[i] != query[first]) first = i;
@@ -306,12 +309,17 @@ static PyObject *extend(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "beam: the extension arrays disagree");
         goto done;
     }
-    for (Py_ssize_t r = 0; r < n; r++)
-        if (query[r] < 0 || query[r] >= nq || (r && query[r] < query[r - 1]) || pinned[query[r]] >= width ||
+    for (Py_ssize_t r = 0; r < n; r++) {
+        if (query[r] < 0 || query[r] >= nq || pinned[query[r]] >= width ||
             (lik && (table_of[r] < 0 || table_of[r] >= ntables || previous[r] < -1 || previous[r] >= width))) {
             PyErr_SetString(PyExc_ValueError, "beam: a history's query, label, table or activity is out of range");
             goto done;
         }
+        if (r && query[r] < query[r - 1]) {
+            PyErr_SetString(PyExc_ValueError, "beam: the histories must come query by query");
+            goto done;
+        }
+    }
     Py_ssize_t cells = n * width;
     cw = malloc((cells ? cells : 1) * sizeof(double));
     ce = malloc((cells ? cells : 1) * sizeof(int64_t));
@@ -383,7 +391,7 @@ static PyObject *extend_paths(PyObject *self, PyObject *args) {
     }
     for (Py_ssize_t r = 0; r < n; r++)
         if (query[r] < 0 || query[r] >= nq || (r && query[r] < query[r - 1])) {
-            PyErr_SetString(PyExc_ValueError, "beam: a path's query is out of range");
+            PyErr_SetString(PyExc_ValueError, "beam: a path's query is out of range or out of order");
             goto done;
         }
     Py_ssize_t cells = n * width;

@@ -63,7 +63,8 @@ def tie_key(weights: np.ndarray) -> np.ndarray:
     """``weights`` rounded to 30 significant bits (half to even), as the beam step compares them:
     weights that differ only in the last bits of their arithmetic (sums taken in another order)
     compare equal."""
-    return np.frombuffer(_beam.tie_key(np.ascontiguousarray(weights, dtype=np.float64)), dtype=np.float64)
+    keys = _beam.tie_key(np.ascontiguousarray(weights, dtype=np.float64))
+    return np.frombuffer(keys, dtype=np.float64).reshape(np.shape(weights))
 
 
 @dataclass(frozen=True, slots=True)
