@@ -21,6 +21,7 @@ import numpy as np
 from globe.inference import _propagate
 from globe.inference.movements import MovementModel
 from globe.inference.paths import ActivityPaths, Roots, TreeBatch
+from globe.models.base import check_is_fitted
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,7 +183,7 @@ class Forecaster:
         known at steps 0..m (``locations``). The objects that moved since the run under way at m-1
         began are read from ``roots.duration`` (for hazards that remember them)."""
         mv = self.movements
-        mv._check_fitted()
+        check_is_fitted(mv)
         nj, nq = len(mv.objects_), len(locations)
         memory = mv.hazard_.shape[3] == 2
         starts = np.array([len(loc) - 1 for loc in locations], dtype=np.int64)

@@ -18,6 +18,13 @@ if TYPE_CHECKING:
     from globe.models.state_space import StateSpace
 
 
+def check_is_fitted(model: Any) -> None:
+    """Raise :class:`NotFittedError` unless ``model`` (any estimator here) has been fitted, as
+    scikit-learn's function of that name does."""
+    if not hasattr(model, "training_data_"):
+        raise NotFittedError(f"this {type(model).__name__} is not fitted yet; call fit() with training data first")
+
+
 class CountingModel:
     """Base of the n-gram models. Constructors only store keyword parameters; ``fit`` is
     "reset, then one ``partial_fit``", so batch and incremental training cannot drift apart."""
@@ -74,10 +81,7 @@ class CountingModel:
                 raise ConfigError(f"{type(self).__name__}: {name}={value!r}; expected a number >= 0")
 
     def _check_fitted(self) -> None:
-        if not hasattr(self, "training_data_"):
-            raise NotFittedError(
-                f"this {type(self).__name__} is not fitted yet; call fit() with training data first"
-            )
+        check_is_fitted(self)
 
     def _reset(self) -> None:
         for name in [n for n in vars(self) if n.endswith("_") and not n.startswith("_")]:

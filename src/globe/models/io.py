@@ -23,6 +23,7 @@ from typing import Any
 
 from globe.errors import GlobeError, ModelFileError
 from globe.models.activity import ActivityModel
+from globe.models.base import check_is_fitted
 from globe.models.baselines import PersistenceModel
 from globe.models.clock import ClockModel
 from globe.models.objects import ObjectModel
@@ -41,7 +42,7 @@ _ACTIVITY_KINDS = frozenset(k for k in _KINDS if k != "object")
 
 
 def model_to_dict(model: Any) -> dict[str, Any]:
-    model._check_fitted()
+    check_is_fitted(model)
     data = model.training_data_
     if model.kind == "object":
         data = [[a, list(objs)] for a, objs in data]
