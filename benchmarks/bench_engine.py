@@ -2,9 +2,11 @@
 
 Times, per household and on one core (``evaluation.workers = 1``), the work the main job spends
 its LLM-free time on: the model selection of both families (cross-validation on training days),
-the lookahead of every method (its settings chosen by cross-validation, then the test days) and
-the missing-label runs (the filter's movement evidence chosen by cross-validation, then every
-label share with its lookahead). Each part runs in a fresh process, for this checkout and, with
+the lookahead of every method (its settings chosen by cross-validation, then the test days), the
+activity 1..k steps ahead (the routine model's beam over every test step, and the folds of its
+mix with the time of day) and the missing-label runs (the filter's movement evidence chosen by
+cross-validation, then every label share with its lookahead). A part a version lacks prints nan
+and stays out of the totals. Each part runs in a fresh process, for this checkout and, with
 ``--baseline DIR`` (another checkout, e.g. ``git worktree add /tmp/before HEAD~1``, built with
 ``pip install -e`` or with its compiled modules beside its sources), for that one too, alternating
 ``--repeat`` times; the best time of each is printed with the ratio. Usage:
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -49,20 +52,29 @@ if part == "selection":
 elif part == "lookahead":
     for method in cfg.lookahead.methods:
         lookahead.evaluate_lookahead(household, cfg, method_models(method, household, cfg, cache), method, cache)
+elif part == "activity_ahead":
+    try:  # the activity 1..k steps ahead (a version without this stage times nothing)
+        from globe.evaluation.activity_anticipation import run_activity_anticipation
+    except ImportError:
+        print(json.dumps(None))
+        sys.exit()
+    run_activity_anticipation(cfg, [household], cache)
 else:
     missing_labels.run_missing_labels(cfg, [household], None, cache)
 print(json.dumps(time.perf_counter() - started))
 """
 
-PARTS = ("selection", "lookahead", "missing_labels")
+PARTS = ("selection", "lookahead", "activity_ahead", "missing_labels")
 
 
 def timed(source: Path, part: str, household: str, data: str | None) -> float:
-    """Seconds of one part in a fresh process running the GLOBE of ``source`` (a checkout)."""
+    """Seconds of one part in a fresh process running the GLOBE of ``source`` (a checkout); NaN
+    where that version has no such part."""
     env = dict(os.environ, PYTHONPATH=str(source / "src"))
     out = subprocess.run([sys.executable, "-c", PART, part, household, data or ""], env=env, check=True,
                          capture_output=True, text=True)
-    return float(json.loads(out.stdout.strip().splitlines()[-1]))
+    seconds = json.loads(out.stdout.strip().splitlines()[-1])
+    return math.nan if seconds is None else float(seconds)
 
 
 def main() -> None:
@@ -81,10 +93,12 @@ def main() -> None:
             best = {v: float("inf") for v in versions}
             for _ in range(args.repeat):  # alternating, so both see the machine in the same state
                 for v, src in versions.items():
-                    best[v] = min(best[v], timed(src, part, household, args.data))
+                    seconds = timed(src, part, household, args.data)
+                    best[v] = seconds if math.isnan(seconds) else min(best[v], seconds)
+            both = not any(math.isnan(b) for b in best.values())  # the totals: parts both versions have
             for v in versions:
-                totals[v] += best[v]
-            ratio = f"{best['this'] / best['baseline']:7.2f}x" if args.baseline else ""
+                totals[v] += best[v] if both else 0.0
+            ratio = (f"{best['this'] / best['baseline']:7.2f}x" if both else f"{'-':>8s}") if args.baseline else ""
             print(f"{part:16s} {household:5s}" + "".join(f"{best[v]:12.2f}" for v in versions) + ratio)
     ratio = f"{totals['this'] / totals['baseline']:7.2f}x" if args.baseline else ""
     print(f"{'all':16s} {'':5s}" + "".join(f"{totals[v]:12.2f}" for v in versions) + ratio)
