@@ -154,7 +154,7 @@ static PyObject *select_(PyObject *self, PyObject *args) {
         return NULL;
     const Kind kinds[7] = {I64, I64, I64, F64, I64, I64, I64};
     const char *names_[7] = {"query", "entry", "act", "weight", "child", "lex", "names"};
-    Buf b[7] = {{0}};
+    Buf b[7] = {0};
     PyObject *out = NULL;
     int64_t *group = NULL, *rep = NULL, *kept_idx = NULL, *kept_lex = NULL;
     double *sum = NULL, *kept_w = NULL, *total = NULL;
@@ -294,7 +294,7 @@ static PyObject *extend(PyObject *self, PyObject *args) {
         return NULL;
     const Kind kinds[7] = {F64, F64, I64, I64, F64, I64, I64};
     const char *names_[7] = {"rows", "weight", "query", "pinned", "tables", "table_of", "previous"};
-    Buf b[7] = {{0}};
+    Buf b[7] = {0};
     PyObject *out = NULL;
     double *cw = NULL;
     int64_t *ce = NULL, *ca = NULL;
@@ -375,7 +375,7 @@ static PyObject *extend_paths(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "dnOOOOO", &floor_, &nq, &objs[0], &objs[1], &objs[2], &objs[3], &objs[4])) return NULL;
     const Kind kinds[5] = {F64, F64, I64, I64, I64};
     const char *names_[5] = {"rows", "weight", "query", "lex", "names"};
-    Buf b[5] = {{0}};
+    Buf b[5] = {0};
     PyObject *out = NULL;
     double *cw = NULL, *fw = NULL;
     int64_t *ce = NULL, *ca = NULL, *fe = NULL, *fa = NULL;
