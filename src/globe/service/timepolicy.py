@@ -11,9 +11,10 @@ from __future__ import annotations
 import datetime as dt
 import os
 from pathlib import Path
-from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+from zoneinfo import ZoneInfo
 
-from globe.errors import DataError
+from globe.data.importers.text import time_zone
+from globe.errors import ConfigError, DataError
 
 UTC = dt.timezone.utc
 
@@ -36,9 +37,9 @@ def server_timezone() -> str:
 
 def _valid(name: str) -> bool:
     try:
-        ZoneInfo(name)
+        time_zone(name)
         return True
-    except (ZoneInfoNotFoundError, ValueError, OSError):
+    except ConfigError:
         return False
 
 
@@ -46,7 +47,7 @@ def zone(name: str, field: str = "timezone") -> ZoneInfo:
     """The zone called ``name``; a :class:`DataError` naming ``field`` if there is none."""
     if not name or len(name) > 64 or not _valid(name):
         raise DataError(f"unknown IANA time zone {name[:64]!r} (e.g. 'Europe/Paris', 'UTC')", field=field)
-    return ZoneInfo(name)
+    return time_zone(name)
 
 
 def to_zone(time: dt.datetime, tz: ZoneInfo, after: dt.datetime | None = None) -> dt.datetime:

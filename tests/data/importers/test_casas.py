@@ -300,8 +300,9 @@ def test_the_hour_logged_twice_when_clocks_go_back_is_read_in_order_given_the_ti
     report = json.loads(result.report.read_text(encoding="utf-8"))
     assert report["settings"]["timezone"] == "America/Los_Angeles"
     (tmp_path / "x").mkdir()
-    with pytest.raises(ConfigError, match="unknown time zone"):
-        _import(tmp_path / "x", FALL_BACK, timezone="Mars/Olympus")
+    for name in ("Mars/Olympus", "America", "x" * 300):  # no zone; a folder of the zone data; no file name
+        with pytest.raises(ConfigError, match="unknown time zone"):
+            _import(tmp_path / "x", FALL_BACK, timezone=name)
 
 
 def test_an_activity_spelled_decomposed_and_composed_is_one_activity(tmp_path):

@@ -26,11 +26,12 @@ _DMY_DATE = re.compile(r"(\d{1,2})-([A-Za-z]{3})-(\d{4})")
 _ISO_8601 = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{1,9})?)?(?:Z|[+-]\d{2}:?\d{2})?")
 
 
-def time_zone(name: str) -> tzinfo:
-    """An IANA time zone by name, or a one-line error."""
+def time_zone(name: str) -> ZoneInfo:
+    """An IANA time zone by name, or a one-line error (a name that is a folder of the zone data,
+    such as ``Europe``, or too long for a file name, is no zone either)."""
     try:
         return ZoneInfo(name)
-    except (ZoneInfoNotFoundError, ValueError) as err:
+    except (ZoneInfoNotFoundError, ValueError, OSError) as err:
         raise ConfigError(f"unknown time zone {name!r}: give an IANA name such as Europe/Amsterdam (on a system "
                           "without zone data, pip install tzdata)") from err
 
