@@ -53,7 +53,8 @@ SKIPPED_SHOWN = 20  # lines left out that the report names one by one
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _SENSOR = re.compile(r"[\w.-]+")
 _LETTERS = re.compile(r"[A-Za-z]+")
-_RESIDENT = re.compile(r"(R\d+)_(.+)", re.IGNORECASE)  # a multi-resident log's R1_Sleep, R2_Meal
+_RESIDENT_ID = r"R\d+"  # a resident of a multi-resident log, as its labels name one
+_RESIDENT = re.compile(rf"({_RESIDENT_ID})_(.+)", re.IGNORECASE)  # R1_Sleep, R2_Meal
 
 
 def sensor_kind(key: str) -> str:
@@ -281,7 +282,7 @@ def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = No
     mapping = read_mapping(objects) if objects is not None else None
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
     zone = time_zone(timezone) if timezone is not None else None
-    if resident is not None and not re.fullmatch(r"R\d+", resident, re.IGNORECASE):
+    if resident is not None and not re.fullmatch(_RESIDENT_ID, resident, re.IGNORECASE):
         raise ConfigError(f"--resident {resident!r}: name a resident as the log does, e.g. R1")
     sensor_log = read_casas(log_file, selection, skip_bad_lines, zone, resident)
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest,
