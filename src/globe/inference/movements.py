@@ -133,7 +133,7 @@ class MovementModel(CountingModel):
             src_b = table[rs[b]]
             switches = (np.repeat(acts[b] * na + after[b], nj), (src_b != table[rd[b]]).ravel(),
                         (cols[None, :] * nl + src_b).ravel())
-        self.destinations_ = self._count_destinations(acts[moving], src_m, table[rd[moving]])
+        self._count_destinations(acts[moving], src_m, table[rd[moving]])
         self._places_key = (self.objects_, self.locations_, self.activities_, self.destination_shrinkage,
                             self._dest_counted, self.pairs_.tobytes())
         self._places: Places | None = None
@@ -150,30 +150,42 @@ class MovementModel(CountingModel):
         p4 = (moved.sum(axis=3) + k * p3[:, None]) / (seen.sum(axis=3) + k)  # (A, C, E, P)
         self.hazard_ = (moved + k * p4[:, :, :, None]) / (seen + k)  # (A, C, E, M, P); E, M of size 1 if pooled
         self._fit_switches(switches, lookup, npairs)
-        self._destinations: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
         return self
 
-    def _count_destinations(self, acts: np.ndarray, src: np.ndarray, dst: np.ndarray) -> dict[tuple, Counter[int]]:
-        """Where objects went: (activity, object, source) / (object, source) / (object,) -> target
-        counts, from each transition's activity and places (transitions x objects). Each distinct
-        move is counted once, then added in the order moves were first seen (the counters' order
-        is the one of one increment per move, so sums over them are too)."""
+    def _count_destinations(self, acts: np.ndarray, src: np.ndarray, dst: np.ndarray) -> None:
+        """Count where objects went, from each transition's activity and places (transitions x
+        objects): each distinct move ((activity, object, source, target) code) once with its count,
+        in the order moves were first seen. Kept as bytes only (also the shared places' key): the
+        counters per (activity, object, source) / (object, source) / (object,) are built from them
+        when a destination is asked for (a household's counters took 7% of its memory)."""
         nj, nl = len(self.objects_), len(self.locations_)
         t, j = np.nonzero(src != dst)
         codes = ((acts[t] * nj + j) * nl + src[t, j]) * nl + dst[t, j]
-        dest: dict[tuple, Counter[int]] = defaultdict(Counter)
         distinct, first, counts = np.unique(codes, return_index=True, return_counts=True)
         order = np.argsort(first, kind="stable")
-        distinct, counts = distinct[order], counts[order]
-        self._dest_counted = distinct.tobytes() + counts.tobytes()  # what the counters hold, in their order
-        rest, x = np.divmod(distinct, nl)
+        self._dest_counted = distinct[order].astype(np.int64).tobytes() + counts[order].astype(np.int64).tobytes()
+
+    def _moves(self) -> tuple[list[int], list[int], list[int], list[int], list[int]]:
+        """(activity, object, source, target, count) of each distinct move counted, in the order first seen."""
+        flat = np.frombuffer(self._dest_counted, dtype=np.int64)
+        codes, counts = flat[: len(flat) // 2], flat[len(flat) // 2:]
+        nj, nl = len(self.objects_), len(self.locations_)
+        rest, x = np.divmod(codes, nl)
         rest, source = np.divmod(rest, nl)
         a, j = np.divmod(rest, nj)
-        for a_, j_, s_, x_, n in zip(a.tolist(), j.tolist(), source.tolist(), x.tolist(), counts.tolist()):
+        return a.tolist(), j.tolist(), source.tolist(), x.tolist(), counts.tolist()
+
+    @property
+    def destinations_(self) -> dict[tuple[int, ...], Counter[int]]:
+        """Target counts per (activity, object, source), (object, source) and (object,) key, each
+        counter in the order its targets were first seen."""
+        self._check_fitted()
+        dest: dict[tuple[int, ...], Counter[int]] = defaultdict(Counter)
+        for a_, j_, s_, x_, n in zip(*self._moves()):
             dest[(a_, j_, s_)][x_] += n
             dest[(j_, s_)][x_] += n
             dest[(j_,)][x_] += n
-        return dest
+        return dict(dest)
 
     def _fit_switches(self, switches: tuple[np.ndarray, np.ndarray, np.ndarray] | None, lookup: np.ndarray,
                       npairs: int) -> None:
@@ -261,16 +273,31 @@ class MovementModel(CountingModel):
         """(location indices, probabilities) of where object ``obj`` goes from ``source`` when it
         moves during ``activity``; empty when the object was never seen moving."""
         self._check_fitted()
-        a = self.activity_index(activity)
-        key = (a, obj, source)
-        if key not in self._destinations:
-            self._destinations[key] = self._destination(a, obj, source)
-        return self._destinations[key]
+        return self._destinations([(self.activity_index(activity), obj, source)])[0]
 
-    def _destination(self, a: int, j: int, s: int) -> tuple[np.ndarray, np.ndarray]:
+    def _destinations(self, keys: Sequence[tuple[int, int, int]]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`destination` of each (activity index, object, source) key, the moves read once."""
+        moves: dict[int, list[tuple[int, int, int, int]]] = defaultdict(list)  # object -> its moves
+        for a, j, s, x, n in zip(*self._moves()):
+            moves[j].append((a, s, x, n))
+        return [self._destination(a, s, moves.get(j, ())) for a, j, s in keys]
+
+    def _destination(self, a: int, s: int, moves: Sequence[tuple[int, int, int, int]]) -> tuple[np.ndarray, np.ndarray]:
+        """Where an object goes from ``s`` during activity ``a``, from its ``moves``: its targets'
+        counts during ``a`` from ``s``, shrunk towards those from ``s``, shrunk towards all its own
+        (each counter in the order its targets were first seen, so its sums are too)."""
         k = self.destination_shrinkage
+        by_object: Counter[int] = Counter()
+        by_source: Counter[int] = Counter()
+        by_activity: Counter[int] = Counter()
+        for a_, s_, x_, n in moves:
+            by_object[x_] += n
+            if s_ == s:
+                by_source[x_] += n
+                if a_ == a:
+                    by_activity[x_] += n
         prob: dict[int, float] = {}
-        for counts in (self.destinations_.get((j,)), self.destinations_.get((j, s)), self.destinations_.get((a, j, s))):
+        for counts in (by_object, by_source, by_activity):
             if not counts:
                 continue
             total = sum(counts.values())
@@ -309,7 +336,10 @@ class MovementModel(CountingModel):
         places = self.shared_places()
         if places.targets is None:
             nj, nl = len(self.objects_), len(self.locations_)
-            seen = [sorted(self.destinations_.get((j,), {})) for j in range(nj)]
+            _, moved, _, went, _ = self._moves()
+            seen: list[list[int]] = [[] for _ in range(nj)]
+            for j, x in sorted(set(zip(moved, went))):
+                seen[j].append(x)
             width = max([len(x) for x in seen] + [1])
             targets = np.zeros((nj, width), dtype=np.int64)
             real = np.zeros((nj, width), dtype=bool)
@@ -353,10 +383,10 @@ class MovementModel(CountingModel):
         missing = np.unique(codes[rows < 0])
         if len(missing):
             new = np.zeros((len(missing), targets.shape[1]))
-            for r, code in enumerate(missing.tolist()):
-                a, rest = divmod(code, nj * nl)
-                j, src = divmod(rest, nl)
-                idx, p = self.destination(self.activities_[a], j, src)
+            act, rest = np.divmod(missing, nj * nl)
+            obj, src = np.divmod(rest, nl)
+            keys = list(zip(act.tolist(), obj.tolist(), src.tolist()))
+            for r, (j, (idx, p)) in enumerate(zip(obj.tolist(), self._destinations(keys))):
                 new[r, position[j, idx]] = p
             table.index[missing] = np.arange(len(table.values), len(table.values) + len(missing))
             table.values = np.concatenate([table.values, new]) if len(table.values) else new
