@@ -95,6 +95,22 @@ def test_destination_never_is_the_current_place():
                     assert p.sum() == pytest.approx(1.0)
 
 
+def test_destination_rows_in_one_batch_are_the_destinations_one_by_one():
+    mv = MovementModel(destination_shrinkage=0.5).fit(TOY_DAYS, OBJECTS)
+    targets, real, position = mv.target_table()
+    na, nl = len(mv.activities_), len(mv.locations_)
+    acts = np.repeat(np.arange(na), nl * nl)
+    sources = np.stack([np.tile(np.repeat(np.arange(nl), nl), na), np.tile(np.arange(nl), na * nl)], axis=1)
+    rows = mv.destination_rows(acts, sources)  # every (activity, cup's place, book's place) at once
+    for g, (a, places) in enumerate(zip(acts, sources)):
+        for j, source in enumerate(places):
+            idx, p = mv.destination(mv.activities_[a], j, int(source))
+            expected = np.zeros(targets.shape[1])
+            expected[position[j, idx]] = p
+            np.testing.assert_array_equal(rows[g, j], expected)
+            assert not rows[g, j][~real[j]].any()
+
+
 def test_forward_pass_matches_hand_computation():
     """History a (step 0), locations known at steps 0 and 1, a_1 unknown. Paths: aa 0.36,
     ab 0.24, bb 0.40. The cup leaves the shelf at step 2 when a_1 = b (0.4), else at step 3 when

@@ -157,7 +157,7 @@ class MovementModel(CountingModel):
         objects): each distinct move ((activity, object, source, target) code) once with its count,
         in the order moves were first seen. Kept as bytes only (also the shared places' key): the
         counters per (activity, object, source) / (object, source) / (object,) are built from them
-        when a destination is asked for (a household's counters took 7% of its memory)."""
+        when a destination is asked for."""
         nj, nl = len(self.objects_), len(self.locations_)
         t, j = np.nonzero(src != dst)
         codes = ((acts[t] * nj + j) * nl + src[t, j]) * nl + dst[t, j]
