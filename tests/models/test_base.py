@@ -7,13 +7,14 @@ from globe.models.activity import ActivityModel
 from globe.models.base import rank, top, windowed_prior
 
 
-def test_top_is_the_first_of_the_full_ranking_ties_included():
+def test_rank_sorts_by_probability_then_frequency_then_label_and_top_is_its_first():
     rng = random.Random(3)
     for _ in range(500):
         labels = [f"x{i}" for i in range(rng.randint(1, 8))]
         dist = {w: rng.choice([0.1, 0.2, 0.2, 0.5]) for w in labels}  # many ties on purpose
         freq = {w: rng.randint(0, 3) for w in labels}
-        assert top(dist, freq) == rank(dist, freq)[0]
+        by_key = sorted(dist, key=lambda w: (-dist[w], -freq.get(w, 0), w))  # the definition
+        assert rank(dist, freq) == by_key and top(dist, freq) == by_key[0]
     assert top({}, {}) is None
 
 
