@@ -13,8 +13,10 @@ def test_rank_sorts_by_probability_then_frequency_then_label_and_top_is_its_firs
         labels = [f"x{i}" for i in range(rng.randint(1, 8))]
         dist = {w: rng.choice([0.1, 0.2, 0.2, 0.5]) for w in labels}  # many ties on purpose
         freq = {w: rng.randint(0, 3) for w in labels}
-        by_key = sorted(dist, key=lambda w: (-dist[w], -freq.get(w, 0), w))  # the definition
-        assert rank(dist, freq) == by_key and top(dist, freq) == by_key[0]
+        ranked = rank(dist, freq)
+        assert sorted(ranked) == sorted(dist) and top(dist, freq) == ranked[0]
+        for u, w in zip(ranked, ranked[1:]):  # each pair in order: probability, frequency, label
+            assert dist[u] > dist[w] or (dist[u] == dist[w] and (freq[u] > freq[w] or (freq[u] == freq[w] and u < w)))
     assert top({}, {}) is None
 
 
