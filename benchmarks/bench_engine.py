@@ -23,6 +23,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+from globe.data.locate import resolve_data_root
+from globe.errors import DataError
+
 ROOT = Path(__file__).resolve().parent.parent
 
 PART = """
@@ -30,6 +33,7 @@ import json, sys, time
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
+from globe.errors import DataError
 from globe.evaluation import lookahead, missing_labels
 from globe.evaluation.anticipation import method_models
 from globe.evaluation.tuning import tuned_models
@@ -71,8 +75,10 @@ def timed(source: Path, part: str, household: str, data: str | None) -> float:
     """Seconds of one part in a fresh process running the GLOBE of ``source`` (a checkout); NaN
     where that version has no such part."""
     env = dict(os.environ, PYTHONPATH=str(source / "src"))
-    out = subprocess.run([sys.executable, "-c", PART, part, household, data or ""], env=env, check=True,
+    out = subprocess.run([sys.executable, "-c", PART, part, household, data or ""], env=env,
                          capture_output=True, text=True)
+    if out.returncode:
+        raise SystemExit(f"{part} of household {household} failed in {source}:\n{out.stderr[-3000:]}")
     seconds = json.loads(out.stdout.strip().splitlines()[-1])
     return math.nan if seconds is None else float(seconds)
 
@@ -84,6 +90,10 @@ def main() -> None:
     parser.add_argument("--households", default="A,B,C")
     parser.add_argument("--repeat", type=int, default=2, help="runs of each part and version (the best counts)")
     args = parser.parse_args()
+    try:  # one folder for both versions (a checkout elsewhere has no ../shared beside it)
+        data = str(resolve_data_root(args.data))
+    except DataError as e:
+        raise SystemExit(str(e)) from None
     versions = {"this": ROOT} | ({"baseline": Path(args.baseline).resolve()} if args.baseline else {})
     print(f"{'part':16s} {'home':5s}" + "".join(f"{v + ' s':>12s}" for v in versions)
           + (f"{'ratio':>8s}" if args.baseline else ""))
@@ -93,7 +103,7 @@ def main() -> None:
             best = {v: float("inf") for v in versions}
             for _ in range(args.repeat):  # alternating, so both see the machine in the same state
                 for v, src in versions.items():
-                    seconds = timed(src, part, household, args.data)
+                    seconds = timed(src, part, household, data)
                     best[v] = seconds if math.isnan(seconds) else min(best[v], seconds)
             both = not any(math.isnan(b) for b in best.values())  # the totals: parts both versions have
             for v in versions:

@@ -17,6 +17,7 @@ from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.locate import household_names, resolve_data_root
 from globe.data.records import Household
+from globe.errors import DataError
 
 
 def setup(doc: str | None,
@@ -28,8 +29,11 @@ def setup(doc: str | None,
         parser.add_argument(flag, **kwargs)
     args = parser.parse_args()
     cfg = GlobeConfig()
-    root = resolve_data_root(args.data)
-    return cfg, [load_household(root, n) for n in cfg.data.households or household_names(root)], args
+    try:
+        root = resolve_data_root(args.data)
+        return cfg, [load_household(root, n) for n in cfg.data.households or household_names(root)], args
+    except DataError as e:  # a missing or broken data folder: its message, not a traceback
+        raise SystemExit(str(e)) from None
 
 
 def free_port() -> int:
