@@ -33,7 +33,6 @@ import json, sys, time
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
-from globe.errors import DataError
 from globe.evaluation import lookahead, missing_labels
 from globe.evaluation.anticipation import method_models
 from globe.evaluation.tuning import tuned_models
@@ -71,11 +70,11 @@ print(json.dumps(time.perf_counter() - started))
 PARTS = ("selection", "lookahead", "activity_ahead", "missing_labels")
 
 
-def timed(source: Path, part: str, household: str, data: str | None) -> float:
+def timed(source: Path, part: str, household: str, data: str) -> float:
     """Seconds of one part in a fresh process running the GLOBE of ``source`` (a checkout); NaN
     where that version has no such part."""
     env = dict(os.environ, PYTHONPATH=str(source / "src"))
-    out = subprocess.run([sys.executable, "-c", PART, part, household, data or ""], env=env,
+    out = subprocess.run([sys.executable, "-c", PART, part, household, data], env=env,
                          capture_output=True, text=True)
     if out.returncode:
         raise SystemExit(f"{part} of household {household} failed in {source}:\n{out.stderr[-3000:]}")
