@@ -26,7 +26,7 @@ import numpy as np
 
 from globe.models.backoff import witten_bell_distribution
 from globe.models.base import ActivityModelBase, Weekdays
-from globe.models.state_space import StateSpace
+from globe.models.state_space import StateSpace, first_met
 from globe.models.suffix_index import SuffixIndex
 from globe.sequences.runs import run_bounds
 
@@ -198,10 +198,8 @@ class RoutineStates(StateSpace):
         same = (start >= 0) & (codes == self._current[context])
         new = self._child[context, codes]
         missing = np.flatnonzero(~same & (new < 0))
-        if len(missing):  # each new (context, activity) once, numbered in the order first met
-            width = self._child.shape[1]
-            pairs, first = np.unique(context[missing] * width + codes[missing], return_index=True)
-            for c, code in (divmod(p, width) for p in pairs[np.argsort(first)].tolist()):
+        if len(missing):
+            for c, code in first_met(context[missing], codes[missing], self._child.shape[1]):
                 tokens = (*self._contexts[c], self.labels[code])[-self._model.order:]
                 self._child[c, code] = self._context(tokens)
             new[missing] = self._child[context[missing], codes[missing]]

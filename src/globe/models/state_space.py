@@ -155,6 +155,14 @@ def best_of(rows: np.ndarray, name_rank: np.ndarray) -> np.ndarray:
     return np.where(top > 0.0, pick, -1)
 
 
+def first_met(rows: np.ndarray, cols: np.ndarray, width: int) -> list[tuple[int, int]]:
+    """The distinct (row, column) pairs of ``rows`` and ``cols`` (columns below ``width``) in the
+    order first met: new children created in this order are numbered as one at a time would be,
+    and each once however often it is met."""
+    pairs, first = np.unique(rows * width + cols, return_index=True)
+    return [divmod(p, width) for p in pairs[np.argsort(first)].tolist()]
+
+
 class NumberedStates(StateSpace):
     """States of any hashable kind, numbered as they are reached: ``advance(key, step, activity)``
     gives a child's key and ``distribution(key, step)`` a state's next step as a dict, asked once
@@ -209,10 +217,8 @@ class NumberedStates(StateSpace):
         states, codes = np.asarray(states, dtype=np.int64), np.asarray(codes, dtype=np.int64)
         out = self._child[states, codes]
         missing = np.flatnonzero(out < 0)
-        if len(missing):  # each new (state, activity) once, numbered in the order first met
-            width = self._child.shape[1]
-            pairs, first = np.unique(states[missing] * width + codes[missing], return_index=True)
-            for state, code in (divmod(p, width) for p in pairs[np.argsort(first)].tolist()):
+        if len(missing):
+            for state, code in first_met(states[missing], codes[missing], self._child.shape[1]):
                 self.child(state, code)
             out[missing] = self._child[states[missing], codes[missing]]
         return out
