@@ -45,9 +45,12 @@ def _valid(name: str) -> bool:
 
 def zone(name: str, field: str = "timezone") -> ZoneInfo:
     """The zone called ``name``; a :class:`DataError` naming ``field`` if there is none."""
-    if not name or len(name) > 64 or not _valid(name):
-        raise DataError(f"unknown IANA time zone {name[:64]!r} (e.g. 'Europe/Paris', 'UTC')", field=field)
-    return time_zone(name)
+    if name and len(name) <= 64:
+        try:
+            return time_zone(name)
+        except ConfigError:
+            pass
+    raise DataError(f"unknown IANA time zone {name[:64]!r} (e.g. 'Europe/Paris', 'UTC')", field=field)
 
 
 def to_zone(time: dt.datetime, tz: ZoneInfo, after: dt.datetime | None = None) -> dt.datetime:
