@@ -41,7 +41,7 @@ try:  # the memo of this version (an older one passed a dict)
     from globe.evaluation.selection import Memo
 except ImportError:
     Memo = dict
-part, name, data = sys.argv[1], sys.argv[2], sys.argv[3] or None
+part, name, data = sys.argv[1], sys.argv[2], sys.argv[3]
 cfg = GlobeConfig(evaluation={"workers": 1})
 household = load_household(resolve_data_root(data), name)
 cache = Memo()
