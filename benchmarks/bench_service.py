@@ -9,8 +9,14 @@ Prints, with the targets of issue 10 (before: ~38 MB and ~0.8 s per household, ~
   answers (target <= 2 s), and until every household is built (replayed);
 - latency and throughput of observations and predictions at 1, 4 and 8 concurrent clients.
 
+With ``--baseline DIR`` (another checkout, e.g. ``git worktree add /tmp/before HEAD~1``, its compiled
+modules built beside its sources with ``python setup.py build_ext --inplace``), the memory and load
+parts also serve from that version, alternating with this one, and print each figure's ratio
+(this / baseline). The households run the paper's models in both (``selection.deploy = "ngram"``
+where the version has it: the cross-validated deployment runs in the background and would be timed).
+
 Usage: python benchmarks/bench_service.py [--households 30] [--startup-households 100] [--startup-days 30]
-       [--steps 218] [--only memory,startup,load] [--data DIR]
+       [--steps 218] [--only memory,startup,load] [--baseline DIR] [--repeat 1] [--data DIR]
 """
 
 from __future__ import annotations
@@ -61,10 +67,17 @@ def rss_mb(pid: int) -> float:
 
 
 class Service:
-    def __init__(self, db: Path, env: dict[str, str]) -> None:
+    def __init__(self, db: Path, env: dict[str, str], src: Path | None = None) -> None:
+        """``globe serve`` over ``db``: this checkout's, or the one whose sources are ``src``."""
         self.db = db
         self.admin = create_token(db, admin=True)
         self.env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D", **env)
+        if src is None:
+            self.env["GLOBE_SELECTION__DEPLOY"] = "ngram"
+        else:
+            self.env["PYTHONPATH"] = str(src)
+            with_deploy = "DeployMethod" in (src / "globe" / "config.py").read_text(encoding="utf-8")
+            self.env |= {"GLOBE_SELECTION__DEPLOY": "ngram"} if with_deploy else {}
 
     def start(self) -> float:
         """Start; returns seconds until /health answers (process start and imports included)."""
@@ -76,12 +89,12 @@ class Service:
         stop(self.proc)
 
 
-def memory_and_creation(homes, n: int, tmp: Path) -> None:
+def memory_and_creation(homes, n: int, tmp: Path, src: Path | None = None) -> dict[str, float]:
     """Households created one by one over HTTP, then asked for a prediction each. The request body
     is JSON-encoded before the clock starts: what is timed is the request (transfer, parsing,
     validation, counting, storing), not the client's encoding, which is measured separately."""
-    svc = Service(tmp / "memory.sqlite3",
-                  {"GLOBE_SERVICE__MAX_BUILT_HOUSEHOLDS": str(n + 10), "GLOBE_SERVICE__PRELOAD": "false"})
+    db = tmp / f"memory-{time.perf_counter_ns()}.sqlite3"
+    svc = Service(db, {"GLOBE_SERVICE__MAX_BUILT_HOUSEHOLDS": str(n + 10), "GLOBE_SERVICE__PRELOAD": "false"}, src)
     svc.start()
     payloads = [household_payload(h) for h in homes]
     headers = {"Authorization": f"Bearer {svc.admin}", "Content-Type": "application/json"}
@@ -116,6 +129,7 @@ def memory_and_creation(homes, n: int, tmp: Path) -> None:
           f"p95 {p95(times):.3f} s; server CPU {statistics.median(cpu):.3f} s; "
           f"the client's JSON encoding, not included: {enc:.3f} s)"
           f"   {verdict(med, TARGET_CREATE_S, 's')}; before ~0.8 s: {0.8 / med:.1f}x faster")
+    return {"memory per household MB": per, "creation s": med}
 
 
 def startup(homes, n: int, days: int, tmp: Path) -> None:
@@ -154,7 +168,7 @@ def startup(homes, n: int, days: int, tmp: Path) -> None:
     ready = time.perf_counter() - t0
     reg.warm_up()
     built = time.perf_counter() - t0
-    assert reg.built() == n and all(not reg.get(name).quarantined for name in reg.names())
+    assert reg.built() == n and all(not reg.served(name).quarantined for name in reg.names())
     store.close()
     svc = Service(db, {"GLOBE_SERVICE__PRELOAD": "true"})
     process = svc.start()
@@ -166,8 +180,9 @@ def startup(homes, n: int, days: int, tmp: Path) -> None:
           "(background warm-up; a request builds its household first)")
 
 
-def load(homes, steps: int, tmp: Path) -> None:
-    svc = Service(tmp / "load.sqlite3", {"GLOBE_SERVICE__PRELOAD": "false"})
+def load(homes, steps: int, tmp: Path, src: Path | None = None) -> dict[str, float]:
+    svc = Service(tmp / f"load-{time.perf_counter_ns()}.sqlite3", {"GLOBE_SERVICE__PRELOAD": "false"}, src)
+    figures: dict[str, float] = {}
     svc.start()
     payloads = [household_payload(h) for h in homes]
     with GlobeClient(svc.url, token=svc.admin, timeout_s=120) as c:
@@ -212,7 +227,10 @@ def load(homes, steps: int, tmp: Path) -> None:
         offset += steps // 100 + 2
         print(f"{clients:7d} {1000 * statistics.median(obs_lat):14.2f} {1000 * p95(obs_lat):11.2f} "
               f"{1000 * statistics.median(pred_lat):15.2f} {(len(obs_lat) + len(pred_lat)) / wall:11.0f}")
+        figures[f"observation ms, {clients} clients"] = 1000 * statistics.median(obs_lat)
+        figures[f"prediction ms, {clients} clients"] = 1000 * statistics.median(pred_lat)
     svc.stop()
+    return figures
 
 
 def main() -> None:
@@ -222,16 +240,33 @@ def main() -> None:
         "--startup-days": {"type": int, "default": 30, "help": "days of observations per household there"},
         "--steps": {"type": int, "default": 218, "help": "observations (and predictions) per client"},
         "--only": {"default": "memory,startup,load", "help": "comma-separated parts to run (memory, startup, load)"},
+        "--baseline": {"default": None, "help": "another checkout to compare with (memory and load parts)"},
+        "--repeat": {"type": int, "default": 1, "help": "runs of each version, alternated (the median is compared)"},
     })
     parts = set(args.only.split(","))
+    versions: list[tuple[str, Path | None]] = [("this", None)]
+    if args.baseline:
+        versions.append(("baseline", Path(args.baseline).resolve() / "src"))
     print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (figures are wall-clock)")
+    found: dict[str, dict[str, list[float]]] = {name: {} for name, _ in versions}
     with tempfile.TemporaryDirectory() as tmp:
-        if "memory" in parts:
-            memory_and_creation(homes, args.households, Path(tmp))
         if "startup" in parts:
             startup(homes, args.startup_households, args.startup_days, Path(tmp))
-        if "load" in parts:
-            load(homes, args.steps, Path(tmp))
+        for _ in range(args.repeat):
+            for name, src in versions:
+                print(f"-- {name} version" + (f" ({src})" if src else ""))
+                figures: dict[str, float] = {}
+                if "memory" in parts:
+                    figures |= memory_and_creation(homes, args.households, Path(tmp), src)
+                if "load" in parts:
+                    figures |= load(homes, args.steps, Path(tmp), src)
+                for key, value in figures.items():
+                    found[name].setdefault(key, []).append(value)
+    if args.baseline:
+        print(f"{'figure':32s} {'this':>9s} {'baseline':>9s} {'ratio':>6s}   (median of {args.repeat} runs each)")
+        for key, values in found["this"].items():
+            mine, theirs = statistics.median(values), statistics.median(found["baseline"].get(key, [float("nan")]))
+            print(f"{key:32s} {mine:9.3f} {theirs:9.3f} {mine / theirs:6.2f}")
 
 
 if __name__ == "__main__":

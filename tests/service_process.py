@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import httpx
 import pytest
@@ -22,7 +23,11 @@ class Server:
         self.db, self.log, self.port, self.proc = db, log, free_port(), None
         self.preexec_fn = preexec_fn  # run in the server process before it starts (e.g. resource limits)
         self.args: list[str] = []  # more options of globe serve
-        self.env = {"GLOBE_LLM__BACKEND": "none", "GLOBE_SERVICE__PRELOAD": "false", **(env or {})}
+        # The paper's models unless a test asks for the deployment chosen by cross-validation (it runs
+        # in the background and rebuilds the household when it ends); the LLM's answers in this test's
+        # own folder, never in the checkout's cache.
+        self.env = {"GLOBE_LLM__BACKEND": "none", "GLOBE_SERVICE__PRELOAD": "false", "GLOBE_SELECTION__DEPLOY": "ngram",
+                    "GLOBE_LLM__CACHE_DIR": str(Path(log).parent / "llm-cache"), **(env or {})}
         self.admin = create_token(db, admin=True)
 
     @property
@@ -39,7 +44,7 @@ class Server:
         env = dict(os.environ, **self.env)
         with open(self.log, "a") as fh:
             self.proc = subprocess.Popen([sys.executable, "-m", "globe", "serve", "--db", str(self.db),
-                                          "--port", str(self.port), *self.args],
+                                          "--port", str(self.port), *self.args], cwd=Path(self.log).parent,
                                          stdout=fh, stderr=subprocess.STDOUT, env=env, preexec_fn=self.preexec_fn)
         deadline = time.time() + 60
         while time.time() < deadline:

@@ -28,10 +28,10 @@ def test_evaluate_writes_a_results_folder(tmp_path):
 
 
 def test_train_then_predict(tmp_path):
-    assert globe("train", "--household", "A", "--model-dir", str(tmp_path)).returncode == 0
+    assert globe("train", "--household", "A", "--model-dir", str(tmp_path), "--method", "ngram").returncode == 0
     res = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up,brushing_teeth")
     assert res.returncode == 0, res.stderr
-    assert "next activity:" in res.stdout and "next object during" in res.stdout
+    assert "next activity (06:20):" in res.stdout and "next object during" in res.stdout
     bad = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up,flying")
     assert bad.returncode == 1 and "unknown activity 'flying'" in bad.stderr
     dated = globe("predict", "--model-dir", str(tmp_path), "--history", "wake_up", "--date", "2024-01-06")
@@ -125,7 +125,7 @@ def test_messages_are_plain_text(tmp_path):
 
 
 def test_predict_checks_the_household_and_the_objects(tmp_path):
-    assert globe("train", "--household", "B", "--model-dir", str(tmp_path)).returncode == 0
+    assert globe("train", "--household", "B", "--model-dir", str(tmp_path), "--method", "ngram").returncode == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]
     wrong = globe("predict", "--model-dir", str(tmp_path), "--household", "A", "--history", "wake_up")
     assert wrong.returncode == 1
@@ -280,3 +280,41 @@ def test_a_listed_label_holding_a_comma_is_quoted_as_in_csv():
     assert _split("a,,b") == ("a", "b") and _split("") == ()
     with pytest.raises(DataError, match="cannot read the list"):
         _split("a,b\nc")
+
+
+def test_train_deploys_what_cross_validation_chose_and_predict_answers_at_a_time(tmp_path):
+    """``globe train`` runs the routine family's cross-validation and keeps what won in the model
+    file; ``globe predict`` says so, answers at a time of day, and lists the objects expected
+    within the horizon; ``globe household import`` keeps the same deployment in the database."""
+    import json
+
+    from tests.corpus.homes import write_home
+
+    home = write_home(tmp_path / "data", train=8, test=1)
+    models = tmp_path / "models"
+    trained = globe("train", "--household", "T", "--data", str(tmp_path / "data"), "--model-dir", str(models))
+    assert trained.returncode == 0, trained.stderr
+    assert "chosen by cross-validation on its training days" in trained.stdout
+    assert "next-activity log loss" in trained.stdout and "(persistence" in trained.stdout
+    deployment = json.loads((models / "model.json").read_text())["deployment"]
+    assert deployment["cross_validated"] is True and deployment["method"] == "routine"
+    res = globe("predict", "--model-dir", str(models), "--at", "06:40", "--start", "06:00",
+                "--history", "sleeping,breakfast", "--horizon", "30", "--date", "2026-03-02")
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert "at 06:40 on 2026-03-02" in lines[1] and "step 4" in lines[1]
+    assert lines[2] == "next activity (06:50):" and "expected within 30 minutes:" in res.stdout
+    variant = globe("predict", "--model-dir", str(models), "--history", "Sleeping")
+    assert variant.returncode == 1 and "a case or spacing variant of the known 'sleeping'" in variant.stderr
+    db = tmp_path / "globe.sqlite3"
+    imported = globe("household", "import", "--db", str(db), "--name", "t", str(home))
+    assert imported.returncode == 0, imported.stderr
+    assert "chosen by cross-validation" in imported.stderr
+    from globe.service.store import Store
+
+    store = Store(db)
+    try:
+        stored = store.settings("t")
+    finally:
+        store.close()
+    assert stored["deployment"]["models"] == deployment["models"] and stored["grid"]["step_minutes"] == 10

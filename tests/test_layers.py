@@ -11,7 +11,7 @@ import pytest
 
 import globe
 
-LAYERS = ("config", "errors", "data", "sequences", "models", "inference", "reasoning", "noise", "assembly",
+LAYERS = ("config", "errors", "data", "sequences", "models", "inference", "reasoning", "noise", "assembly", "session",
           "evaluation", "service", "cli")
 """From the bottom up: a module may import its own layer and those below (config and errors from anywhere)."""
 

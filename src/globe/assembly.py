@@ -11,7 +11,16 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Sequence
 
-from globe.config import FilterConfig, GateConfig, GlobeConfig, LLMConfig, LookaheadConfig, ModelConfig, PolicyConfig
+from globe.config import (
+    DEFAULT_STEP_MINUTES,
+    FilterConfig,
+    GateConfig,
+    GlobeConfig,
+    LLMConfig,
+    LookaheadConfig,
+    ModelConfig,
+    PolicyConfig,
+)
 from globe.data.csv_logs import household_step
 from globe.data.records import Day, Household
 from globe.errors import ConfigError
@@ -40,7 +49,8 @@ if TYPE_CHECKING:
 def step_minutes(household: Household, config: GlobeConfig) -> int:
     """The minutes between a household's steps: configured (``data.step_minutes``), else its days'
     most common gap, else the service's step (a household with no day yet)."""
-    return config.data.step_minutes or household_step(household.train) or config.service.step_minutes
+    return (config.data.step_minutes or household_step(household.train) or config.service.step_minutes
+            or DEFAULT_STEP_MINUTES)
 
 
 def common_step(households: Sequence[Household], config: GlobeConfig) -> int:
@@ -50,7 +60,7 @@ def common_step(households: Sequence[Household], config: GlobeConfig) -> int:
         raise ConfigError("households with different steps cannot be tabled together: "
                           + ", ".join(f"{name} {step} min" for name, step in found.items())
                           + "; evaluate them separately or set data.step_minutes (with data.resample = 'locf')")
-    return next(iter(found.values()), config.service.step_minutes)
+    return next(iter(found.values()), config.service.step_minutes or DEFAULT_STEP_MINUTES)
 
 
 def lookahead_steps(config: GlobeConfig, household: Household) -> int:
@@ -258,7 +268,12 @@ def fetch_policy(forecaster: Forecaster, policy: PolicyConfig, step_minutes: int
     """The robot's fetch decision over ``forecaster`` with the ``policy`` costs and lead times."""
     from globe.inference.fetch_policy import FetchPolicy
 
+    lead, window = lead_steps(policy, step_minutes)
     return FetchPolicy(forecaster, cost_useless=policy.cost_useless, cost_missed=policy.cost_missed,
-                       min_lead_steps=-(-policy.min_lead_minutes // step_minutes),
-                       window_steps=max(1, policy.lead_window_minutes // step_minutes),
-                       max_fetches_per_step=policy.max_fetches_per_step)
+                       min_lead_steps=lead, window_steps=window, max_fetches_per_step=policy.max_fetches_per_step)
+
+
+def lead_steps(policy: PolicyConfig, step_minutes: int) -> tuple[int, int]:
+    """The fetch policy's minimum lead and lead window in steps: a fetch counts for uses from
+    ``min_lead_minutes`` (rounded up to a step) to ``lead_window_minutes`` after it."""
+    return -(-policy.min_lead_minutes // step_minutes), max(1, policy.lead_window_minutes // step_minutes)

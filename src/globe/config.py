@@ -21,6 +21,10 @@ Alignment = Literal["previous", "current", "hybrid", "most"]
 ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine", "clock"]
 ObjectEstimator = Literal["longest", "witten_bell"]
 DayTypes = Literal["none", "weekend", "weekday"]
+DEFAULT_STEP_MINUTES = 10  # a household created without days (HOMER+'s step)
+DEFAULT_DAY_START = 360  # 06:00, HOMER+'s first row
+DeployMethod = Literal["routine", "ngram_smoothed", "ngram", "persistence"]
+CV_METHODS: dict[str, str] = {"routine": "routine", "ngram_smoothed": "witten_bell"}  # deployed by CV: its family
 
 
 class _Section(BaseModel):
@@ -117,6 +121,11 @@ class SelectionConfig(_Section):
         "models (sequences.alignment first, winning ties; one value = no search; 'most' only where every training day "
         "has a covering column, as imported days do)")
     run_start_token: tuple[bool, ...] = Field((False, True), description="run-start token settings tried")
+    deploy: DeployMethod = Field(
+        "routine", description="what globe train, globe household import and POST /households run for a household: "
+        "'routine' (the routine family chosen by cross-validation on its training days, persistence and the clock "
+        "model among the candidates, as globe evaluate's routine row), 'ngram_smoothed' (the smoothed n-gram, chosen "
+        "the same way), 'ngram' (the paper's n-gram, the [models] section as written) or 'persistence'")
     gate_thresholds: tuple[float, ...] = Field((0.25, 0.5), description="gate thresholds d tried")
     combine_weights: tuple[float, ...] = Field((1.0, 4.0), description="weights of n-gram log p tried (combine)")
 
@@ -169,16 +178,17 @@ class ServiceConfig(_Section):
     host: str = Field("127.0.0.1", description="bind address")
     port: int = Field(8765, ge=0, le=65535, description="TCP port")
     database: Path = Field(Path("globe.sqlite3"), description="SQLite file")
-    fetch_decision: Literal["policy", "threshold"] = Field(
-        "policy", description="'policy': fetch when the expected value is positive (see [policy]); 'threshold': when "
-        "p >= action_threshold"
-    )
-    action_threshold: float = Field(
-        0.5, ge=0.0, le=1.0, description="fetch when object p >= this ('threshold' decision)"
-    )
-    day_start_minute: int = Field(360, ge=0, lt=1440, description="minute at which a new day begins")
-    step_minutes: int = Field(10, ge=1, le=1440, description="minutes between observations (one step)")
-    max_gap_steps: int = Field(36, ge=0, le=1000, description="longer gaps restart the day's history")
+    day_start_minute: int | None = Field(
+        None, ge=0, lt=1440, description="minute at which a household's day begins; None = its days' own (their first "
+        "row; 06:00 for a household created without days). A value that disagrees with a household's days is an "
+        "error when it is built, never a silent re-slicing")
+    step_minutes: int | None = Field(
+        None, ge=1, le=1440, description="minutes between a household's steps; None = its days' own (their most common "
+        "gap; 10 for a household created without days). A value that disagrees with a household's days is an error "
+        "when it is built")
+    new_activities: Literal["auto", "refuse", "learn"] = Field(
+        "auto", description="an activity a household has never seen: 'refuse' it (the known ones are listed), 'learn' "
+        "it, or 'auto': refuse where the household was created with training days, learn where it starts from none")
     max_clock_skew: dt.timedelta = Field(
         dt.timedelta(days=1), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
         description="ISO 8601 duration (P1D, PT6H): times this far ahead of the server clock or before creation "
@@ -450,6 +460,44 @@ class MqttConfig(_Section):
         return self
 
 
+class Deployment(_Section):
+    """What one household runs: the models and settings its cross-validation chose on its training
+    days (``globe train``, ``globe household import``, ``POST /households``), or the configured
+    ones. Kept with the household (the model file, the service's database) and applied over the
+    configuration by :meth:`GlobeConfig.deployed`, so what is served is what was chosen."""
+
+    method: DeployMethod = Field("ngram", description="the deployed method (selection.deploy)")
+    models: ModelConfig = Field(ModelConfig(), description="the activity and object models")
+    alignment: Alignment = Field("previous", description="which step's activity a movement is credited to")
+    run_end: bool = Field(True, description="the movement model's hazards know that an activity ends")
+    run_memory: bool = Field(False, description="... and what moved earlier in the run")
+    run_next: bool = Field(False, description="... and which activity starts")
+    emission_weight: float = Field(0.5, ge=0.0, le=10.0, description="the activity filter's movement evidence")
+    emission_previous_share: float = Field(1.0, ge=0.0, le=1.0)
+    emission_boundary: bool = True
+    emission_switch: bool = True
+    cross_validated: bool = Field(False, description="chosen by cross-validation (else: the configured settings)")
+    note: str = Field("", max_length=500, description="why the configured settings were kept, when they were")
+    scores: dict[str, float] = Field(
+        {}, description="cross-validation scores on the training days: the chosen model's and persistence's activity "
+        "log loss and weighted F1, and the chosen object model's weighted F1")
+
+    @classmethod
+    def configured(cls, config: "GlobeConfig", method: DeployMethod | None = None, note: str = "") -> "Deployment":
+        """The configured settings as a deployment (nothing cross-validated)."""
+        f, method = config.filter, method or config.selection.deploy
+        persistence = {"activity_estimator": "persistence"} if method == "persistence" else {}
+        return cls(method=method, models=config.models.model_copy(update=persistence), note=note,
+                   alignment=config.sequences.alignment, emission_weight=f.emission_weight,
+                   emission_previous_share=f.emission_previous_share, emission_boundary=f.emission_boundary,
+                   emission_switch=f.emission_switch)
+
+    @property
+    def movement(self) -> tuple[bool, bool, bool]:
+        """The movement model's (run_end, run_memory, run_next)."""
+        return self.run_end, self.run_memory, self.run_next
+
+
 class GlobeConfig(_Section):
     data: DataConfig = DataConfig()
     sequences: SequenceConfig = SequenceConfig()
@@ -464,6 +512,16 @@ class GlobeConfig(_Section):
     policy: PolicyConfig = PolicyConfig()
     filter: FilterConfig = FilterConfig()
     mqtt: MqttConfig = MqttConfig()
+
+    def deployed(self, deployment: Deployment) -> "GlobeConfig":
+        """This configuration with a household's deployment applied (its models, alignment and
+        movement evidence; the rest, the gate and the fetch costs among it, stays as configured)."""
+        d = deployment
+        emission = {"emission_weight": d.emission_weight, "emission_previous_share": d.emission_previous_share,
+                    "emission_boundary": d.emission_boundary, "emission_switch": d.emission_switch}
+        return self.model_copy(update={"models": d.models,
+                                       "sequences": self.sequences.model_copy(update={"alignment": d.alignment}),
+                                       "filter": self.filter.model_copy(update=emission)})
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> "GlobeConfig":
         """Return a copy with dotted-key overrides (``{"gate.threshold": 0.25}``) applied."""

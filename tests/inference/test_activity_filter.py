@@ -12,12 +12,13 @@ from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Day
 from globe.inference.activity_filter import ActivityFilter, as_dicts, filtered_beliefs, label_mask
-from globe.inference.emission import MovementEmission, moved_objects
+from globe.inference.emission import MovementEmission
 from globe.models.activity import ActivityModel
 from globe.models.baselines import PersistenceModel
 from globe.models.routine import RoutineModel
 from globe.models.state_space import NumberedStates
 from globe.models.vocabulary import Vocabulary
+from globe.sequences.movements import moved_objects
 from tests.helpers import enumerate_paths
 
 
@@ -366,7 +367,8 @@ _HASH_SEED_SCRIPT = """
 import random
 from globe.data.records import Day
 from globe.inference.activity_filter import ActivityFilter
-from globe.inference.emission import MovementEmission, moved_objects
+from globe.inference.emission import MovementEmission
+from globe.sequences.movements import moved_objects
 from globe.models.activity import ActivityModel
 
 rng = random.Random(7)

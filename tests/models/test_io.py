@@ -77,7 +77,7 @@ def test_fingerprint_follows_the_map(tiny):
 
 
 @pytest.mark.parametrize("edit, message", [
-    (lambda p: p.update(version=99), r"format version 99, this GLOBE reads 1"),
+    (lambda p: p.update(version=99), r"format version 99, this GLOBE reads 2"),
     (lambda p: p.update(format="other"), r"not a GLOBE household model \(format 'other'\)"),
     (lambda p: p.update(household="HouseholdX"), r"checksum mismatch"),
     (lambda p: p["activity"]["data"].pop(), r"checksum mismatch"),

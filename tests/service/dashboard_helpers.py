@@ -18,7 +18,7 @@ BASE = dt.datetime.combine(dt.date.today() - dt.timedelta(days=30), dt.time())
 
 def config(db) -> GlobeConfig:
     return GlobeConfig().with_overrides({"service.database": str(db), "llm.backend": "none", "service.preload": False,
-                                         "service.max_clock_skew": "P400D"})
+                                         "service.max_clock_skew": "P400D", "selection.deploy": "ngram"})
 
 
 def app_client(db, token: str | None = None) -> TestClient:

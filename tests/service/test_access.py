@@ -43,7 +43,7 @@ def test_every_endpoint_but_health_needs_a_token(server, households):
         r = httpx.request(method, server.url + path, json=body, headers={"Authorization": f"Bearer {token_a}"})
         assert r.status_code == 403, (method, path, r.text)
     with GlobeClient(server.url, token=token_a) as own:
-        assert own.observe("A", at(0, 400), "idle", {})["step"] == 0
+        assert own.observe("A", at(0, 400), "idle", {})["step"] == 4  # 06:40 on the household's 10-minute clock
         assert own.prediction("A").status == "ready"
         with pytest.raises(ServiceError) as err:
             own.stats("B")

@@ -24,7 +24,7 @@ def test_tokens_and_import_from_the_command_line(tmp_path, homer_root):
     admin = created.stdout.strip().splitlines()[-1]
     assert created.exit_code == 0 and admin.startswith("globe_")
     assert admin not in db.read_bytes().decode("latin-1")  # only the hash is kept
-    cli("household", "import", "--db", str(db), "--name", "home-b", "--timezone", "Europe/Paris",
+    cli("household", "import", "--db", str(db), "--name", "home-b", "--timezone", "Europe/Paris", "--method", "ngram",
         str(homer_root / "HouseholdB"))
     robot = cli("token", "create", "--db", str(db), "--household", "home-b").stdout.strip().splitlines()[-1]
     with pytest.raises(DataError):
@@ -68,7 +68,8 @@ def test_household_delete_and_export_from_the_command_line(tmp_path, homer_root)
 
     db = tmp_path / "globe.sqlite3"
     admin = cli("token", "create", "--db", str(db), "--admin").stdout.strip().splitlines()[-1]
-    cli("household", "import", "--db", str(db), "--name", "home-c", "--timezone", "UTC", str(homer_root / "HouseholdC"))
+    cli("household", "import", "--db", str(db), "--name", "home-c", "--timezone", "UTC", "--method", "ngram",
+        str(homer_root / "HouseholdC"))
     robot = cli("token", "create", "--db", str(db), "--household", "home-c").stdout.strip().splitlines()[-1]
     out = tmp_path / "home-c.json"
     cli("household", "export", "--db", str(db), "--name", "home-c", "--out", str(out))
@@ -110,7 +111,7 @@ def test_import_takes_each_day_files_date_from_its_name(tmp_path):
         for i, d in enumerate(h.train):
             write_day(folder / "train" / (f"{d.name}.csv" if named else f"{i:03d}.csv"), d, h.objects)
         cli("household", "import", "--db", str(tmp_path / "db.sqlite3"), "--name", name, "--timezone", "UTC",
-            str(folder))
+            "--method", "ngram", str(folder))
     store = Store(tmp_path / "db.sqlite3")
     assert [d.date for d in store.training_days("dated")] == [d.name for d in h.train]
     assert h.train[0].name == "2024-01-01"

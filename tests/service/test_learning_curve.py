@@ -82,7 +82,7 @@ def test_replays_keep_the_weekday_of_days_named_by_their_date():
     import datetime as dt
 
     from globe.data.records import Day
-    from globe.service.client import replay_dates
+    from globe.evaluation.online import replay_dates
     from globe.service.learning_curve import required_clock_skew
     from tests.simulated import weekly_home
 

@@ -8,6 +8,9 @@ import time
 import httpx
 import pytest
 
+from globe.config import Deployment, GlobeConfig
+from globe.evaluation.online import day_observations, replay
+from globe.session import build_session
 from tests.service.conftest import REPLAY_ENV, at, upload, wait_for_llm
 
 pytestmark = [pytest.mark.service, pytest.mark.llm]
@@ -73,9 +76,17 @@ def test_a_poisoned_answer_cache_is_the_ngram_fallback_over_http(make_server, ho
     with srv.client() as c:
         upload(c, "A", h)
         wait_for_llm(srv.url)
-        _, p, _ = observe_until_consulted(c, h)
+        _, p, t = observe_until_consulted(c, h)
         assert p.llm_fallback is None
-        last = (p.activity, p.object)
+    # What the fallback must give: the n-gram's own choice at that step (not whatever the LLM said,
+    # which depends on the machine's build of llama.cpp), from the same session without an LLM.
+    config = GlobeConfig().with_overrides({"llm.backend": "none"})
+    session = build_session(h, config, Deployment.configured(config, "ngram"), None)
+    day = h.test[0]
+    replay(session, [(day.name, u, obs) for u, obs in day_observations(h, day, at(0, 0).date(), rows=range(t + 1))])
+    ngram = session.decide()
+    last = (ngram.activity, ngram.choice.obj)
+    assert last[0] == p.activity
     answers = cache / "llm-answers.sqlite3"
     db = sqlite3.connect(answers)
     keys = [r[0] for r in db.execute("SELECT key FROM answers")]

@@ -1,5 +1,6 @@
 """The service over real loopback HTTP against the real server process and SQLite."""
 
+import datetime as dt
 import threading
 import time
 
@@ -139,7 +140,8 @@ def test_simulated_robot_reports_assistance_metrics(client, households):
     upload(client, "A", h)
     assert client.prediction("A").shadow  # a new household starts in shadow mode: the robot would never act
     client.set_shadow("A", False)
-    report = replay_days(client, "A", h, h.test[:2], SimulatedRobot(), base_date=BASE.date())
+    report = replay_days(client, "A", h, h.test[:2], SimulatedRobot(),
+                         dates=[BASE.date(), BASE.date() + dt.timedelta(days=1)])
     s = report.summary()
     assert s["steps"] == 2 * 109 and s["days"] == 2
     assert s["fetches"] > 0 and 0 < s["precision"] <= 1 and 0 < s["recall"] <= 1

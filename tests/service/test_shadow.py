@@ -11,7 +11,8 @@ from typer.testing import CliRunner
 
 from globe.cli.main import app
 from globe.config import PolicyConfig
-from globe.evaluation.fetch import score_fetches, use_steps
+from globe.inference.fetch_policy import follow_fetches
+from globe.sequences.movements import moved_objects
 from globe.service.schema import SCHEMA_VERSION
 from globe.service.store import Store
 from tests.helpers import database_at_schema
@@ -148,12 +149,14 @@ def test_fetch_precision_and_recall_follow_the_offline_rule(scored, households):
     db, _, _, predictions, stats = scored
     h = households["A"]
     day0 = h.test[0]
-    decided = {t: [p["fetch_object"]] for t, p in enumerate(predictions[:len(day0)]) if p["fetch_object"]}
+    decided = {t: [f["object"] for f in p["fetches"]] for t, p in enumerate(predictions[:len(day0)]) if p["fetches"]}
     cfg = PolicyConfig()
-    report = score_fetches(h, day0, decided, -(-cfg.min_lead_minutes // 10), cfg.lead_window_minutes // 10)
+    uses = moved_objects(day0, h.objects)
+    report, _ = follow_fetches(uses, day0.minutes, lambda t, _: decided.get(t, ()), len(day0),
+                               -(-cfg.min_lead_minutes // 10), cfg.lead_window_minutes // 10)
     d0 = stats["scores"]["days"][0]
     assert (d0["fetches"], d0["useful_fetches"]) == (report.fetches, report.useful_fetches)
-    assert d0["uses"] == sum(len(v) for v in use_steps(h, day0).values()) == report.used_objects
+    assert d0["uses"] == sum(map(len, uses)) == report.used_objects
     assert d0["uses_fetched"] == report.used_fetched_in_advance and 0 < d0["precision"] <= 1 and 0 < d0["recall"] <= 1
 
 
@@ -175,7 +178,7 @@ def test_a_schema_3_database_migrates_with_its_households_acting(tmp_path, house
                 "2026-01-01T00:00:00+00:00", "UTC"))
     db.close()
     store = Store(path)
-    assert store.version == SCHEMA_VERSION == 6
+    assert store.version == SCHEMA_VERSION == 7
     assert store.household("B").shadow is False and store.shadow("B") is False  # it acted before: it still does
     store.add_household(h.__class__("C", h.nodes, h.objects, (), (), ""), "UTC", [])
     assert store.household("C").shadow is True  # a new home starts in shadow
@@ -203,13 +206,13 @@ def test_a_step_has_one_decision_however_often_it_is_asked(tmp_path, households)
         store = Store(db)
         stored = [(f.step, f.object) for f in store.fetches("A", asked[-1]["day"])]
         store.close()
-    decided = sum(p["fetch_object"] is not None for p in asked)
+    decided = sum(len(p["fetches"]) for p in asked)
     assert decided > 0 and len(stored) == decided  # asked twice each step, each decision stored once
 
 
-def test_a_day_restarted_by_a_long_gap_is_not_counted_twice_after_a_restart(tmp_path, households):
-    """A gap longer than service.max_gap_steps restarts the day: the fetches before it are
-    counted then, and a rebuild must not count them again (found in review)."""
+def test_a_day_with_a_gap_is_not_counted_twice_after_a_restart(tmp_path, households):
+    """Ten steps nobody observed stay unknown (once, a gap restarted the day and its fetches were
+    counted then); a rebuild replays the day and counts nothing twice (found in review)."""
     from fastapi.testclient import TestClient
 
     from globe.service.app import create_app
@@ -218,7 +221,7 @@ def test_a_day_restarted_by_a_long_gap_is_not_counted_twice_after_a_restart(tmp_
     db = tmp_path / "globe.sqlite3"
     admin, _ = tokens(db, "A")
     h, day = households["A"], households["A"].test[0]
-    cfg = config(db).with_overrides({"service.max_gap_steps": 3})
+    cfg = config(db)
 
     def client() -> TestClient:
         return TestClient(create_app(cfg), base_url="http://127.0.0.1", headers={"Authorization": f"Bearer {admin}"})
@@ -226,7 +229,7 @@ def test_a_day_restarted_by_a_long_gap_is_not_counted_twice_after_a_restart(tmp_
     with client() as c:
         create(c, "A", h)
         c.put("/households/A/shadow", json={"shadow": False})
-        for t in [*range(0, 40), *range(50, 75)]:  # ten steps missing: the day restarts at step 50
+        for t in [*range(0, 40), *range(50, 75)]:  # ten steps nobody observed
             time = BASE + dt.timedelta(minutes=day.minutes[t])
             c.post("/households/A/observations", json={"time": time.isoformat(), "activity": day.activities[t],
                                                        "locations": dict(zip(h.objects, day.locations[t]))})

@@ -38,8 +38,9 @@ def test_a_schema_2_database_migrates_and_replays(tmp_path, households):
     assert store._db.execute("PRAGMA application_id").fetchone()[0] == APPLICATION_ID
     registry = Registry(store, GlobeConfig(), None)
     registry.load_all()
-    a = registry.get("B")
-    assert a.days_learned == 3 and a.observations == 12 and a.quarantined == 0
+    stats = registry.stats("B")
+    assert stats.days_learned == 3 and stats.observations == 12 and stats.quarantined == 0
+    assert registry.get("B").new_activities == "learn"  # it accepted any activity before: it still does
     assert store.household("B").timezone == "UTC"
     store.close()
 

@@ -79,14 +79,14 @@ def test_an_observation_far_ahead_of_the_clock_is_held_not_a_lock(make_server, h
         upload(c, "A", h)
         now = dt.datetime.now(UTC)
         assert c.observe("A", now, "reading", {})["pending"] is False
-        glitch = c.observe("A", now + dt.timedelta(hours=23, minutes=50), "sleeping", {}, id="glitch")
+        glitch = c.observe("A", now + dt.timedelta(hours=23, minutes=50), "sleep", {}, id="glitch")
         soon = c.observe("A", now + dt.timedelta(seconds=6), "reading", {})
         assert glitch["pending"] and soon["pending"]
         assert c.observe("A", now + dt.timedelta(seconds=1), "reading", {})["pending"] is False  # real time goes on
         s = c.stats("A")
         assert (s["observations"], s["pending"]) == (2, 2)
         fails(lambda: c.observe("A", now + dt.timedelta(seconds=6), "reading", {}), 422, "time")  # that time is held
-        assert c.observe("A", now + dt.timedelta(hours=23, minutes=50), "sleeping", {}, id="glitch")["duplicate"]
+        assert c.observe("A", now + dt.timedelta(hours=23, minutes=50), "sleep", {}, id="glitch")["duplicate"]
     srv.kill()
     srv.start()  # held observations stay held across a restart
     with srv.client() as c:
@@ -124,9 +124,9 @@ def test_naive_times_through_the_repeated_hour_are_accepted_in_order(server, hou
     with server.client() as c:
         upload(c, "A", households["A"], timezone="Europe/Paris")
         for t in wall:
-            c.observe("A", t, "sleeping", {})
+            c.observe("A", t, "sleep", {})
         assert c.stats("A")["observations"] == len(wall)
-        err = fails(lambda: c.observe("A", dt.datetime.combine(day, dt.time(2, 30)), "sleeping", {}), 422, "time")
+        err = fails(lambda: c.observe("A", dt.datetime.combine(day, dt.time(2, 30)), "sleep", {}), 422, "time")
         assert "UTC offset" in err.detail  # neither occurrence is after 03:00: the message says what to send
         stored = [o["time"] for o in c._call("GET", "/households/A/export")["observations"]]
     instants = [dt.datetime.fromisoformat(t).astimezone(UTC) for t in stored]

@@ -86,19 +86,32 @@ def household_import(
     name: Annotated[str, typer.Option("--name", help="household id in the service")],
     folder: Annotated[Path, typer.Argument(help="folder with nodes.csv and optional train/*.csv")],
     timezone: Annotated[str | None, typer.Option("--timezone", help="IANA zone (default: the server's)")] = None,
+    method: Annotated[str | None, typer.Option(
+        "--method", help="how its models are chosen: routine (default: by cross-validation on its training days), "
+                         "ngram_smoothed, ngram (the paper's) or persistence")] = None,
+    include_test: Annotated[bool, typer.Option(
+        "--include-test", help="learn its test/*.csv days too (after the training days)")] = False,
+    config: Annotated[Path | None, typer.Option("--config", help="TOML configuration file")] = None,
 ) -> None:
-    """Import a household folder from this machine's disk into the database."""
+    """Import a household folder from this machine's disk into the database, with the models chosen for it."""
+    from globe.cli.common import resolve
+    from globe.cli.model_cmd import _method
     from globe.data.csv_logs import day_files, read_nodes
     from globe.data.records import named_date
+    from globe.evaluation.deploy import choose_deployment
     from globe.service.schemas import check_household_name
     from globe.service.store import Store
     from globe.service.timepolicy import check_timezone
     from globe.service.upload import household_from
+    from globe.session import deployment_summary, session_grid
+    from globe.session.build import new_activities_rule
 
+    cfg = resolve(config)
+    chosen_by = _method(method) or cfg.selection.deploy
     check_household_name(name)
     nodes = read_nodes(folder / "nodes.csv")
-    train = folder / "train"
-    files = day_files(train) if train.is_dir() else []
+    files = [f for split in ("train", "test") if split == "train" or include_test
+             for f in (day_files(folder / split) if (folder / split).is_dir() else [])]
     texts = [f.read_text(encoding="utf-8-sig") for f in files]
     named = [named_date(f.name) for f in files]  # imported days are named by their date
     household = household_from(name, nodes, texts, dates=named if None not in named else None)
@@ -108,10 +121,16 @@ def household_import(
     try:
         if store.household(name) is not None:
             raise DataError(f"household {name!r} exists already", field="name")
-        store.add_household(household, tz, texts)
+        deployment = choose_deployment(household, cfg, method=chosen_by, progress=console.print)
+        settings = {"grid": session_grid(household, cfg).as_dict(), "method": chosen_by,
+                    "new_activities": new_activities_rule(cfg, bool(days)),
+                    "deployment": deployment.model_dump(mode="json")}
+        store.add_household(household, tz, texts, settings=settings)
     finally:
         store.close()
-    console.print(f"imported household {name!r}: {len(objects)} objects, {len(days)} training days, time zone {tz}")
+    learned = f"{len(days)} days ({'training and test' if include_test else 'training; --include-test adds test/'})"
+    console.print(f"imported household {name!r}: {len(objects)} objects, {learned}, time zone {tz}; it runs "
+                  f"{deployment_summary(deployment)}", soft_wrap=True)
 
 
 @household_app.command("delete")

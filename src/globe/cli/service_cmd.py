@@ -74,6 +74,7 @@ def robot(
         "--token", envvar="GLOBE_TOKEN", help="admin token (or $GLOBE_TOKEN)")] = None,
 ) -> None:
     """Replay HOMER+ test days through the service as a simulated robot; print assistance metrics."""
+    from globe import assembly
     from globe.service.client import GlobeClient, ServiceError, household_payload
     from globe.service.robot import SimulatedRobot, replay_days
 
@@ -89,8 +90,10 @@ def robot(
             console.print(f"household {ident!r} exists in the service: continuing with its state")
         client.set_shadow(ident, False)  # a simulated robot: it acts when told to (new households start in shadow)
         test_days = h.test[:days]
+        lead, window = assembly.lead_steps(cfg.policy, assembly.step_minutes(h, cfg))
         with progress_bar(len(test_days), "replaying days") as advance:
-            report = replay_days(client, ident, h, test_days, SimulatedRobot(), progress=advance)
+            report = replay_days(client, ident, h, test_days, SimulatedRobot(), min_lead_steps=lead,
+                                 window_steps=window, progress=advance)
         summary = report.summary()
     for key, value in summary.items():
         out.print(f"{key:20s} {value}")

@@ -8,6 +8,9 @@ from datetime import date
 from typing import Literal
 
 Split = Literal["train", "test"]
+IN_USE_CLASS = "in_use"
+"""The class of a place where an object is while a person uses it (the importers put a sensor's
+object there while the sensor is on): no robot fetches an object from it."""
 _ISO_DATE = re.compile(r"[0-9]{4}-[0-9]{2}-[0-9]{2}")
 
 

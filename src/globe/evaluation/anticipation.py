@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from globe import assembly
-from globe.config import GlobeConfig, ModelConfig
+from globe.config import Deployment, GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation import report
 from globe.evaluation.fetch import FETCH_COLUMNS, FetchEvaluation, evaluate_fetch, fetch_rows, lead_time_rows
@@ -31,6 +31,7 @@ from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_fi
 from globe.evaluation.published import DataScope
 from globe.evaluation.selection import Memo, SearchKey
 from globe.evaluation.tuning import tuned_models
+from globe.session import build_session
 
 TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0}
 """Rough relative cost of one household's lookahead per method (the routine model's CV costs most):
@@ -95,20 +96,18 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
 
 
 def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult | None) -> FetchEvaluation:
-    """The fetch policy on ``h``'s test days, over ``same`` (the lookahead of the policy's method,
-    when it ran) or a forecaster with settings chosen on training days."""
+    """The fetch policy on ``h``'s test days: replayed through a session of the policy's method,
+    whose movement model has the settings the lookahead of that method chose on training days
+    (``same``, when it ran)."""
     models = method_models(config.policy.method, h, config, memo)
-    if same is not None and same.forecaster is not None:  # the lookahead's forecaster (its paths are shared)
-        forecaster = same.forecaster
+    if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
+        run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
     else:
-        if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
-            run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
-        else:
-            run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
-        forecaster = assembly.forecaster(h, config, models=models, run_end=run_end, run_memory=run_memory,
-                                         run_next=run_next).forecaster
-    policy = assembly.fetch_policy(forecaster, config.policy, assembly.step_minutes(h, config))
-    return evaluate_fetch(policy, h, h.test, config.policy.curve_ratios)
+        run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
+    deployment = Deployment.configured(config).model_copy(update={
+        "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next})
+    session = build_session(h, config, deployment, None, learn=False)
+    return evaluate_fetch(session, h, h.test, config.policy.curve_ratios)
 
 
 def _ratio(config: GlobeConfig) -> float:

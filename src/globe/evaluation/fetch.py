@@ -1,122 +1,64 @@
-"""The robot loop offline: replay test days step by step with the fetch policy, no server needed.
+"""The fetch policy scored: test days replayed through the household's session, as the robot runs.
 
 Models are fitted on training days only and learn nothing from the test days. After each step t
-(the activity and every object's place at t observed) the policy may start fetches. A fetch of
-o at t is *useful* when the person first takes o at a step u with min_lead <= u - t <= window
-(the object moved: its location at u differs from u-1). A use (every movement event) counts as
-*fetched in advance* when o had been fetched at a step t with min_lead <= u - t <= window; its
-lead time is minutes[u] - minutes[t]. An object fetched and not yet used is not fetched again
-until its window has passed.
+(the activity and every object's place at t observed) the session decides its fetches by the one
+rule of fetches (:func:`globe.inference.fetch_policy.follow_fetches`): a fetch of o at t is
+*useful* when the person next uses o (it moves) at a step u with min_lead <= u - t <= window; a
+use counts as *fetched in advance* when o had been fetched at a step t with min_lead <= u - t <=
+window, its lead time minutes[u] - minutes[t]; an object fetched and not yet used is not fetched
+again until its window has passed, and none is fetched while in use or just put back.
 
-The forecasts do not depend on the costs, so they are computed once per step and every point
-of the precision-recall curve over the cost ratio replays the same candidates.
+The candidates do not depend on the costs, so each step's are kept from the replay and every
+point of the precision-recall curve over the cost ratio follows the same rule over them; at the
+configured costs that is exactly what the session decided.
 """
 
 from __future__ import annotations
 
-import statistics
-from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+import datetime as dt
+from dataclasses import dataclass
+from typing import Mapping, Sequence
 
 from globe.data.records import Day, Household
-from globe.inference.fetch_policy import FetchCandidate, FetchPolicy
+from globe.evaluation.online import add_report, day_observations, replay, replay_dates
+from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches
+from globe.session import HouseholdSession
+
+LAST_DATE = dt.date(2000, 12, 31)  # what the test days are replayed up to (their weekdays kept)
 
 
-@dataclass(slots=True)
-class FetchReport:
-    """What a robot team cares about, over some replayed days."""
+@dataclass(frozen=True, slots=True)
+class ReplayedDay:
+    """One day as the session saw it, step by step: when each step began, what was used at it,
+    the candidate fetches after it and the objects no fetch could touch."""
 
-    steps: int = 0
-    fetches: int = 0
-    useful_fetches: int = 0
-    used_objects: int = 0
-    used_fetched_in_advance: int = 0
-    lead_minutes: list[int] = field(default_factory=list)
-
-    @property
-    def precision(self) -> float:
-        return self.useful_fetches / self.fetches if self.fetches else 0.0
-
-    @property
-    def recall(self) -> float:
-        return self.used_fetched_in_advance / self.used_objects if self.used_objects else 0.0
-
-    @property
-    def median_lead_min(self) -> float | None:
-        return float(statistics.median(self.lead_minutes)) if self.lead_minutes else None
+    minutes: tuple[int, ...]
+    uses: tuple[frozenset[str], ...]
+    candidates: tuple[tuple[FetchCandidate, ...], ...]
+    left_alone: tuple[frozenset[str], ...]
+    report: FetchReport  # what the session decided, scored
 
 
-def day_candidates(policy: FetchPolicy, day: Day) -> list[list[FetchCandidate]]:
-    """The policy's candidates after each step t = 0..T-2 of ``day`` (most likely useful first;
-    every step's forecast computed in one batch)."""
-    queries = [(day.activities[: t + 1], day.locations[: t + 1]) for t in range(len(day) - 1)]
-    if not queries:
-        return []
-    forecasts = policy.forecaster.forecast_many(queries, policy.window_steps - 1, weekdays=[day.weekday] * len(queries))
-    return policy.candidates_many(forecasts)
+def replay_day(session: HouseholdSession, household: Household, day: Day, date: dt.date) -> ReplayedDay:
+    """Every row of ``day`` on ``date`` through ``session`` (a session that does not learn)."""
+    records, _ = replay(session, [(day.name, t, obs) for t, obs in day_observations(household, day, date)])
+    n = session.step + 1 if session.step is not None else 0
+    candidates: list[tuple[FetchCandidate, ...]] = [()] * n
+    alone: list[frozenset[str]] = [frozenset()] * n
+    for r in records:
+        candidates[r.decision.step - 1] = r.decision.candidates
+        alone[r.decision.step - 1] = r.decision.left_alone
+    minutes = tuple(session.grid.minute(t) for t in range(n))
+    return ReplayedDay(minutes, tuple(session.uses()), tuple(candidates), tuple(alone), session.fetch_report())
 
 
-def use_steps(household: Household, day: Day) -> dict[str, list[int]]:
-    """Object -> the steps at which it moved (was used) during ``day``."""
-    out: dict[str, list[int]] = {}
-    for t in range(1, len(day)):
-        before, after = day.locations[t - 1], day.locations[t]
-        if before != after:
-            for j, obj in enumerate(household.objects):
-                if before[j] != after[j]:
-                    out.setdefault(obj, []).append(t)
-    return out
+def follow_policy(policy: FetchPolicy, day: ReplayedDay, report: FetchReport | None = None) -> FetchReport:
+    """``policy``'s decisions over a replayed day's candidates, scored by the one rule of fetches."""
+    def decide(t: int, waiting: Mapping[str, int]) -> list[str]:
+        return [c.obj for c in policy.choose(day.candidates[t], exclude=set(waiting) | day.left_alone[t])]
 
-
-def replay_day(policy: FetchPolicy, household: Household, day: Day, candidates: Sequence[Sequence[FetchCandidate]],
-               report: FetchReport | None = None) -> FetchReport:
-    """Replay one day with ``policy``'s decision rule over precomputed ``candidates``."""
-
-    def decide(t: int, pending: Mapping[str, int]) -> list[str]:
-        return [c.obj for c in policy.choose(candidates[t], exclude=pending)] if t < len(candidates) else []
-
-    return _score(household, day, decide, len(candidates), policy.min_lead_steps, policy.window_steps, report)
-
-
-def score_fetches(household: Household, day: Day, fetched: Mapping[int, Sequence[str]], min_lead_steps: int,
-                  window_steps: int, report: FetchReport | None = None) -> FetchReport:
-    """Score fetches already decided (``fetched``: step -> objects; an online service's decisions)
-    over ``day`` as it then happened, by the same rule as :func:`replay_day` (a fetch of an object
-    still pending, fetched and not yet used within its window, is not counted again)."""
-
-    def decide(t: int, pending: Mapping[str, int]) -> list[str]:
-        return [o for o in fetched.get(t, ()) if o not in pending]
-
-    return _score(household, day, decide, len(day), max(1, min_lead_steps), window_steps, report)
-
-
-def _score(household: Household, day: Day, decide: Callable[[int, Mapping[str, int]], Sequence[str]],
-           decided_steps: int, lo: int, hi: int, report: FetchReport | None) -> FetchReport:
-    """The module's rule: fetches decided after each step t < ``decided_steps``, uses as the day moved."""
-    report = report or FetchReport()
-    uses = use_steps(household, day)
-    used_at: dict[int, list[str]] = {}
-    for obj, steps in uses.items():
-        for u in steps:
-            used_at.setdefault(u, []).append(obj)
-    pending: dict[str, int] = {}  # object -> step it was fetched
-    for t in range(len(day)):
-        for obj in sorted(used_at.get(t, ())):
-            report.used_objects += 1
-            fetched = pending.pop(obj, None)
-            if fetched is not None and lo <= t - fetched <= hi:
-                report.used_fetched_in_advance += 1
-                report.lead_minutes.append(day.minutes[t] - day.minutes[fetched])
-        for obj in [o for o, f in pending.items() if t - f >= hi]:
-            del pending[obj]
-        if t >= decided_steps:
-            continue
-        report.steps += 1
-        for obj in decide(t, pending):
-            report.fetches += 1
-            pending[obj] = t
-            report.useful_fetches += any(lo <= u - t <= hi for u in uses.get(obj, ()))
-    return report
+    return follow_fetches(day.uses, day.minutes, decide, len(day.minutes), policy.min_lead_steps, policy.window_steps,
+                          report)[0]
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,24 +70,24 @@ class FetchEvaluation:
     curve: tuple[tuple[float, float, FetchReport], ...]  # (cost ratio useless/missed, threshold, report)
 
 
-def evaluate_fetch(policy: FetchPolicy, household: Household, days: Sequence[Day],
+def evaluate_fetch(session: HouseholdSession, household: Household, days: Sequence[Day],
                    ratios: Sequence[float]) -> FetchEvaluation:
-    """Replay ``days`` with ``policy`` and with the same policy at each cost ratio in ``ratios``."""
-    tables = [day_candidates(policy, d) for d in days]
-
-    def run(p: FetchPolicy) -> FetchReport:
-        report = FetchReport()
-        for day, table in zip(days, tables):
-            replay_day(p, household, day, table, report)
-        return report
-
+    """Replay ``days`` through ``session`` (which must not learn), then follow the same policy at
+    each cost ratio in ``ratios`` over the candidates it saw."""
+    if session.learning:
+        raise ValueError("the fetch policy is scored with models that learn nothing from the test days")
+    replayed = [replay_day(session, household, day, date) for day, date in zip(days, replay_dates(days, LAST_DATE))]
+    policy = session.policy
     curve = []
     for ratio in ratios:
         variant = FetchPolicy(policy.forecaster, cost_useless=ratio, cost_missed=1.0,
                               min_lead_steps=policy.min_lead_steps, window_steps=policy.window_steps,
                               max_fetches_per_step=policy.max_fetches_per_step)
-        curve.append((float(ratio), variant.threshold, run(variant)))
-    return FetchEvaluation(household.name, run(policy), tuple(curve))
+        report = FetchReport()
+        for day in replayed:
+            follow_policy(variant, day, report)
+        curve.append((float(ratio), variant.threshold, report))
+    return FetchEvaluation(household.name, pooled([day.report for day in replayed]), tuple(curve))
 
 
 FETCH_COLUMNS = ("household", "cost_ratio", "threshold", "fetches", "precision", "recall", "median_lead_min",
@@ -174,12 +116,7 @@ def pooled(reports: Sequence[FetchReport]) -> FetchReport:
     """Counts of several households added up (micro-averaged precision and recall)."""
     out = FetchReport()
     for r in reports:
-        out.steps += r.steps
-        out.fetches += r.fetches
-        out.useful_fetches += r.useful_fetches
-        out.used_objects += r.used_objects
-        out.used_fetched_in_advance += r.used_fetched_in_advance
-        out.lead_minutes.extend(r.lead_minutes)
+        add_report(out, r)
     return out
 
 

@@ -56,11 +56,11 @@ from globe.evaluation.tuning import (
 )
 from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts, filtered_beliefs, label_mask
 from globe.inference.beam import tie_key
-from globe.inference.emission import MovementEmission, moved_objects
-from globe.inference.forecast import Forecaster, first_locations
+from globe.inference.emission import MovementEmission
+from globe.inference.forecast import Forecaster, first_locations, mix
 from globe.inference.paths import Roots
 from globe.models.base import ActivityModelBase
-from globe.sequences.movements import Alignment
+from globe.sequences.movements import Alignment, moved_objects
 
 Progress = Callable[[str], None]
 METHOD = "routine"
@@ -332,13 +332,8 @@ def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterC
         ranks = np.concatenate([np.arange(len(ref.weights)) for ref in part])
         weights = np.concatenate([ref.weights for ref in part])
         fcs = forecaster.forecast_roots(roots, locations, horizons - 1)
-        acts = fcs.trees.activity_matrix()
-        destination = np.zeros((len(part),) + fcs.destination.shape[1:])
-        activity = np.zeros((len(part),) + acts.shape[1:])
-        for k in range(int(ranks.max(initial=-1)) + 1):  # mixed in order, as a running sum would
-            mine = ranks == k
-            destination[owners[mine]] += weights[mine][:, None, None, None] * fcs.destination[mine]
-            activity[owners[mine]] += weights[mine][:, None, None] * acts[mine]
+        destination = mix(fcs.destination, owners, ranks, weights, len(part))
+        activity = mix(fcs.trees.activity_matrix(), owners, ranks, weights, len(part))
         best, prob = first_locations(destination, fcs.targets, horizons)
         top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
         scored = [(ref.day, ref.step) for ref in part]

@@ -28,10 +28,11 @@ import numpy as np
 
 from globe.data.records import Day
 from globe.errors import ConfigError
-from globe.inference.beam import Beam, Evidence, advance
-from globe.inference.emission import MovementEmission, moved_objects
+from globe.inference.beam import Beam, Evidence, advance, tie_key
+from globe.inference.emission import MovementEmission
 from globe.models.state_space import StateSpace, state_space
 from globe.models.vocabulary import Vocabulary
+from globe.sequences.movements import moved_objects
 
 
 @dataclass(frozen=True, slots=True)
@@ -192,6 +193,15 @@ class ActivityFilter:
         for i in np.flatnonzero(beam.query == query).tolist():
             out.append(Hypothesis(float(beam.weight[i]), self.history(belief, i)))
         return out
+
+    def top_histories(self, belief: Belief, most: int, query: int = 0) -> list[Hypothesis]:
+        """The ``most`` most probable histories a_0..a_step of day ``query`` (ties: in history
+        order), their weights renormalised over those kept: what a forecast mixes over."""
+        beam = belief.beam
+        mine = np.flatnonzero(beam.query == query)
+        order = mine[np.lexsort((beam.lex[mine], -tie_key(beam.weight[mine])))][:most]
+        total = float(beam.weight[order].sum())
+        return [Hypothesis(float(beam.weight[i]) / total, self.history(belief, int(i))) for i in order.tolist()]
 
     def history(self, belief: Belief, entry: int, steps: int | None = None) -> tuple[str, ...]:
         """The activities of the last beam's ``entry``, the first ``steps`` of them (all: None)."""

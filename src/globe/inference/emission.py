@@ -21,16 +21,7 @@ from globe.sequences.movements import moved_steps
 DayMoves = Sequence[Sequence[tuple[int, tuple[str, ...]]]]
 """Each day's :func:`~globe.sequences.movements.moved_steps`: (step, the objects that moved there)."""
 
-_EMPTY: frozenset[str] = frozenset()
 _MEMO = 20_000  # likelihood matrices kept per emission (the same sets of moved objects recur)
-
-
-def moved_objects(day: Day, objects: Sequence[str]) -> list[frozenset[str]]:
-    """Per step, the objects whose location differs from the step before (empty at step 0)."""
-    out: list[frozenset[str]] = [_EMPTY] * len(day)
-    for t, moved in moved_steps(day, objects):
-        out[t] = frozenset(moved)
-    return out
 
 
 class MovementEmission(CountingModel):

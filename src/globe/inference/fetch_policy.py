@@ -15,13 +15,14 @@ so the robot team sets two costs, not a bare threshold. Probabilities come from 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Collection, Sequence
+import statistics
+from dataclasses import dataclass, field
+from typing import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
 from globe.data.records import Day
-from globe.inference.forecast import Forecast, Forecaster, Forecasts
+from globe.inference.forecast import Forecast, Forecaster
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,8 +59,8 @@ class FetchPolicy:
         self.max_fetches_per_step = max_fetches_per_step
 
     def learn(self, days: Sequence[Day]) -> None:
-        """Add finished days to the movement model (an online assistant learning as it goes; the
-        activity model is shared with the assistant, which updates it)."""
+        """Add finished days to the movement model (a household's session learning as it goes; the
+        activity model is shared with the session, which updates it)."""
         movements = self.forecaster.movements
         movements.partial_fit(days, movements.objects_)
 
@@ -86,27 +87,6 @@ class FetchPolicy:
         order = sorted(range(len(p)), key=lambda j: (-p[j], forecast.objects[j]))
         return [FetchCandidate(forecast.objects[j], float(p[j]), targets[j], float(ev[j])) for j in order]
 
-    def candidates_many(self, forecasts: Forecasts) -> list[list[FetchCandidate]]:
-        """:meth:`candidates_from` for every forecast of a batch (the same numbers)."""
-        lo, hi = max(self.min_lead_steps - 1, 0), min(self.window_steps, forecasts.departure.shape[1])
-        p = np.zeros(forecasts.departure.shape[::2])
-        joint = np.zeros(forecasts.destination.shape[:1] + forecasts.destination.shape[2:])
-        for k in range(lo, hi):  # summed step by step, as for one forecast
-            p = p + forecasts.departure[:, k] if k > lo else forecasts.departure[:, k].copy()
-            joint = joint + forecasts.destination[:, k] if k > lo else forecasts.destination[:, k].copy()
-        best = joint.argmax(axis=2)
-        found = np.take_along_axis(joint, best[..., None], axis=2)[..., 0] > 0
-        where = forecasts.targets[np.arange(len(forecasts.objects))[None, :], best]
-        ev = expected_value(p, self.cost_useless, self.cost_missed)
-        objects, locations = forecasts.objects, forecasts.locations
-        out = []
-        for q in range(len(p)):
-            pq, evq = p[q].tolist(), ev[q].tolist()
-            targets = [locations[x] if ok else None for x, ok in zip(where[q].tolist(), found[q].tolist())]
-            order = sorted(range(len(pq)), key=lambda j: (-pq[j], objects[j]))
-            out.append([FetchCandidate(objects[j], pq[j], targets[j], evq[j]) for j in order])
-        return out
-
     def choose(self, candidates: Sequence[FetchCandidate], exclude: Collection[str] = ()) -> list[FetchCandidate]:
         """The candidates worth fetching: positive expected value, not already fetched, at most
         ``max_fetches_per_step``, most likely useful first."""
@@ -129,3 +109,83 @@ class FetchPolicy:
         including the current step, on a day of ``weekday``), leaving out objects already fetched
         (``exclude``)."""
         return self.choose(self.candidates(activities, locations, weekday), exclude)
+
+
+def left_alone(objects: Sequence[str], before: Sequence[str], now: Sequence[str],
+               use_places: Collection[str]) -> frozenset[str]:
+    """The objects no fetch may touch at a step: those in use now (at a place of class ``in_use``,
+    where an imported sensor that is on puts its object) and those just put back (at one the step
+    before): fetching them would carry away what the person holds, or count a return as a need.
+    ``before`` and ``now``: every object's place at the step before and at this one."""
+    if not use_places:
+        return frozenset()
+    return frozenset(o for o, b, n in zip(objects, before, now) if n in use_places or b in use_places)
+
+
+@dataclass(slots=True)
+class FetchReport:
+    """What a robot team cares about, over some days: fetches and how many were useful, uses and
+    how many had been fetched in advance (and how long before)."""
+
+    steps: int = 0
+    fetches: int = 0
+    useful_fetches: int = 0
+    used_objects: int = 0
+    used_fetched_in_advance: int = 0
+    lead_minutes: list[int] = field(default_factory=list)
+
+    @property
+    def precision(self) -> float:
+        return self.useful_fetches / self.fetches if self.fetches else 0.0
+
+    @property
+    def recall(self) -> float:
+        return self.used_fetched_in_advance / self.used_objects if self.used_objects else 0.0
+
+    @property
+    def median_lead_min(self) -> float | None:
+        return float(statistics.median(self.lead_minutes)) if self.lead_minutes else None
+
+
+Decide = Callable[[int, Mapping[str, int]], Sequence[str]]
+"""``decide(t, waiting)``: the objects fetched after step t, given those fetched earlier and still
+waiting for their use (object -> the step it was fetched)."""
+
+
+def follow_fetches(uses: Sequence[Collection[str]], minutes: Sequence[int], decide: Decide, decided_steps: int,
+                   min_lead: int, window: int, report: FetchReport | None = None
+                   ) -> tuple[FetchReport, dict[str, int]]:
+    """The one rule of a day's fetches, for the robot that decides them and for every score of them.
+
+    ``uses[t]``: the objects used at step t (a use is an object leaving its place); ``minutes[t]``:
+    when step t begins. After each step t < ``decided_steps``, ``decide`` names the fetches; a fetch
+    of o at t is *useful* when o is used at a step u with min_lead <= u - t <= window. A use counts as
+    *fetched in advance* when o had been fetched at a step t with min_lead <= u - t <= window. A
+    fetched object *waits* for its use: it is not fetched again until it is used or its window has
+    passed. Returns the report (added to ``report``) and what still waits after the last step."""
+    report = FetchReport() if report is None else report
+    lo = max(1, min_lead)
+    used_at: dict[str, list[int]] = {}
+    for t, objs in enumerate(uses):
+        for obj in objs:
+            used_at.setdefault(obj, []).append(t)
+    waiting: dict[str, int] = {}
+    for t, objs in enumerate(uses):
+        for obj in sorted(objs):
+            report.used_objects += 1
+            fetched = waiting.pop(obj, None)
+            if fetched is not None and lo <= t - fetched <= window:
+                report.used_fetched_in_advance += 1
+                report.lead_minutes.append(minutes[t] - minutes[fetched])
+        for obj in [o for o, f in waiting.items() if t - f >= window]:
+            del waiting[obj]
+        if t >= decided_steps:
+            continue
+        report.steps += 1
+        for obj in decide(t, waiting):
+            if obj in waiting:  # a decision already waiting (recorded twice) counts once
+                continue
+            report.fetches += 1
+            waiting[obj] = t
+            report.useful_fetches += any(lo <= u - t <= window for u in used_at.get(obj, ()))
+    return report, waiting

@@ -101,6 +101,39 @@ class Forecasts:
         return first_locations(self.destination, self.targets, horizons)
 
 
+def mix(values: np.ndarray, owners: np.ndarray, ranks: np.ndarray, weights: np.ndarray, size: int) -> np.ndarray:
+    """``values`` (one row per forecast) mixed per owner: row o of the result is the sum of
+    ``weights[q] * values[q]`` over the forecasts q of owner o, added in the order of their
+    ``ranks`` (most probable first, as a running sum would), so a mixture of one forecast of
+    weight 1 is that forecast to the bit."""
+    out = np.zeros((size,) + values.shape[1:])
+    shape = (-1,) + (1,) * (values.ndim - 1)
+    for k in range(int(ranks.max(initial=-1)) + 1):
+        mine = ranks == k
+        out[owners[mine]] += weights[mine].reshape(shape) * values[mine]
+    return out
+
+
+def mixture(forecasts: Forecasts, weights: np.ndarray) -> Forecast:
+    """One forecast from several of the same day (say, from its most probable histories), each
+    weighted (``weights`` summing to 1, most probable first)."""
+    n = len(forecasts)
+    owners, ranks = np.zeros(n, dtype=np.int64), np.arange(n)
+    departure = mix(forecasts.departure, owners, ranks, weights, 1)[0]
+    compact = mix(forecasts.destination, owners, ranks, weights, 1)[0]
+    full = np.zeros(compact.shape[:2] + (len(forecasts.locations),))
+    j, x = np.nonzero(forecasts.real)
+    full[:, j, forecasts.targets[j, x]] = compact[:, j, x]
+    activity: list[dict[str, float]] = []
+    for q, w in enumerate(weights.tolist()):
+        for k, dist in enumerate(forecasts.trees.activity(q)):
+            if k == len(activity):
+                activity.append({})
+            for a, p in dist.items():
+                activity[k][a] = activity[k].get(a, 0.0) + w * p
+    return Forecast(int(forecasts.start[0]), forecasts.objects, forecasts.locations, tuple(activity), departure, full)
+
+
 def first_locations(destination: np.ndarray, targets: np.ndarray, horizons: int) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Forecasts.first_locations` of a (queries x steps x objects x targets) array: the
     destinations summed step by step, each step's most likely target (the first of ties)."""

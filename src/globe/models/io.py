@@ -19,9 +19,11 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
-from globe.errors import GlobeError, ModelFileError
+from globe.data.csv_logs import check_map
+from globe.data.records import Day, Node, map_fingerprint
+from globe.errors import DataError, GlobeError, ModelFileError
 from globe.models.activity import ActivityModel
 from globe.models.base import check_is_fitted
 from globe.models.baselines import PersistenceModel
@@ -32,7 +34,7 @@ from globe.models.routine import RoutineModel
 FORMAT = "globe-model"
 FORMAT_VERSION = 1
 BUNDLE_FORMAT = "globe-household-model"
-BUNDLE_VERSION = 1
+BUNDLE_VERSION = 2
 MODEL_FILE = "model.json"
 LEGACY_FILES = ("activity.json", "objects.json")
 _TRAIN = "globe train --household NAME --model-dir DIR"
@@ -209,13 +211,64 @@ def load_model(path: Path) -> Any:
 
 @dataclass(frozen=True)
 class HouseholdModel:
-    """What ``globe train`` saves and ``globe predict`` loads."""
+    """What ``globe train`` saves and ``globe predict`` loads: both models, and what a household's
+    session is built from (its map, its grid, its deployment and its training days' places; the
+    days' activities are the activity model's)."""
 
     household: str
     fingerprint: str
     activity: Any
     objects: Any
     objects_columns: tuple[str, ...]
+    nodes: tuple[Node, ...] = ()
+    grid: dict[str, int] | None = None
+    deployment: dict[str, Any] | None = None
+    days: tuple[Day, ...] = ()
+
+
+def _places(days: Sequence[Day]) -> list[dict[str, Any]]:
+    """Each day's name and where every object was: its first row, then each change (step, column,
+    place): a few kilobytes a day where the rows would take a hundred."""
+    out = []
+    for day in days:
+        moves = [[t, j, after] for t in range(1, len(day))
+                 for j, (before, after) in enumerate(zip(day.locations[t - 1], day.locations[t])) if before != after]
+        out.append({"name": day.name, "minutes": list(day.minutes), "first": list(day.locations[0]) if len(day) else [],
+                    "moves": moves})
+    return out
+
+
+def _days(places: Any, activities: Sequence[tuple[str, ...]], columns: tuple[str, ...], nodes: tuple[Node, ...],
+          src: str) -> tuple[Day, ...]:
+    """The training days back from :func:`_places` and the activity model's sequences, every
+    place a node of the map and every change inside its day."""
+    known = {n.node for n in nodes}
+    if not isinstance(places, list) or len(places) != len(activities):
+        raise ModelFileError(f"{src}: malformed model file: 'places' is not one entry per training day")
+    out = []
+    for i, (entry, acts) in enumerate(zip(places, activities)):
+        where = f"{src}: malformed model file: places[{i}]"
+        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str) or not _is_labels(entry.get("first")):
+            raise ModelFileError(f"{where} has no name or first row of places")
+        minutes, first, moves = entry.get("minutes"), entry["first"], entry.get("moves")
+        if (not isinstance(minutes, list) or len(minutes) != len(acts)
+                or not all(type(m) is int and 0 <= m <= 100_000 for m in minutes)):
+            raise ModelFileError(f"{where}: 'minutes' is not one minute per step of its day")
+        if len(first) != len(columns) or not set(first) <= known or not isinstance(moves, list):
+            raise ModelFileError(f"{where}: its places are not one node of the map per object")
+        rows, row = [], list(first)
+        changes: dict[int, list[tuple[int, str]]] = {}
+        for move in moves:
+            if not (isinstance(move, list) and len(move) == 3 and type(move[0]) is int and 1 <= move[0] < len(acts)
+                    and type(move[1]) is int and 0 <= move[1] < len(columns) and move[2] in known):
+                raise ModelFileError(f"{where}: a move is not [step, column, node of the map] inside its day")
+            changes.setdefault(move[0], []).append((move[1], move[2]))
+        for t in range(len(acts)):
+            for j, place in changes.get(t, ()):
+                row[j] = place
+            rows.append(tuple(row))
+        out.append(Day(entry["name"], tuple(minutes), tuple(acts), tuple(rows)))
+    return tuple(out)
 
 
 def _checksum(body: dict[str, Any]) -> str:
@@ -224,13 +277,21 @@ def _checksum(body: dict[str, Any]) -> str:
 
 
 def save_household_model(model_dir: Path, activity: Any, objects: Any, *, household: str, fingerprint: str,
-                         objects_columns: tuple[str, ...] = ()) -> Path:
-    """Save both models as one file ``model_dir/model.json`` in one atomic step; returns its path."""
-    body = {
+                         objects_columns: tuple[str, ...] = (), nodes: Sequence[Node] = (),
+                         grid: dict[str, int] | None = None, deployment: dict[str, Any] | None = None,
+                         days: Sequence[Day] = ()) -> Path:
+    """Save both models as one file ``model_dir/model.json`` in one atomic step, with what a session
+    is built from when given (the map's ``nodes``, the ``grid``, the ``deployment`` and the training
+    ``days``, whose activities must be the activity model's); returns its path."""
+    body: dict[str, Any] = {
         "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "household": household, "map_fingerprint": fingerprint,
         "objects_columns": list(objects_columns),
         "activity": model_to_dict(activity), "objects": model_to_dict(objects),
     }
+    if nodes:
+        body["nodes"] = [[n.node, n.cls, n.category, n.movable, n.start_location] for n in nodes]
+    if grid is not None and deployment is not None:
+        body |= {"grid": dict(grid), "deployment": deployment, "places": _places(days)}
     path = Path(model_dir) / MODEL_FILE
     try:
         if Path(model_dir).exists() and not Path(model_dir).is_dir():
@@ -260,7 +321,8 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None,
         got = payload.get("format") if isinstance(payload, dict) else type(payload).__name__
         raise ModelFileError(f"{src}: not a GLOBE household model (format {got!r})")
     if not _is_version(payload.get("version"), BUNDLE_VERSION):
-        raise ModelFileError(f"{src}: format version {payload.get('version')!r}, this GLOBE reads {BUNDLE_VERSION}")
+        raise ModelFileError(f"{src}: format version {payload.get('version')!r}, this GLOBE reads {BUNDLE_VERSION}; "
+                             f"retrain it ({_TRAIN})")
     body = {k: v for k, v in payload.items() if k != "checksum"}
     if payload.get("checksum") != _checksum(body):
         raise ModelFileError(f"{src}: checksum mismatch (the file was edited, mixed with another or damaged); "
@@ -278,4 +340,28 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None,
     if activity.kind not in _ACTIVITY_KINDS or objects.kind != "object":
         raise ModelFileError(f"{src}: malformed model file: parts are {activity.kind!r} and {objects.kind!r}, "
                              "expected an activity model and an object model")
-    return HouseholdModel(name, fp, activity, objects, tuple(columns))
+    nodes = _nodes(payload.get("nodes", []), tuple(columns), fp, src)
+    grid, deployment = payload.get("grid"), payload.get("deployment")
+    days: tuple[Day, ...] = ()
+    if grid is not None or deployment is not None:
+        whole = isinstance(grid, dict) and set(grid) == {"step_minutes", "day_start_minute", "steps"} and all(
+            type(v) is int and 0 <= v <= 100_000 for v in grid.values())
+        if not whole or not isinstance(deployment, dict):
+            raise ModelFileError(f"{src}: malformed model file: 'grid' or 'deployment' is not what globe train writes")
+        days = _days(payload.get("places"), activity.training_data_, tuple(columns), nodes, src)
+    return HouseholdModel(name, fp, activity, objects, tuple(columns), nodes, grid, deployment, days)
+
+
+def _nodes(rows: Any, columns: tuple[str, ...], fingerprint: str, src: str) -> tuple[Node, ...]:
+    """The stored map, checked by the map's rules and against its fingerprint."""
+    if not isinstance(rows, list) or not all(isinstance(r, list) and len(r) == 5 and _is_labels([r[0], r[1], r[4]])
+                                             and isinstance(r[2], str) and type(r[3]) is bool for r in rows):
+        raise ModelFileError(f"{src}: malformed model file: 'nodes' is not a list of map rows")
+    nodes = tuple(Node(*r) for r in rows)
+    if nodes and map_fingerprint(nodes, columns) != fingerprint:
+        raise ModelFileError(f"{src}: malformed model file: its map does not match its map_fingerprint")
+    try:
+        check_map(nodes)
+    except DataError as err:
+        raise ModelFileError(f"{src}: malformed model file: its map: {err.message}") from None
+    return nodes

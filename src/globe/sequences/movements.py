@@ -86,3 +86,12 @@ def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment =
         events.extend(MovementEvent(name, t, minute, obj, b, a, s, activity)
                       for obj, b, a in zip(objects, before, after) if b != a)
     return events
+
+
+def moved_objects(day: Day, objects: Sequence[str]) -> list[frozenset[str]]:
+    """Per step, the objects whose location differs from the step before (empty at step 0): what
+    moved, for everything that asks (the filter's evidence, the fetch scores, the replays)."""
+    out: list[frozenset[str]] = [frozenset()] * len(day)
+    for t, moved in moved_steps(day, objects):
+        out[t] = frozenset(moved)
+    return out

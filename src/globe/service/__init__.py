@@ -1,2 +1,2 @@
-"""The assistance loop: an online assistant per household, its SQLite store, the HTTP service,
-the Python client a robot imports, and a simulated robot."""
+"""The assistance service: each household's session (:mod:`globe.session`) behind HTTP, its SQLite
+store, the Python client a robot imports, and a simulated robot."""

@@ -11,7 +11,7 @@ import datetime as dt
 from typing import Any, Mapping, Sequence
 
 from globe.data.csv_logs import format_day
-from globe.data.records import Day, Household
+from globe.data.records import Household
 from globe.errors import DataError, GlobeError, MissingExtraError
 from globe.service.schemas import Prediction
 
@@ -29,17 +29,6 @@ class ServiceUnreachableError(GlobeError):
 
 
 ServicePrediction = Prediction  # the service's own schema (kept as a name for robot code written against it)
-
-
-def replay_dates(days: Sequence[Day], last: dt.date) -> list[dt.date]:
-    """The calendar dates a replay posts ``days`` on, the last on or before ``last``: consecutive
-    dates, unless every day is named by its date (in order): then their own dates moved by whole
-    weeks, so a model that knows the day of the week sees each replayed day as it was."""
-    named = [when for when in (d.calendar_date for d in days) if when is not None]
-    if not named or len(named) < len(days) or any(b <= a for a, b in zip(named, named[1:])):
-        return [last - dt.timedelta(days=len(days) - 1 - i) for i in range(len(days))]
-    shift = dt.timedelta(days=(last - named[-1]).days // 7 * 7)
-    return [when + shift for when in named]
 
 
 def household_payload(household: Household) -> dict[str, Any]:
@@ -95,12 +84,14 @@ class GlobeClient:
         return self._call("GET", "/households")
 
     def create_household(self, name: str, nodes: Sequence[Mapping[str, Any]], days: Sequence[str] = (),
-                         timezone: str | None = None, dates: Sequence[str] | None = None) -> dict:
+                         timezone: str | None = None, dates: Sequence[str] | None = None, *, method: str | None = None,
+                         new_activities: str | None = None) -> dict:
+        """Create a household from its map and, optionally, training days (admin); ``method``: how
+        its models are chosen (see ``POST /households``)."""
         body: dict[str, Any] = {"name": name, "nodes": list(nodes), "days": list(days)}
-        if timezone:
-            body["timezone"] = timezone
-        if dates is not None:
-            body["dates"] = list(dates)
+        optional = {"timezone": timezone, "dates": None if dates is None else list(dates), "method": method,
+                    "new_activities": new_activities}
+        body |= {k: v for k, v in optional.items() if v}
         return self._call("POST", "/households", json=body)
 
     def set_shadow(self, name: str, shadow: bool) -> dict:

@@ -87,7 +87,7 @@ def required_clock_skew(household: Household, checkpoints: Sequence[int] = CHECK
     """How far back the service must accept times (``service.max_clock_skew``): the days of the
     largest checkpoint and every test day are replayed on the calendar days up to yesterday (on
     their own dates moved by whole weeks, for days named by their date: :func:`replay_dates`)."""
-    from globe.service.client import replay_dates
+    from globe.evaluation.online import replay_dates
 
     days = [*household.train[: max(checkpoints, default=0)], *household.test]
     dates = replay_dates(days, dt.date(2000, 1, 1))
@@ -137,7 +137,7 @@ def _score_replayed(household: Household, days: Sequence[Day], predictions: Mapp
 
 
 def _replay_and_score(client: GlobeClient, name: str, household: Household, days: Sequence[Day],
-                      dates: Sequence[dt.date], scores: _Scores, lead_window_steps: int) -> int:
+                      dates: Sequence[dt.date], scores: _Scores, min_lead_steps: int, window_steps: int) -> int:
     from globe.service.robot import SimulatedRobot, replay_days
 
     predictions: dict[tuple[int, int], ServicePrediction] = {}
@@ -146,7 +146,7 @@ def _replay_and_score(client: GlobeClient, name: str, household: Household, days
         predictions[(d, t)] = p
 
     report = replay_days(client, name, household, days, SimulatedRobot(), dates=dates,
-                         lead_window_steps=lead_window_steps, on_prediction=keep)
+                         min_lead_steps=min_lead_steps, window_steps=window_steps, on_prediction=keep)
     _score_replayed(household, days, predictions, scores)
     scores.add_report(report)
     return sum(len(d) for d in days)
@@ -168,10 +168,11 @@ def _fresh_household(client: GlobeClient, name: str, nodes: list[dict[str, Any]]
 
 def curve_point(client: GlobeClient, household: Household, days_learned: int, *, name_prefix: str | None = None,
                 isolate_test_days: bool = True, timezone: str = "UTC", last_date: dt.date | None = None,
-                lead_window_steps: int = 6) -> CurvePoint:
+                min_lead_steps: int = 1, window_steps: int = 6) -> CurvePoint:
     """Score the test days after ``days_learned`` training days streamed into fresh household(s):
     one per test day if ``isolate_test_days``, else one shared by the test days in order."""
-    from globe.service.client import household_payload, replay_dates
+    from globe.evaluation.online import replay_dates
+    from globe.service.client import household_payload
 
     if not 1 <= days_learned <= len(household.train):
         raise DataError(f"checkpoint {days_learned} is outside 1..{len(household.train)} (the training days of "
@@ -193,7 +194,7 @@ def curve_point(client: GlobeClient, household: Household, days_learned: int, *,
         try:
             posted += stream_days(client, name, household, train, dates[:days_learned])
             posted += _replay_and_score(client, name, household, test_days, dates[days_learned:], scores,
-                                        lead_window_steps)
+                                        min_lead_steps, window_steps)
         finally:
             client.delete_household(name)
     return CurvePoint(

@@ -1,10 +1,9 @@
 """Households served by one process.
 
 Start-up only reads the list of households (fast, whatever their history); each household's
-assistant is built on first use (or by a background warm-up): its training days are re-counted
-and its stored observations replayed. A stored row that cannot be replayed (written by an older
-GLOBE, or damaged) is quarantined, logged and counted, and the rest loads: nothing stored can
-stop the service.
+session (:class:`globe.session.HouseholdSession`) is built on first use, or by a background
+warm-up (:mod:`globe.service.rebuild`: its training days counted with the models its deployment
+names, its stored observations replayed), and every request drives that session.
 """
 
 from __future__ import annotations
@@ -19,11 +18,11 @@ from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence, cast
 from zoneinfo import ZoneInfo
 
 from globe import assembly
-from globe.config import GlobeConfig
+from globe.config import Deployment, DeployMethod, GlobeConfig
 from globe.data.csv_logs import activity_label
 from globe.data.records import Household
 from globe.errors import (
@@ -39,10 +38,12 @@ from globe.errors import (
 from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import scoring, timepolicy
-from globe.service.assistant import Observation, OnlineAssistant, build_assistant
+from globe.service.deploying import Selections
+from globe.service.rebuild import Pending, check_limits, rebuild
 from globe.service.schema import FoundObservation, HouseholdRow
 from globe.service.schemas import (
     FeedbackCounts,
+    FetchOut,
     HouseholdInfo,
     ModelOut,
     ModelSettings,
@@ -54,32 +55,34 @@ from globe.service.schemas import (
     check_household_name,
 )
 from globe.service.store import Store
-from globe.service.stored_days import DayEncoding, legacy_day
-from globe.service.upload import DayParser, household_from, parse_nodes
+from globe.service.stored_days import DayEncoding
+from globe.service.upload import household_from, parse_nodes
+from globe.session import Decision, HouseholdSession, Observation, build_session, session_grid
+from globe.session.build import deployment_summary, new_activities_rule
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True, slots=True)
-class Pending:
-    """An observation stored and acknowledged, held until the server clock is within
-    ``service.max_ahead`` of it (see :meth:`Registry.observe`)."""
-
-    instant: dt.datetime  # UTC
-    observation: Observation
-
-
 @dataclass(slots=True, eq=False)
 class Served:
-    """A household's row and, once built, its assistant. Its lock serialises everything done to the
-    household: building it, every request, its deletion, its eviction."""
+    """A household's row and, once built, its session and what only the service counts. Its lock
+    serialises everything done to the household: building it, every request, its deletion, its
+    eviction."""
 
     row: HouseholdRow
-    assistant: OnlineAssistant | None = None
+    session: HouseholdSession | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
     deleted: bool = False
     failure: str | None = None  # why it cannot be built (then it answers 503 until deleted or restarted)
     pending: list[Pending] = field(default_factory=list)  # by time
+    feedback: dict[str, int] = field(default_factory=lambda: {"accepted": 0, "refused": 0})
+    quarantined: int = 0
+    set_aside: int = 0  # stored training days that could not be read back
+
+    def counts(self) -> dict[str, Any]:
+        """What the service counts beside the session's own statistics."""
+        return {"feedback": dict(self.feedback), "quarantined": self.quarantined,
+                "training_days_set_aside": self.set_aside, "pending": len(self.pending)}
 
 
 class Registry:
@@ -90,6 +93,7 @@ class Registry:
     store's. Eviction only tries other households' locks without waiting."""
 
     def __init__(self, store: Store, config: GlobeConfig, backend: LLMBackend | None) -> None:
+        self.selections = Selections(config, self._chosen)
         self.store = store
         self.config = config
         self.backend = backend
@@ -107,7 +111,7 @@ class Registry:
 
     # -- start-up ------------------------------------------------------------------------------
     def load_all(self) -> None:
-        """Read the household list (assistants are built on first use or by :meth:`warm_up`)."""
+        """Read the household list (sessions are built on first use or by :meth:`warm_up`)."""
         with self._lock:
             for row in self.store.households():
                 self._served[row.name] = Served(row)
@@ -125,88 +129,10 @@ class Registry:
                 continue
 
     # -- building --------------------------------------------------------------------------------
-    def _build(self, row: HouseholdRow) -> tuple[OnlineAssistant, list[Pending]]:
-        """The household's assistant from its stored rows: training days counted, observations
-        replayed in time order (those still ahead of the clock are returned as pending)."""
-        if row.problem:
-            raise StoreError(row.problem)
-        tz = timepolicy.zone(row.timezone)
-        nodes, objects = self.store.load_map(row.name)
-        locations = frozenset(n.node for n in nodes)
-        owners = {n.cls: n.node for n in nodes if n.movable}
-        days = []
-        parser = DayParser(objects, locations, owners)
-        set_aside = 0
-        for i, kept in enumerate(self.store.training_days(row.name)):
-            try:
-                text = kept.text
-                day = legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0]
-                days.append(day if kept.date is None else dataclasses.replace(day, name=kept.date))
-            except (GlobeError, ValueError, KeyError, TypeError) as err:
-                log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
-                set_aside += 1
-        household = Household(row.name, nodes, objects, tuple(days), (), f"sqlite:{self.store.path}")
-        assistant = build_assistant(household, self.config, self.backend)
-        assistant.training_days_set_aside = set_aside
-        bad: list[int] = []
-        replay: list[tuple[dt.datetime, int, Observation]] = []
-        labels: dict[str, str] = {}  # each stored activity through the label rule once
-        for stored in self.store.observations(row.name):
-            try:
-                time = timepolicy.to_zone(dt.datetime.fromisoformat(stored.time), tz)
-                received = dt.datetime.fromisoformat(stored.received_at)
-                received = received if received.tzinfo else received.replace(tzinfo=dt.timezone.utc)
-                timepolicy.check_bounds(time, created=row.created_at, now=received,
-                                        skew=self.config.service.max_clock_skew)
-                activity = stored.activity
-                if activity is not None:
-                    activity = labels.get(activity) or labels.setdefault(activity, activity_label(activity))
-                obs = Observation(time, activity, _locations(json.loads(stored.locations)))
-                self.check_labels(obs)
-                assistant.validate_labels(obs)
-                replay.append((time.astimezone(dt.timezone.utc), stored.id, obs))
-            except (GlobeError, ValueError, TypeError, KeyError, OverflowError) as err:
-                log.warning("household %s: stored observation %d quarantined: %s", row.name, stored.id, err)
-                bad.append(stored.id)
-        # Applied observations always increase in time (held ones come after every observation
-        # applied before them), so replaying in time order repeats what was applied live.
-        horizon = timepolicy.utcnow() + self.config.service.max_ahead
-        pending: list[Pending] = []
-        for instant, stored_id, obs in sorted(replay, key=lambda r: (r[0], r[1])):
-            if instant > horizon:
-                pending.append(Pending(instant, obs))
-                continue
-            try:
-                assistant.validate_time(obs)  # its labels were checked above
-            except DataError as err:
-                log.warning("household %s: stored observation %d quarantined: %s", row.name, stored_id, err)
-                bad.append(stored_id)
-                continue
-            assistant.observe(obs)
-        if bad:
-            try:
-                self.store.quarantine(bad)
-            except StoreError as err:
-                log.warning("household %s: could not mark quarantined rows: %s", row.name, err)
-        assistant.quarantined = max(len(bad), self.store.quarantined(row.name))
-        assistant.pending = len(pending)
-        for accepted in self.store.feedback(row.name):
-            assistant.record_feedback(accepted)
-        scoring.restore(assistant, self.store, row.name)
-        return assistant, pending
-
-    def check_labels(self, obs: Observation) -> None:
-        """The configured label limits (before anything is stored)."""
-        s = self.config.service
-        if obs.activity is not None and len(obs.activity) > s.max_label_length:
-            raise LimitError(f"activity longer than {s.max_label_length} characters", field="activity")
-        if len(obs.locations) > s.max_locations:
-            raise LimitError(f"{len(obs.locations)} locations in one observation (at most {s.max_locations})",
-                             field="locations")
-
     # -- households ------------------------------------------------------------------------------
     def create_uploaded(self, name: str, timezone: str | None, node_rows: Sequence[Mapping[str, Any]],
-                        day_texts: list[str], dates: Sequence[dt.date] | None = None) -> HouseholdInfo:
+                        day_texts: list[str], dates: Sequence[dt.date] | None = None, *, method: str | None = None,
+                        new_activities: str | None = None) -> HouseholdInfo:
         """Validate a household sent over HTTP (its map's rows and its days' texts) against the
         configured limits and the rules of files on disk, then :meth:`create` it."""
         s = self.config.service
@@ -225,13 +151,17 @@ class Registry:
             where = err.source
             detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
             raise type(err)(detail, field=f"{where}.{err.field}" if err.field else where) from None
-        assistant = self.create(household, zone, day_texts)
+        session = self.create(household, zone, day_texts, method=method, new_activities=new_activities)
         return HouseholdInfo(name=name, timezone=zone, objects=list(household.objects),
-                             days_learned=assistant.days_learned)
+                             days_learned=session.days_learned, grid=session.grid.describe(),
+                             deployment=deployment_summary(session.deployment), selecting=self.selecting(name))
 
-    def create(self, household: Household, timezone: str, day_texts: list[str]) -> OnlineAssistant:
+    def create(self, household: Household, timezone: str, day_texts: list[str], *, method: str | None = None,
+               new_activities: str | None = None) -> HouseholdSession:
         """Build, then store, a validated household (the build fails before anything is stored).
-        The name is reserved while it builds, so other requests are not held up meanwhile."""
+        The name is reserved while it builds, so other requests are not held up meanwhile. Its
+        models are chosen as ``method`` says (default ``selection.deploy``): in the background
+        where that means cross-validation (:class:`~globe.service.deploying.Selections`)."""
         name = household.name
         with self._lock:
             if name in self._served or name in self._creating or self.store.household(name) is not None:
@@ -242,12 +172,24 @@ class Registry:
                                  field="name")
             self._creating.add(name)
         try:
+            grid = session_grid(household, self.config)
+            rule = new_activities or new_activities_rule(self.config, bool(household.train))
+            chosen_by = cast(DeployMethod, method or self.config.selection.deploy)
+            settings: dict[str, Any] = {"grid": grid.as_dict(), "new_activities": rule, "method": chosen_by}
+            needs_cv = self.selections.needs_cv(household, chosen_by)
+            deployment = Deployment.configured(self.config, chosen_by) if needs_cv else None
             # The days are compressed for storage on another core while the models are counted
             # (zlib releases the GIL), then by both threads; nothing is stored unless the build succeeds.
             encoding = DayEncoding(day_texts)
             helper = self._encoder.submit(encoding.run)
             try:
-                assistant = build_assistant(household, self.config, self.backend)
+                if deployment is None:
+                    from globe.evaluation.deploy import choose_deployment
+
+                    deployment = choose_deployment(household, self.config, method=chosen_by)
+                    settings["deployment"] = deployment.model_dump(mode="json")
+                session = build_session(household, self.config, deployment, self.backend, grid=grid,
+                                        new_activities=rule)  # type: ignore[arg-type]
             except BaseException:
                 encoding.stop()
                 raise
@@ -256,16 +198,39 @@ class Registry:
                 helper.result()
             encoded = encoding.blobs
             with self._lock:
-                self.store.add_household(household, timezone, day_texts, encoded)
+                self.store.add_household(household, timezone, day_texts, encoded, settings=settings)
                 row = self.store.household(name)
                 assert row is not None
-                self._served[name] = Served(row, assistant)
+                self._served[name] = Served(row, session)
         finally:
             with self._lock:
                 self._creating.discard(name)
+        if needs_cv:
+            self.selections.deployment(household, chosen_by)
         self._touch(name)
         self._notify(name)
-        return assistant
+        return session
+
+    def _chosen(self, name: str, deployment: Deployment) -> None:
+        """A household's selection ended: its deployment is stored and it is rebuilt with it on its
+        next request (the listeners are told)."""
+        try:
+            s = self.served(name)
+            with s.lock:
+                if s.deleted:
+                    return
+                self._write(name, s, lambda: self.store.set_settings(
+                    name, self.store.settings(name) | {"deployment": deployment.model_dump(mode="json")}))
+                s.session, s.pending = None, []
+                log.info("household %s: deploys %s", name, deployment_summary(deployment))
+        except GlobeError as err:  # deleted meanwhile, or the database refuses writes
+            log.warning("household %s: its chosen models were not stored: %s", name, err)
+            return
+        self._notify(name)
+
+    def selecting(self, name: str) -> bool:
+        """Whether the household's models are being chosen in the background now."""
+        return self.selections.running(name)
 
     def served(self, name: str) -> Served:
         """The household's entry: the database's row, read under the registry's lock so that no
@@ -290,9 +255,9 @@ class Registry:
                     continue
                 if s.failure is not None:
                     raise HouseholdUnavailableError(self._unavailable(name, s.failure))
-                if s.assistant is None:
+                if s.session is None:
                     self._build_into(name, s)
-                assert s.assistant is not None
+                assert s.session is not None
                 self._apply_due(s)
                 self._touch(name)
                 yield s
@@ -300,7 +265,9 @@ class Registry:
 
     def _build_into(self, name: str, s: Served) -> None:
         try:
-            s.assistant, s.pending = self._build(s.row)
+            found = rebuild(self.store, self.config, self.backend, self.selections, s.row)
+            s.session, s.pending = found.session, found.pending
+            s.feedback, s.quarantined, s.set_aside = found.feedback, found.quarantined, found.set_aside
         except Exception as err:  # noqa: BLE001 - whatever a stored row holds, the household is failed, not the service
             if self.store.household(name) is None:  # deleted from the database behind the service's back
                 self._forget(name, s)
@@ -329,23 +296,25 @@ class Registry:
     def _apply_due(self, s: Served) -> None:
         """Apply the held observations the clock has come within ``service.max_ahead`` of."""
         horizon = timepolicy.utcnow() + self.config.service.max_ahead
-        a = s.assistant
-        assert a is not None
+        session = s.session
+        assert session is not None
         while s.pending and s.pending[0].instant <= horizon:
-            a.observe(s.pending.pop(0).observation)
-        a.pending = len(s.pending)
+            obs = s.pending.pop(0).observation
+            settled = session.settle(session.placement(obs.time))
+            session.observe(obs)
+            session.remember(settled)
 
     @contextmanager
-    def locked(self, name: str) -> Iterator[OnlineAssistant]:
-        """The household's current assistant, holding its lock."""
+    def locked(self, name: str) -> Iterator[HouseholdSession]:
+        """The household's current session, holding its lock."""
         with self._held(name) as s:
-            assert s.assistant is not None
-            yield s.assistant
+            assert s.session is not None
+            yield s.session
 
-    def get(self, name: str) -> OnlineAssistant:
-        """The household's assistant, built if needed (the caller holds no lock: for start-up and tests)."""
-        with self.locked(name) as a:
-            return a
+    def get(self, name: str) -> HouseholdSession:
+        """The household's session, built if needed (the caller holds no lock: for start-up and tests)."""
+        with self.locked(name) as session:
+            return session
 
     def _touch(self, name: str) -> None:
         """Mark ``name`` recently used; evict the least recently used beyond the bound (only idle
@@ -356,11 +325,11 @@ class Registry:
             excess = len(self._recent) - self.config.service.max_built_households
             for old in list(self._recent)[:max(0, excess)]:
                 s = self._served.get(old)
-                if s is None or s.assistant is None:
+                if s is None or s.session is None:
                     del self._recent[old]
                 elif old != name and s.lock.acquire(blocking=False):
                     try:
-                        s.assistant = None
+                        s.session = None
                         s.pending = []
                         del self._recent[old]
                     finally:
@@ -431,9 +400,9 @@ class Registry:
             raise LimitError(f"id longer than {s.max_label_length} characters", field="id")
         if activity is not None:
             activity = activity_label(activity)
-        self.check_labels(Observation(time, activity, locations))
+        check_limits(Observation(time, activity, locations), s)
         with self._held(name) as held:
-            a = held.assistant
+            a = held.session
             assert a is not None
             tz = timepolicy.zone(held.row.timezone)
             if client_id is not None:
@@ -462,15 +431,15 @@ class Registry:
                                 field="time")
             place = a.placement(zoned)
             ack = {"day": place.day, "step": place.step}
-            settled = scoring.Settled() if held_back else scoring.before_observe(name, a, place, self.config.policy)
+            settled = None if held_back else a.settle(place)
+            statements = [] if settled is None else scoring.statements(name, settled)
             stored = self._write(name, held, lambda: self.store.add_observation(name, zoned, activity, dict(locations),
-                                                                               client_id, ack, settled.statements))
-            if held_back:
+                                                                               client_id, ack, statements))
+            if settled is None:
                 bisect.insort(held.pending, Pending(instant, obs), key=lambda p: p.instant)
-                a.pending = len(held.pending)
             else:
                 a.observe(obs)
-                scoring.after_observe(a, settled)
+                a.remember(settled)
             return ObservationAck(id=client_id if client_id is not None else str(stored), duplicate=False,
                                   pending=held_back, **ack)
 
@@ -490,25 +459,22 @@ class Registry:
             raise
 
     def predict(self, name: str) -> Prediction:
-        """The next step's prediction; in shadow mode ``act`` stays false (the fetch decided is
+        """The next step's prediction; in shadow mode ``act`` stays false (the fetches decided are
         still recorded and scored)."""
         with self._held(name) as held:
-            a = held.assistant
-            assert a is not None
-            decided = a.last_prediction
-            p = a.predict()
+            session = held.session
+            assert session is not None
+            decided = session.last_decision
+            d = session.decide()
             shadow = self.store.shadow(name)
-            if p.fetch_object is not None and p is not decided:  # a new decision: recorded once
-                step = scoring.record_fetch(a, p.fetch_object, self.config.policy)
-                if step is not None and a.day is not None:
+            if d.fetches and d is not decided and session.day is not None:  # a new decision: recorded once
+                for c in d.fetches:
                     try:
-                        self.store.add_fetch(name, a.day, step, p.fetch_object, p.fetch_to, p.fetch_probability,
+                        self.store.add_fetch(name, session.day, d.step - 1, c.obj, c.to_location, c.probability,
                                              shadow)
                     except StoreError as err:  # the prediction stands; only its score is lost
                         log.warning("household %s: the fetch decision was not stored: %s", name, err)
-            if shadow:
-                p = p.model_copy(update={"act": False, "shadow": True})
-            return p
+            return prediction(d, shadow)
 
     def set_shadow(self, name: str, shadow: bool) -> ShadowOut:
         """Switch the household's shadow mode (stored: it outlives a restart)."""
@@ -520,39 +486,40 @@ class Registry:
 
     def scores(self, name: str, days: int = 28) -> OnlineScores:
         """The online scores of the last ``days`` days (today's so far included)."""
-        with self._held(name) as held:
-            a = held.assistant
-            assert a is not None
-            return scoring.online_scores(self.store, name, a, self.config, days)
+        with self.locked(name) as session:
+            return scoring.online_scores(self.store, name, session, days)
 
     def feedback(self, name: str, obj: str, accepted: bool) -> FeedbackCounts:
         """What the person said about a fetched object: stored, then counted."""
         with self._held(name) as held:
-            a = held.assistant
-            assert a is not None
-            if obj not in a.household.objects:
+            session = held.session
+            assert session is not None
+            if obj not in session.household.objects:
                 raise DataError(f"unknown object {obj[:64]!r}", field="object")
             self._write(name, held, lambda: self.store.add_feedback(name, obj, accepted))
-            a.record_feedback(accepted)
-            return FeedbackCounts(**a.stats()["feedback"])
+            held.feedback["accepted" if accepted else "refused"] += 1
+            return FeedbackCounts(**held.feedback)
 
     def stats(self, name: str) -> StatsOut:
-        """The household's counts, with the effective settings of its built models and chooser."""
+        """The household's counts, with what it runs: its grid, its deployment and the effective
+        settings of its built models and chooser."""
         with self._held(name) as held:
-            a = held.assistant
-            assert a is not None
-            built = assembly.describe(a.activity_model, a.chooser)
-            scores = scoring.online_scores(self.store, name, a, self.config)
-            return StatsOut(**a.stats(), timezone=held.row.timezone, created_at=held.row.created_at.isoformat(),
-                            chooser=built["chooser"], models=ModelSettings(activity=built["activity"],
-                                                                           objects=built["objects"]),
-                            shadow=self.store.shadow(name), scores=scores)
+            session = held.session
+            assert session is not None
+            built = assembly.describe(session.activity_model, session.chooser)
+            scores = scoring.online_scores(self.store, name, session)
+            return StatsOut(**session.stats(), **held.counts(), timezone=held.row.timezone,
+                            created_at=held.row.created_at.isoformat(), chooser=built["chooser"],
+                            models=ModelSettings(activity=built["activity"], objects=built["objects"]),
+                            grid=session.grid.describe(), deployment=session.deployment.model_dump(mode="json"),
+                            selecting=self.selecting(name), shadow=self.store.shadow(name), scores=scores)
 
     def export_model(self, name: str) -> ModelOut:
-        """Both models as :func:`globe.models.io.model_to_dict` writes them."""
-        with self.locked(name) as a:
-            return ModelOut.model_validate({"activity": model_to_dict(a.activity_model),
-                                            "objects": model_to_dict(a.chooser.model)})
+        """Both models as :func:`globe.models.io.model_to_dict` writes them, and the deployment."""
+        with self.locked(name) as session:
+            return ModelOut.model_validate({"activity": model_to_dict(session.activity_model),
+                                            "objects": model_to_dict(session.chooser.model),
+                                            "deployment": session.deployment.model_dump(mode="json")})
 
     def names(self) -> list[str]:
         """Every stored household (also those imported by the CLI while the service ran)."""
@@ -565,15 +532,22 @@ class Registry:
 
     def built(self) -> int:
         with self._lock:
-            return sum(s.assistant is not None for s in self._served.values())
+            return sum(s.session is not None for s in self._served.values())
 
 
-def _locations(value: Any) -> dict[str, str]:
-    """Stored locations: a JSON object (anything else is a damaged row; its keys are strings, and
-    :meth:`OnlineAssistant.validate_labels` refuses any value that is not a known label)."""
-    if not isinstance(value, dict):
-        raise TypeError("stored locations are not a JSON object")
-    return value
+def prediction(d: Decision, shadow: bool) -> Prediction:
+    """The service's answer for a decision: ``act`` only outside shadow mode."""
+    choice = d.choice
+    first = d.fetches[0] if d.fetches else None
+    return Prediction(status=d.status, days_learned=d.days_learned, day=d.day, step=d.step, activity=d.activity,
+                      activity_probability=d.activity_probability, object=choice.obj if choice else None,
+                      object_probability=choice.confidence if choice else 0.0,
+                      llm_consulted=bool(choice and choice.asked), llm_fallback=choice.fallback if choice else None,
+                      act=first is not None and not shadow, fetch_object=first.obj if first else None,
+                      fetch_to=first.to_location if first else None,
+                      fetch_probability=first.probability if first else None,
+                      fetches=[FetchOut(object=c.obj, to=c.to_location, probability=c.probability) for c in d.fetches],
+                      shadow=shadow)
 
 
 def _same_observation(found: FoundObservation, time: dt.datetime, activity: str | None, locations: Mapping[str, str],

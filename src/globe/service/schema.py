@@ -125,6 +125,12 @@ MIGRATIONS: list[str] = [
     """
     ALTER TABLE training_days ADD COLUMN date TEXT;
     """,
+    # 7: what a household runs (JSON): its grid (step, day start, steps a day), its deployment (the
+    # models its cross-validation chose) and whether it learns new activities. NULL (households
+    # stored before): taken from the training days and chosen again on first build.
+    """
+    ALTER TABLE households ADD COLUMN settings TEXT;
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 

@@ -11,7 +11,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
-from globe.config import ServiceConfig
+from globe.config import DeployMethod, ServiceConfig
 from globe.errors import DataError
 
 HOUSEHOLD_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
@@ -71,6 +71,13 @@ class HouseholdCreate(_Body):
                             description="optional training logs: the text of day files (minute,activity,...)")
     dates: list[dt.date] | None = Field(None, description="optional: the date of each training day, in the order "
                                                           "of days (models that know the day of the week use them)")
+    method: DeployMethod | None = Field(
+        None, description="how its models are chosen (default: the service's selection.deploy): 'routine' or "
+        "'ngram_smoothed' by cross-validation on its training days (in the background: the configured models run "
+        "until it ends), 'ngram' (the paper's) or 'persistence'")
+    new_activities: Literal["refuse", "learn"] | None = Field(
+        None, description="an activity it has never seen: refused (the known ones listed) or learned; default: "
+        "refused where it has training days, learned where it starts from none")
 
 
 class HouseholdInfo(_Body):
@@ -78,6 +85,9 @@ class HouseholdInfo(_Body):
     timezone: str
     objects: list[str]
     days_learned: int
+    grid: str = Field("", description="its clock: step, day start and steps a day (from its training days)")
+    deployment: str = Field("", description="what it runs, in words")
+    selecting: bool = Field(False, description="its models are being chosen by cross-validation in the background")
 
 
 class ObservationIn(_Body):
@@ -99,8 +109,16 @@ class ObservationAck(_Body):
                                              "of it")
 
 
+class FetchOut(BaseModel):
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    object: str
+    to: str | None = Field(..., description="where to bring it: where it is most likely used")
+    probability: float = Field(..., description="P(it is used within the policy's lead window)")
+
+
 class Prediction(BaseModel):
-    """What the service predicts after a step: built by the online assistant, returned by the
+    """What the service predicts after a step: decided by the household's session, returned by the
     app, parsed by the client (one definition for all three; unknown fields are ignored so an
     older client reads a newer service)."""
 
@@ -121,6 +139,9 @@ class Prediction(BaseModel):
     fetch_to: str | None = Field(None, description="where to bring it: where it is most likely used")
     fetch_probability: float | None = Field(
         None, description="the fetch policy's probability that the object is used within the lead window")
+    fetches: list[FetchOut] = Field(
+        default_factory=list, description="every fetch to start now, most likely useful first (at most "
+        "policy.max_fetches_per_step; fetch_object is the first), also in shadow mode, where act stays false")
     shadow: bool = Field(False, description="the household is in shadow mode: GLOBE decided fetch_object (and scores "
                                             "that decision) but act stays false until an admin switches shadow off")
 
@@ -210,6 +231,10 @@ class StatsOut(_Body):
     created_at: str
     chooser: dict[str, Any] = Field(..., description="the object chooser's kind and settings, as built")
     models: ModelSettings
+    grid: str = Field(..., description="its clock: step, day start and steps a day")
+    deployment: dict[str, Any] = Field(..., description="what it runs: the models its cross-validation chose (or the "
+                                                        "configured ones, with a note saying why), and their scores")
+    selecting: bool = Field(..., description="its models are being chosen in the background")
     shadow: bool = Field(..., description="shadow mode: predictions never ask the robot to act")
     scores: OnlineScores = Field(..., description="online scores of the last 28 days")
 
@@ -229,6 +254,7 @@ class ModelFile(_Body):
 class ModelOut(_Body):
     activity: ModelFile
     objects: ModelFile
+    deployment: dict[str, Any] = Field(default_factory=dict, description="what the household runs (its deployment)")
 
 
 class StoredObservation(_Body):
@@ -255,6 +281,8 @@ class HouseholdExport(_Body):
     created_at: str
     nodes: str = Field(..., description="the map as stored (JSON text: a list of nodes)")
     objects: str = Field(..., description="the object columns as stored (JSON text)")
+    settings: str | None = Field(None, description="what it runs, as stored (JSON text: its grid, deployment and "
+                                                   "label rule; null: not stored yet)")
     days: list[str] = Field(..., description="the training days' texts (day-file CSV)")
     dates: list[str | None] = Field(default_factory=list, description="each training day's date, as stored (null: "
                                                                       "not given)")

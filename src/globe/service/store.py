@@ -308,17 +308,20 @@ class Store:
         return [encode_day(text) for text in day_texts]
 
     def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
-                      encoded: Sequence[bytes] | None = None, shadow: bool = True) -> None:
+                      encoded: Sequence[bytes] | None = None, shadow: bool = True,
+                      settings: dict | None = None) -> None:
         """Store the map and the training days (as their CSV text: compact, re-validated on load;
-        with the date of each of ``household.train`` named by one); ``encoded`` is
-        :meth:`encode_days` of ``day_texts`` when the caller has it already."""
+        with the date of each of ``household.train`` named by one) and what it runs (``settings``,
+        see schema 7); ``encoded`` is :meth:`encode_days` of ``day_texts`` when the caller has it."""
         blobs = self.encode_days(day_texts) if encoded is None else encoded
         if len(blobs) != len(day_texts):
             raise ValueError(f"{len(blobs)} encoded days for {len(day_texts)} day texts")
         stmts: list[tuple[str, tuple]] = [
-            ("INSERT INTO households (name, nodes, objects, created_at, timezone, shadow) VALUES (?, ?, ?, ?, ?, ?)",
+            ("INSERT INTO households (name, nodes, objects, created_at, timezone, shadow, settings) "
+             "VALUES (?, ?, ?, ?, ?, ?, ?)",
              (household.name, json.dumps([{f: getattr(n, f) for f in _NODE_FIELDS} for n in household.nodes]),
-              json.dumps(household.objects), _now(), timezone, int(shadow))),
+              json.dumps(household.objects), _now(), timezone, int(shadow),
+              None if settings is None else json.dumps(settings))),
         ]
         dates = [None if d.calendar_date is None else d.calendar_date.isoformat() for d in household.train]
         if len(dates) != len(blobs):
@@ -353,6 +356,21 @@ class Store:
             raise StoreError(f"the stored map of household {name!r} is damaged ({type(err).__name__}: {err})") from None
         return nodes, tuple(objects)
 
+    def settings(self, name: str) -> dict:
+        """What the household runs (schema 7's JSON; {} when none is stored yet)."""
+        rows = self._read("SELECT settings FROM households WHERE name = ?", (name,))
+        try:
+            found = json.loads(rows[0][0]) if rows and rows[0][0] is not None else {}
+        except ValueError as err:
+            raise StoreError(f"the stored settings of household {name!r} are damaged ({err})") from None
+        if not isinstance(found, dict):
+            raise StoreError(f"the stored settings of household {name!r} are not a JSON object")
+        return found
+
+    def set_settings(self, name: str, settings: dict) -> int:
+        return self._transaction(f"store the settings of household {name!r}", [
+            ("UPDATE households SET settings = ? WHERE name = ?", (json.dumps(settings), name))], name)
+
     def training_days(self, name: str) -> list[StoredDay]:
         """Each stored day: its CSV text (stored zlib-compressed: a tenth of the size; or, from
         schema 1-2 files, a JSON-encoded :class:`Day`) and its date, if given."""
@@ -363,10 +381,11 @@ class Store:
         """Everything stored about a household, as stored (nothing is parsed, so a damaged row is
         exported too): its map's JSON text, its training days' texts and dates, its observations
         and feedback. None if there is no such household."""
-        rows = self._read("SELECT name, timezone, created_at, nodes, objects FROM households WHERE name = ?", (name,))
+        rows = self._read("SELECT name, timezone, created_at, nodes, objects, settings FROM households WHERE name = ?",
+                          (name,))
         if not rows:
             return None
-        name_, timezone, created_at, nodes, objects = rows[0]
+        name_, timezone, created_at, nodes, objects, settings = rows[0]
         observations = self._read("SELECT id, time, activity, locations, received_at, client_id, quarantined "
                                   "FROM observations WHERE household = ? ORDER BY id", (name,))
         feedback = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? ORDER BY id",
@@ -374,7 +393,7 @@ class Store:
         days = self.training_days(name)
         return {
             "name": name_, "timezone": timezone, "created_at": created_at, "nodes": nodes, "objects": objects,
-            "days": [d.text for d in days], "dates": [d.date for d in days],
+            "settings": settings, "days": [d.text for d in days], "dates": [d.date for d in days],
             "observations": [{"id": i, "time": t, "activity": a, "locations": loc, "received_at": r, "client_id": c,
                               "quarantined": bool(q)} for i, t, a, loc, r, c, q in observations],
             "feedback": [{"object": o, "accepted": bool(a), "received_at": r} for o, a, r in feedback],
@@ -468,43 +487,12 @@ class Store:
                 raise StoreError(f"database read failed: {err}") from err
         return found
 
-    @staticmethod
-    def step_prediction_statement(household: str, day: str, step: int, activity: str,
-                                  probability: float) -> tuple[str, tuple]:
-        return ("INSERT OR REPLACE INTO step_predictions (household, day, step, activity, probability) "
-                "VALUES (?, ?, ?, ?, ?)", (household, day, step, activity, probability))
-
-    @staticmethod
-    def observed_statement(household: str, day: str, step: int, observed: str) -> tuple[str, tuple]:
-        return ("UPDATE step_predictions SET observed = ? WHERE household = ? AND day = ? AND step = ?",
-                (observed, household, day, step))
-
-    @staticmethod
-    def score_statement(household: str, day: str, **counts: int) -> tuple[str, tuple]:
-        """Add ``counts`` (columns of :data:`SCORE_COLUMNS`) to the day's scores."""
-        names = [c for c in SCORE_COLUMNS if counts.get(c)] or ["predictions"]
-        return (f"INSERT INTO day_scores (household, day, {', '.join(names)}) VALUES (?, ?{', ?' * len(names)}) "
-                f"ON CONFLICT (household, day) DO UPDATE SET {', '.join(f'{c} = {c} + excluded.{c}' for c in names)}",
-                (household, day, *(counts[c] for c in names)))
-
     def add_fetch(self, household: str, day: str, step: int, obj: str, to_location: str | None,
                   probability: float | None, shadow: bool) -> None:
         self._transaction("store the fetch decision", [(
             "INSERT INTO fetches (household, day, step, object, to_location, probability, shadow, made_at) "
             "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             (household, day, step, obj, to_location, probability, int(shadow), _now()))])
-
-    @staticmethod
-    def segment_closed_statements(household: str, day: str) -> list[tuple[str, tuple]]:
-        """A day's fetches counted (its scores are written in the same transaction) and its step
-        predictions dropped: a long gap restarts the day, whose steps are then counted anew."""
-        return [("UPDATE fetches SET settled = 1 WHERE household = ? AND day = ?", (household, day)),
-                ("DELETE FROM step_predictions WHERE household = ? AND day = ?", (household, day))]
-
-    def settle(self, what: str, statements: Sequence[tuple[str, tuple]]) -> None:
-        """Write derived rows (scores) in one transaction."""
-        if statements:
-            self._transaction(what, statements)
 
     def step_predictions(self, household: str, day: str) -> list[StepPrediction]:
         rows = self._read("SELECT step, activity, probability, observed FROM step_predictions "

@@ -21,12 +21,11 @@ from typing import Callable, Sequence
 
 from globe.data.csv_logs import FIXED_COLUMNS, csv_table
 from globe.data.importers.text import read_text, show, slug, table_cells
-from globe.data.records import Node
+from globe.data.records import IN_USE_CLASS, Node
 from globe.errors import DataError
 
 HOME_CLASS = "home"  # the top of the map (category Home), as in HOMER+
 DEFAULT_ROOM = "room"  # the room of objects whose log and mapping name none
-IN_USE_CLASS = "in_use"  # one per room: where an object is in the steps it is used
 MAPPING_COLUMNS = ("sensor", "object")
 MAPPING_OPTIONAL = ("room", "furniture")
 _NAME = re.compile(r"[\w.-]+")

@@ -15,12 +15,12 @@ import jinja2
 
 from globe import __version__, assembly
 from globe.errors import GlobeError
-from globe.service import scoring, timepolicy
-from globe.service.assistant import OnlineAssistant
+from globe.service import timepolicy
 from globe.service.dashboard import svg
 from globe.service.registry import Registry
 from globe.service.schemas import OnlineScores
 from globe.service.scoring import online_scores
+from globe.session import HouseholdSession, deployment_summary
 
 ACTOGRAM_DAYS = 28
 RECENT_STEPS = 12
@@ -64,39 +64,40 @@ def household_lines(registry: Registry, names: list[str]) -> list[HouseholdLine]
         try:
             with registry.locked(name) as a:
                 tz = timepolicy.zone(registry.row(name).timezone)
-                scores = online_scores(registry.store, name, a, registry.config, 7)
+                scores = online_scores(registry.store, name, a, 7)
                 out.append(HouseholdLine(name, a.status, a.days_learned, shadow, _last_seen(a, tz), scores.accuracy))
         except GlobeError as err:
             out.append(HouseholdLine(name, "unavailable", None, shadow, "–", None, str(err)))
     return out
 
 
-def _last_seen(a: OnlineAssistant, tz: dt.tzinfo) -> str:
+def _last_seen(a: HouseholdSession, tz: dt.tzinfo) -> str:
     last = a.last_instant
     return "never" if last is None else last.astimezone(tz).strftime("%Y-%m-%d %H:%M")
 
 
-def _colours(a: OnlineAssistant) -> dict[str, str]:
+def _colours(a: HouseholdSession) -> dict[str, str]:
     labels = set(getattr(a.activity_model, "classes_", ()))
-    labels.update(x for _, x in a.today() if x is not None)
+    labels.update(x for _, x, _ in a.today() if x is not None)
     return svg.colours(sorted(labels))
 
 
-def status(registry: Registry, name: str, a: OnlineAssistant) -> dict[str, Any]:
+def status(registry: Registry, name: str, a: HouseholdSession) -> dict[str, Any]:
     row = registry.row(name)
     tz = timepolicy.zone(row.timezone)
     return {"name": name, "status": a.status, "days_learned": a.days_learned, "last_seen": _last_seen(a, tz),
-            "timezone": row.timezone, "shadow": registry.store.shadow(name), "day": a.day, "steps_today": a.steps_today,
-            "observations": a.observations}
+            "timezone": row.timezone, "shadow": registry.store.shadow(name), "day": a.day,
+            "steps_today": sum(seen for _, _, seen in a.today()), "observations": a.observations}
 
 
 def today(registry: Registry, name: str) -> dict[str, Any]:
     """The "today" page: status, timeline, next hour, fetches with feedback, scores."""
     with registry.locked(name) as a:
-        cfg = registry.config
         colour = _colours(a)
         steps = []
-        for i, (minute, observed) in enumerate(a.today()):
+        for i, (minute, observed, seen) in enumerate(a.today()):
+            if not seen:
+                continue
             predicted = a.step_predictions.get(i)
             steps.append(svg.TimelineStep(minute, observed, predicted[0] if predicted else None,
                                           predicted[1] if predicted else None))
@@ -105,10 +106,11 @@ def today(registry: Registry, name: str) -> dict[str, Any]:
                    "probability": s.probability,
                    "hit": None if s.predicted is None or s.observed is None else s.predicted == s.observed}
                   for s in steps[-RECENT_STEPS:]][::-1]
-        scores = online_scores(registry.store, name, a, cfg)
+        scores = online_scores(registry.store, name, a)
+        grid = a.grid
         return {
             **status(registry, name, a),
-            "timeline": svg.timeline(steps, day_start=cfg.service.day_start_minute, step_minutes=a.step_minutes,
+            "timeline": svg.timeline(steps, day_start=grid.day_start_minute, step_minutes=grid.step_minutes,
                                      colour=colour),
             "legend": _legend(colour, [s.observed for s in steps] + [s.predicted for s in steps]),
             "recent": recent,
@@ -125,13 +127,16 @@ def _legend(colour: dict[str, str], used: list[str | None]) -> list[tuple[str, s
     return [(label, colour[label]) for label in seen if label in colour]
 
 
-def next_hour(registry: Registry, a: OnlineAssistant) -> list[dict[str, Any]]:
+def next_hour(registry: Registry, a: HouseholdSession) -> list[dict[str, Any]]:
     """The objects GLOBE expects to be used within the next hour: when (the most likely step),
     how likely, and where the robot would take them; whether the policy would fetch now."""
-    steps = max(1, 60 // a.step_minutes)
-    lo, hi = scoring.lead_window(a, registry.config.policy)
-    threshold = a.fetch_policy.threshold if a.fetch_policy is not None else a.action_threshold
-    now = a.step_minute(a.steps_today - 1) if a.steps_today else None
+    step = a.grid.step_minutes
+    steps = max(1, 60 // step)
+    policy = a.policy
+    lo, hi = policy.min_lead_steps, policy.window_steps
+    now = a.grid.minute(a.step) if a.step is not None else None
+    decided = a.last_decision
+    fetching = {c.obj for c in decided.fetches} if decided is not None else set()
     out = []
     for obj, probs, target in a.next_hour(steps):
         total = sum(probs)
@@ -139,21 +144,21 @@ def next_hour(registry: Registry, a: OnlineAssistant) -> list[dict[str, Any]]:
             continue
         peak = max(range(len(probs)), key=probs.__getitem__)
         useful = sum(probs[max(lo - 1, 0):hi])
-        out.append({"object": obj, "probability": min(total, 1.0), "when": _clock(now + (peak + 1) * a.step_minutes)
+        out.append({"object": obj, "probability": min(total, 1.0), "when": _clock(now + (peak + 1) * step)
                     if now is not None else "–", "to": target, "bars": svg.step_bars(probs),
-                    "fetch": useful > threshold})
+                    "fetch": obj in fetching if decided is not None else useful > policy.threshold})
     out.sort(key=lambda r: -r["probability"])  # type: ignore[operator]
     return out[:8]
 
 
-def fetches_today(registry: Registry, name: str, a: OnlineAssistant) -> list[dict[str, Any]]:
+def fetches_today(registry: Registry, name: str, a: HouseholdSession) -> list[dict[str, Any]]:
     """Today's fetch decisions, each with the person's first feedback on that object after it."""
     day = a.day
     if day is None:
         return []
     rows = registry.store.fetches(name, day)
     tz = timepolicy.zone(registry.row(name).timezone)
-    start = dt.datetime.combine(dt.date.fromisoformat(day), dt.time()) + dt.timedelta(minutes=a.day_start_minute)
+    start = a.grid.wall(day, 0)
     since = start.replace(tzinfo=tz).astimezone(dt.timezone.utc).isoformat()
     feedback = registry.store.feedback_since(name, since)
     used: set[int] = set()
@@ -165,8 +170,8 @@ def fetches_today(registry: Registry, name: str, a: OnlineAssistant) -> list[dic
                 used.add(i)
                 said = "accepted" if accepted else "refused"
                 break
-        # f.step indexes today's steps (a day may start late or skip a gap): its slot gives the time
-        when = _clock(a.step_minute(f.step)) if 0 <= f.step < a.steps_today else "–"
+        # f.step is the clock step of today it was decided after
+        when = _clock(a.grid.minute(f.step)) if a.step is not None and 0 <= f.step <= a.step else "–"
         out.append({"time": when, "object": f.object, "to": f.to_location,
                     "probability": f.probability, "shadow": f.shadow, "feedback": said})
     return out
@@ -175,19 +180,16 @@ def fetches_today(registry: Registry, name: str, a: OnlineAssistant) -> list[dic
 def routine(registry: Registry, name: str) -> dict[str, Any]:
     """The "routine" page: the actogram of the last days and the online scores per day."""
     with registry.locked(name) as a:
-        cfg = registry.config
         colour = _colours(a)
-        learned = list(a.activity_model.training_data_)[-(ACTOGRAM_DAYS - 1):]
+        learned = list(getattr(a.activity_model, "training_data_", ()))[-(ACTOGRAM_DAYS - 1):]
         rows: list[tuple[str, list[str | None]]] = []
         if a.today():
-            first = (a.today()[0][0] - cfg.service.day_start_minute) // a.step_minutes
-            padding: list[str | None] = [None] * first
-            rows.append(("today", padding + [x for _, x in a.today()]))
+            rows.append(("today", [x for _, x, _ in a.today()]))
         rows += [(f"-{i + 1} d", list(seq)) for i, seq in enumerate(reversed(learned))]
-        scores: OnlineScores = online_scores(registry.store, name, a, cfg)
+        scores: OnlineScores = online_scores(registry.store, name, a)
         return {
             **status(registry, name, a),
-            "actogram": svg.actogram(rows, day_start=cfg.service.day_start_minute, step_minutes=a.step_minutes,
+            "actogram": svg.actogram(rows, day_start=a.grid.day_start_minute, step_minutes=a.grid.step_minutes,
                                      colour=colour),
             "legend": _legend(colour, [x for _, seq in rows for x in seq]),
             "actogram_days": len(rows),
@@ -197,20 +199,33 @@ def routine(registry: Registry, name: str) -> dict[str, Any]:
 
 
 def settings(registry: Registry, name: str) -> dict[str, Any]:
-    """The "settings" page: the built models and chooser as they run, and the service's decision settings."""
+    """The "settings" page: what the household runs (its models and how they were chosen, its
+    clock) and the fetch rule, in words with units."""
     with registry.locked(name) as a:
         built = assembly.describe(a.activity_model, a.chooser)
-        s, p = registry.config.service, registry.config.policy
-        lo, hi = scoring.lead_window(a, p)
-        decision: dict[str, Any] = {"fetch decision": s.fetch_decision, "step": f"{s.step_minutes} min",
-                    "day starts at": _clock(s.day_start_minute)}
-        if a.fetch_policy is not None:
-            decision |= {"cost of a useless fetch": p.cost_useless, "cost of a missed need": p.cost_missed,
-                         "fetch when P(useful) >": round(a.fetch_policy.threshold, 3),
-                         "lead window": f"{lo}..{hi} steps", "most fetches per step": p.max_fetches_per_step}
-        else:
-            decision |= {"action threshold": s.action_threshold}
+        p, policy = registry.config.policy, a.policy
+        step = a.grid.step_minutes
+        decision: dict[str, Any] = {
+            "models": deployment_summary(a.deployment),
+            "clock": a.grid.describe(),
+            "fetch when": f"P(used within the lead window) > {policy.threshold:.2f} (a useless fetch costs "
+                          f"{p.cost_useless:g}, a missed need {p.cost_missed:g})",
+            "lead window": f"{policy.min_lead_steps * step} to {policy.window_steps * step} minutes ahead",
+            "most fetches per step": policy.max_fetches_per_step,
+            "the object, when the models are unsure": _chooser_words(built["chooser"]),
+            "new activities": "learned" if a.new_activities == "learn" else "refused (the known ones are listed)"}
+        if registry.selecting(name):
+            decision["models"] += "; cross-validation under way"
         return {**status(registry, name, a), "models": built, "decision": decision}
+
+
+def _chooser_words(chooser: dict[str, Any]) -> str:
+    """How the object is chosen, in words."""
+    if chooser.get("kind") != "globe" or not chooser.get("threshold"):
+        return "the object model's own choice (no LLM is asked)"
+    how = "picks" if chooser.get("mode") == "replace" else "scores, beside the object model's,"
+    return (f"the LLM ({chooser.get('backend')}) {how} among the {chooser.get('top_k')} likeliest objects when the "
+            f"object model is less than {chooser['threshold']:.0%} sure")
 
 
 __all__ = ["household_lines", "render", "routine", "settings", "today"]

@@ -291,8 +291,8 @@ class MqttBridge:
             return self.config.observe_interval_s
         if name not in self._steps:
             try:
-                with self.registry.locked(name) as assistant:
-                    self._steps[name] = assistant.step_minutes * 60
+                with self.registry.locked(name) as session:
+                    self._steps[name] = session.grid.step_minutes * 60
             except GlobeError:
                 return None
         return self._steps[name]

@@ -20,7 +20,8 @@ def list_households(registry: RegistryDep, caller: AdminDep) -> list[str]:
 @router.post("/households", status_code=201, response_model=HouseholdInfo, responses=ERROR_RESPONSES)
 def create_household(body: HouseholdCreate, registry: RegistryDep, caller: AdminDep) -> HouseholdInfo:
     nodes = [n.model_dump(by_alias=True) for n in body.nodes]
-    return registry.create_uploaded(body.name, body.timezone, nodes, body.days, body.dates)
+    return registry.create_uploaded(body.name, body.timezone, nodes, body.days, body.dates, method=body.method,
+                                    new_activities=body.new_activities)
 
 
 @router.delete("/households/{name}", status_code=204, responses=ERROR_RESPONSES)

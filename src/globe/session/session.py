@@ -1,0 +1,527 @@
+"""One household's online loop, for everything that serves or scores it.
+
+A :class:`HouseholdSession` owns what happens step by step in one home, and everything that
+serves or replays a household drives one: the service (its HTTP routes, the MQTT publisher, the
+dashboard), ``globe predict``, and the evaluation's replays of days (the fetch policy's scores, the
+learning curve, the parity with the service). So what the robot is told at a step is what the
+evaluation scored at that step.
+
+- **The clock.** A day is cut into the household's own steps from its own day start
+  (:mod:`globe.session.grid`). An observation at 18:00 is step 72 of a 10-minute day from 06:00,
+  wherever the robot started; several observations inside one step update that step; steps
+  nobody observed stay unknown (no label, objects not looked at).
+- **The activity estimate.** The activity filter (:mod:`globe.inference.activity_filter`) is
+  updated step by step with each step's label, when there is one, and the objects seen moving
+  (an object moved at t when its place differs from the observed step t-1); a step nobody
+  observed is propagated by the activity model alone. With every label seen it is exactly the
+  activity model's own prediction.
+- **The decision**, once per state of the day (asking again before the next observation gives
+  the same answer, and a fetch is decided once): the next activity, the object likely needed
+  (through the chooser, the LLM gate when there is one), and the fetches of the fetch policy
+  (:func:`~globe.inference.fetch_policy.follow_fetches`: at most ``max_fetches_per_step``, never an
+  object waiting for the use it was fetched for, never one in use now or just put back, none at
+  the day's last step), forecast from the filter's most probable histories.
+- **Learning** (``learn=True``): when an observation belongs to a new day, the finished day is
+  added to every model, so the result equals training on all days at once. Unknown steps of a
+  learned day take the filter's most probable history; a day labelled on fewer than half of its
+  steps (up to the last observed one) teaches nothing.
+
+A household may start with no training day (cold start): until it has learned a first day its
+decisions say ``status = "learning"`` and never fetch.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import sys
+import threading
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any, Literal, Mapping, Sequence
+
+import numpy as np
+
+from globe.config import Deployment
+from globe.data.labels import known_activity
+from globe.data.records import IN_USE_CLASS, Day, Household
+from globe.errors import DataError, UnknownLabelError
+from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
+from globe.inference.emission import MovementEmission
+from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches, left_alone
+from globe.inference.forecast import Forecast, mixture
+from globe.models.base import ActivityModelBase
+from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
+from globe.sequences.movements import Alignment
+from globe.sequences.runs import activity_runs
+from globe.session.grid import DayGrid
+
+UTC = dt.timezone.utc
+NewActivities = Literal["refuse", "learn"]
+
+
+@dataclass(frozen=True, slots=True)
+class Observation:
+    time: dt.datetime  # in the household's zone (aware), or its wall time (naive)
+    activity: str | None  # None: unknown at this step
+    locations: Mapping[str, str]  # object -> location (may be partial: the others keep their last place)
+
+
+@dataclass(frozen=True, slots=True)
+class Placement:
+    """Where an observation lands: its day, its step on the clock, and whether it opens a new step."""
+
+    day: str
+    step: int
+    new_step: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """What the session says after the last observed step: the next activity, the object likely
+    needed, and what to fetch now (most likely useful first)."""
+
+    status: str  # "learning" until a first day is learned, then "ready"
+    days_learned: int
+    day: str
+    step: int  # the step predicted: the one after the last observed step
+    activity: str | None
+    activity_probability: float
+    choice: ObjectChoice | None
+    fetches: tuple[FetchCandidate, ...]
+    candidates: tuple[FetchCandidate, ...] = ()  # every candidate fetch (for the evaluation's cost curve)
+    left_alone: frozenset[str] = frozenset()  # objects no fetch could touch (in use, just put back)
+
+
+@dataclass(frozen=True, slots=True)
+class Settled:
+    """What one observation settles (:meth:`HouseholdSession.settle`), for the day under way
+    before it (``day``): the step it closes, whether its one-step prediction was right and the
+    label it had, the fetches of the day when it starts a new one, and the one-step prediction of
+    the step it opens (step, activity, probability)."""
+
+    day: str | None
+    scored: tuple[int, bool] | None = None
+    observed: tuple[int, str] | None = None
+    fetches: FetchReport | None = None
+    opened: tuple[int, str, float] | None = None
+
+
+class HouseholdSession:
+    """The online loop of one household (see module doc; thread-safe: one lock serialises it)."""
+
+    def __init__(self, household: Household, *, activity: ActivityModelBase, chooser: ObjectChooser,
+                 emission: MovementEmission, policy: FetchPolicy, grid: DayGrid, deployment: Deployment,
+                 alignment: Alignment = "previous", max_hypotheses: int = 32, min_weight: float = 1e-4,
+                 forecast_hypotheses: int = 4, learn: bool = True, new_activities: NewActivities = "refuse") -> None:
+        self.activity_model = activity
+        self.chooser = chooser
+        self.emission = emission
+        self.policy = policy
+        self.grid = grid
+        self.deployment = deployment
+        self.alignment = alignment
+        self.max_hypotheses = max_hypotheses
+        self.min_weight = min_weight
+        self.forecast_hypotheses = forecast_hypotheses
+        self.learning = learn
+        self.new_activities = new_activities
+        self.lock = threading.RLock()
+        self._locations = {label: label for label in household.locations}  # interned labels
+        self._object_index = {o: i for i, o in enumerate(household.objects)}
+        self._use_places = frozenset(n.node for n in household.nodes if n.cls == IN_USE_CLASS)
+        starts: dict[str, list[str]] = {}  # each object's movable nodes' start locations, in map order
+        for n in household.nodes:
+            if n.movable:
+                starts.setdefault(n.cls, []).append(self._locations[n.start_location])
+        self._start = tuple(loc for o in household.objects for loc in starts.get(o, ()))
+        # the training days are counted, then dropped: the map is kept (memory per household stays small)
+        self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
+        self.days_learned = len(household.train)
+        self.observations = 0
+        self.fallbacks: Counter[str] = Counter()
+        self._last_instant: dt.datetime | None = None
+        self._decided: tuple[tuple, Decision] | None = None
+        self._filter: ActivityFilter | None = None  # today's, over the models as they are today
+        self._beliefs: list[Belief] = []  # the filter's, before the day and after each observed step
+        self._stale: int | None = None  # the first step the filter has not taken in since it changed
+        self._belief_dist: tuple[tuple, dict[str, float]] | None = None
+        self._open(None)
+
+    # -- validation ------------------------------------------------------------------------
+    def validate(self, obs: Observation) -> None:
+        """Raise :class:`DataError` (naming the field) for an observation that must not be stored."""
+        self.validate_labels(obs)
+        self.validate_time(obs)
+
+    def validate_time(self, obs: Observation) -> None:
+        """The check of :meth:`validate` that depends on the observations before: times increase."""
+        instant = _instant(obs.time)
+        if self._last_instant is not None and instant <= self._last_instant:
+            raise DataError(f"time {obs.time.isoformat()} is not after the last observation "
+                            f"{self._last_instant.isoformat()}", field="time")
+
+    def validate_labels(self, obs: Observation) -> None:
+        """The checks of :meth:`validate` that do not depend on the observations before it."""
+        if obs.activity is not None:
+            self.activity_label(obs.activity)
+        for obj, loc in obs.locations.items():
+            if obj not in self._object_index:
+                raise UnknownLabelError(f"unknown object {obj[:64]!r} (not a movable node of household "
+                                        f"{self.household.name})", field=f"locations.{obj[:64]}")
+            if loc not in self._locations:
+                raise UnknownLabelError(f"unknown location {loc[:64]!r} for {obj!r}", field=f"locations.{obj}")
+
+    def activity_label(self, raw: str) -> str:
+        """The one label rule (:func:`globe.data.labels.known_activity`): an activity this household
+        knows, or, when it learns new activities, any valid label."""
+        return known_activity(raw, self.known_activities(), learn=self.new_activities == "learn")
+
+    def known_activities(self) -> tuple[str, ...]:
+        """The activities this household knows (learned, or seen today)."""
+        known = dict.fromkeys(getattr(self.activity_model, "classes_", ()))
+        known.update(dict.fromkeys(a for a in self._labels if a is not None))
+        return tuple(known)
+
+    @property
+    def last_instant(self) -> dt.datetime | None:
+        """The UTC instant of the last observation applied (None before any)."""
+        return self._last_instant
+
+    # -- the loop -------------------------------------------------------------------------------
+    def placement(self, time: dt.datetime) -> Placement:
+        """Where an observation at ``time`` would land (no state changes)."""
+        day, step = self.grid.place(time)
+        last = len(self._labels) - 1
+        return Placement(day, step if day != self._day or step > last else last, day != self._day or step > last)
+
+    def observe(self, obs: Observation) -> Placement:
+        """Add one (already validated) observation; a new day first learns the finished one."""
+        day, step = self.grid.place(obs.time)
+        if day != self._day:
+            if self._day is not None:
+                self._close()
+            self._open(day)
+        activity = sys.intern(self.activity_label(obs.activity)) if obs.activity is not None else None
+        last = len(self._labels) - 1
+        if step <= last:  # inside the step under way (or a clock repeating an hour): update it
+            step = last
+        else:
+            previous = self._states[-1] if self._states else self._start
+            for _ in range(step - last):  # steps nobody observed: no label, objects where they were
+                self._labels.append(None)
+                self._states.append(previous)
+                self._looked.append(False)
+                self._uses.append(frozenset())
+        if activity is not None:
+            self._labels[step] = activity
+        if obs.locations:
+            state = list(self._states[step])
+            for obj, loc in obs.locations.items():
+                state[self._object_index[obj]] = self._locations[loc]
+            self._states[step] = tuple(state)
+        first = self._looked.index(True) if True in self._looked else step
+        if first == step:  # nothing was seen before today's first observation: no object moved before it
+            self._states[:step] = [self._states[step]] * step
+        self._looked[step] = True
+        if step and self._looked[step - 1]:
+            self._uses[step] = self.moved(step)
+        self._stale = step if self._stale is None else min(self._stale, step)
+        self._last_instant = _instant(obs.time)
+        self.observations += 1
+        return Placement(day, step, True)
+
+    def _filtered(self) -> Belief | None:
+        """The activity filter's belief after the last observed step (None before a first day is
+        learned), the steps it has not taken in yet updated now: it runs only once a step lacks its
+        label (with every label seen the activity model answers itself), the same updates at once
+        or one at a time."""
+        if self._filter is None:
+            return None
+        if self._stale is not None:
+            kept = [b for b in self._beliefs if b.step < self._stale]
+            for t in range(self._stale, len(self._labels)):
+                if self._looked[t]:
+                    moved = self._uses[t] if t and self._looked[t - 1] else None
+                    kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved]))
+            self._beliefs, self._stale = kept, None
+        return self._beliefs[-1]
+
+    def moved(self, step: int) -> frozenset[str]:
+        """The objects whose place at ``step`` differs from the step before."""
+        before, now = self._states[step - 1], self._states[step]
+        return frozenset(o for o, x, y in zip(self.household.objects, before, now) if x != y) if step else frozenset()
+
+    # -- what is known of today ---------------------------------------------------------------
+    @property
+    def day(self) -> str | None:
+        """The day of the last observation (an ISO date; None before any)."""
+        return self._day
+
+    @property
+    def weekday(self) -> int | None:
+        """Today's day of the week (Monday 0; None before any observation)."""
+        return None if self._day is None else dt.date.fromisoformat(self._day).weekday()
+
+    @property
+    def step(self) -> int | None:
+        """The last observed step of today (None before any observation)."""
+        return len(self._labels) - 1 if self._labels else None
+
+    @property
+    def status(self) -> str:
+        return "ready" if self.days_learned > 0 else "learning"
+
+    def observed_activity(self, step: int) -> str | None:
+        """Today's activity at ``step`` as observed (None: unknown)."""
+        return self._labels[step] if 0 <= step < len(self._labels) else None
+
+    def observed(self, step: int) -> bool:
+        """Whether ``step`` of today was observed."""
+        return 0 <= step < len(self._looked) and self._looked[step]
+
+    def today(self) -> list[tuple[int, str | None, bool]]:
+        """(minute since midnight, observed activity or None, observed) of each step today."""
+        return [(self.grid.minute(t), a, seen) for t, (a, seen) in enumerate(zip(self._labels, self._looked))]
+
+    def activity_history(self) -> tuple[str, ...]:
+        """Today's activities: the labels seen, unknown steps the filter's most probable history
+        (before a first day is learned, the nearest label: there is no model to ask)."""
+        if None not in self._labels:
+            return tuple(self._labels)  # type: ignore[arg-type]
+        belief = self._filtered()
+        if self._filter is not None and belief is not None and belief.step >= 0:
+            return self._filter.history(belief, int(np.argmax(belief.beam.weight)))
+        return _nearest_labels(self._labels)
+
+    def current_day(self) -> Day:
+        """Today so far as a day (unknown activities as :meth:`activity_history` fills them)."""
+        minutes = tuple(self.grid.minute(t) for t in range(len(self._labels)))
+        return Day(f"live/{self._day}", minutes, self.activity_history(), tuple(self._states))
+
+    def uses(self) -> list[frozenset[str]]:
+        """Per step today, the objects used (moved) at it (none at steps after one nobody observed)."""
+        return list(self._uses)
+
+    def fetch_report(self) -> FetchReport:
+        """Today's fetches so far, scored against today so far by the one rule of fetches
+        (:func:`~globe.inference.fetch_policy.follow_fetches`)."""
+        minutes = [self.grid.minute(t) for t in range(len(self._labels))]
+        p = self.policy
+        fetched = self.fetched_today
+        return follow_fetches(self.uses(), minutes, lambda t, _: fetched.get(t, ()), len(minutes), p.min_lead_steps,
+                              p.window_steps)[0]
+
+    # -- online scores ---------------------------------------------------------------------------
+    def settle(self, place: Placement) -> Settled:
+        """What an observation landing at ``place`` settles, read before it is applied (see
+        :class:`Settled`): the one-step prediction of the step it closes is scored against that
+        step's label (steps whose label stayed unknown, and the first step of a day or after one
+        nobody observed, are not scored), a new day closes the finished day's fetches, and a step
+        opened right after the last one gets its one-step prediction (what :meth:`decide` says of it)."""
+        if not place.new_step or self._day is None:
+            return Settled(self._day)
+        scored = observed = fetches = opened = None
+        if self._labels:
+            last = len(self._labels) - 1
+            predicted, label = self.step_predictions.get(last), self._labels[last]
+            if predicted is not None and label is not None:
+                scored, observed = (last, predicted[0] == label), (last, label)
+            if place.day != self._day:
+                fetches = self.fetch_report()
+        if place.day == self._day and place.step == len(self._labels) and self._looked and self._looked[-1]:
+            top = self.next_activity()
+            if top is not None:
+                opened = (place.step, *top)
+        return Settled(self._day, scored, observed, fetches, opened)
+
+    def remember(self, settled: Settled) -> None:
+        """After the observation: keep the one-step prediction of the step it opened (scored when
+        that step closes)."""
+        if settled.opened is not None:
+            step, activity, probability = settled.opened
+            self.step_predictions[step] = (activity, probability)
+
+    # -- the decision ---------------------------------------------------------------------------
+    def _state(self) -> tuple:
+        return self._day, len(self._labels), self.observations, self.days_learned
+
+    @property
+    def last_decision(self) -> Decision | None:
+        """The decision already made for the current state of the day, if any."""
+        return self._decided[1] if self._decided is not None and self._decided[0] == self._state() else None
+
+    def belief(self) -> dict[str, float]:
+        """P(the activity at the next step | everything observed today), {} while learning: with
+        every step labelled the activity model's own ``predict_proba`` (what Table I scores, to the
+        bit), else the filter's."""
+        if self._filter is None:
+            return {}
+        state = self._state()
+        if self._belief_dist is None or self._belief_dist[0] != state:
+            belief = self._filtered() if None in self._labels else None
+            if belief is not None:
+                dist = as_dicts(self._filter.predictive(belief), self._filter.labels)[0]
+            else:
+                dist = self.activity_model.predict_proba(tuple(self._labels), self.weekday)  # type: ignore[arg-type]
+            self._belief_dist = (state, dist)
+        return self._belief_dist[1]
+
+    def next_activity(self) -> tuple[str, float] | None:
+        """The top next activity and its probability (what :meth:`decide` says), or None."""
+        if self.days_learned == 0 or not self._labels:
+            return None
+        belief = self.belief()
+        ranked = self.activity_model.ranked(belief)
+        return (ranked[0], float(belief[ranked[0]])) if ranked else None
+
+    def decide(self) -> Decision:
+        """Next activity, the object likely needed and what to fetch: decided once per state of
+        the day, so every caller (the robot polling, Home Assistant's publisher) gets the same
+        answer and a fetch is decided once, until the next observation."""
+        decided = self.last_decision
+        if decided is not None:
+            return decided
+        decision = self._decide()
+        self._decided = (self._state(), decision)
+        if decision.choice is not None and decision.choice.fallback:
+            self.fallbacks[decision.choice.fallback] += 1
+        if decision.fetches and self.step is not None:
+            self.fetched_today.setdefault(self.step, []).extend(c.obj for c in decision.fetches)
+        return decision
+
+    def _decide(self) -> Decision:
+        step = len(self._labels)
+        nothing = Decision(self.status, self.days_learned, self._day or "", step, None, 0.0, None, ())
+        top = self.next_activity()
+        if top is None:
+            return nothing
+        nxt, probability = top
+        activity, objects = self._current_run()
+        choice = self.chooser.choose_given(nxt, self.belief(), run_context(activity, objects))
+        fetches, candidates, alone = self._fetches()
+        return Decision(self.status, self.days_learned, self._day or "", step, nxt, probability, choice, fetches,
+                        candidates, alone)
+
+    def object_ranking(self, activity: str, run: Sequence[str] | None = None) -> tuple[list[str], dict[str, float]]:
+        """The objects likely needed during ``activity``, most likely first, and their
+        probabilities, given the objects already moved in the run under way (``run``: as the
+        objects of a run of ``activity``; default: today's)."""
+        context = run_context(activity, tuple(run)) if run is not None else run_context(*self._current_run())
+        return self.chooser.ngram_ranking(activity, self.belief(), context)
+
+    def _current_run(self) -> tuple[str | None, tuple[str, ...]]:
+        """The activity under way and the objects moved in its run so far (the runs of the day
+        from two steps before it began: which activity a movement belongs to looks one step away)."""
+        day = self.current_day()
+        start = len(day) - 1
+        while start > 0 and day.activities[start - 1] == day.activities[-1]:
+            start -= 1
+        lo = max(0, start - 2)
+        tail = Day(day.name, day.minutes[lo:], day.activities[lo:], day.locations[lo:])
+        runs = activity_runs(tail, self.household.objects, self.alignment)
+        return (runs[-1].activity, runs[-1].objects) if runs else (None, ())
+
+    def waiting(self) -> dict[str, int]:
+        """Objects fetched today that still wait for their use (object -> step fetched), after the
+        last observed step's uses (fetches decided at that step already included)."""
+        t = len(self._labels) - 1
+        minutes = [self.grid.minute(s) for s in range(t + 1)]
+        fetched = self.fetched_today
+        return follow_fetches(self.uses(), minutes, lambda s, _: fetched.get(s, ()), t + 1,
+                              self.policy.min_lead_steps, self.policy.window_steps)[1]
+
+    def _fetches(self) -> tuple[tuple[FetchCandidate, ...], tuple[FetchCandidate, ...], frozenset[str]]:
+        """(the fetches to start now, every candidate, the objects left alone)."""
+        t = len(self._labels) - 1
+        if t >= self.grid.last_step or self.days_learned == 0:
+            return (), (), frozenset()
+        forecast = self.forecast(self.policy.window_steps - 1)
+        candidates = tuple(self.policy.candidates_from(forecast))
+        before = self._states[t - 1] if t else self._states[t]
+        alone = left_alone(self.household.objects, before, self._states[t], self._use_places)
+        chosen = self.policy.choose(candidates, exclude=set(self.waiting()) | alone)
+        return tuple(chosen), candidates, alone
+
+    # -- forecasting ----------------------------------------------------------------------------
+    def forecast(self, horizon: int) -> Forecast:
+        """Where every object is expected to go in the next ``horizon + 1`` steps: from today's
+        labels when every step has one, else mixed over the filter's most probable histories."""
+        fc = self.policy.forecaster
+        states = self._states
+        belief = self._filtered() if None in self._labels else None
+        if self._filter is None or belief is None:
+            histories, weights = [self.activity_history()], np.ones(1)
+        else:
+            found = self._filter.top_histories(belief, self.forecast_hypotheses)
+            histories, weights = [h.history for h in found], np.array([h.weight for h in found])
+        many = fc.forecast_many([(h, states) for h in histories], horizon, weekdays=[self.weekday] * len(histories))
+        return mixture(many, weights)
+
+    def next_hour(self, steps: int) -> list[tuple[str, list[float], str | None]]:
+        """Per object, P(first used at each of the next ``steps`` steps) and where it would most
+        likely be taken; [] before a first learned day or today's first observation."""
+        if self.days_learned == 0 or not self._labels:
+            return []
+        forecast = self.forecast(max(0, steps - 1))
+        targets = forecast.likely_target(1, steps)
+        return [(obj, [float(x) for x in forecast.departure[:steps, j]], targets[j])
+                for j, obj in enumerate(forecast.objects)]
+
+    # -- days -------------------------------------------------------------------------------------
+    def _open(self, day: str | None) -> None:
+        self._day = day
+        self._labels: list[str | None] = []
+        self._states: list[tuple[str, ...]] = []
+        self._looked: list[bool] = []
+        self._uses: list[frozenset[str]] = []  # per step, the objects seen moving there
+        self.fetched_today: dict[int, list[str]] = {}  # step -> the objects decided after it
+        self.step_predictions: dict[int, tuple[str, float]] = {}  # today's one-step predictions (by the service)
+        self._belief_dist = None
+        self._filter = None
+        self._beliefs, self._stale = [], None
+        if self.days_learned > 0:
+            self._filter = ActivityFilter(self.activity_model, self.emission, max_hypotheses=self.max_hypotheses,
+                                          min_weight=self.min_weight)
+            weekday = None if day is None else dt.date.fromisoformat(day).weekday()
+            self._beliefs = [self._filter.start(1, weekdays=[weekday])]
+
+    def _close(self) -> None:
+        """The finished day is learned (see module doc)."""
+        labelled = sum(a is not None for a in self._labels)
+        if self.learning and len(self._labels) >= 2 and 2 * labelled >= len(self._labels):
+            self.learn([self.current_day()])
+
+    def learn(self, days: Sequence[Day]) -> None:
+        """Add whole days to every model (the same counts as training on them from the start)."""
+        objects = self.household.objects
+        self.activity_model.partial_fit([d.activities for d in days], [d.weekday for d in days])
+        runs = [r for d in days for r in activity_runs(d, objects, self.alignment)]
+        self.chooser.model.partial_fit([(r.activity, r.objects) for r in runs])  # type: ignore[attr-defined]
+        self.emission.partial_fit(days, objects)
+        self.policy.learn(days)
+        self.days_learned += len(days)
+
+    def stats(self) -> dict[str, Any]:
+        return {"household": self.household.name, "status": self.status, "days_learned": self.days_learned,
+                "observations": self.observations, "current_day": self._day, "steps_today": len(self._labels),
+                "activities_known": len(getattr(self.activity_model, "classes_", ())),
+                "training_days": len(getattr(self.activity_model, "training_data_", ())),
+                "llm_fallbacks": dict(self.fallbacks)}
+
+
+def _instant(time: dt.datetime) -> dt.datetime:
+    """The UTC instant of ``time`` (naive = UTC, for library callers without a zone)."""
+    return time.astimezone(UTC) if time.tzinfo else time.replace(tzinfo=UTC)
+
+
+def _nearest_labels(labels: Sequence[str | None]) -> tuple[str, ...]:
+    """Unknown steps take the last label before them (leading ones the first label): the stand-in
+    of a household that has learned nothing yet, whose filter has no model to ask."""
+    first = next((a for a in labels if a is not None), None)
+    if first is None:
+        return ()
+    out, last = [], first
+    for a in labels:
+        last = a if a is not None else last
+        out.append(last)
+    return tuple(out)
