@@ -26,6 +26,8 @@ import json
 import os
 import sqlite3
 import statistics
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -68,16 +70,20 @@ def rss_mb(pid: int) -> float:
 
 class Service:
     def __init__(self, db: Path, env: dict[str, str], src: Path | None = None) -> None:
-        """``globe serve`` over ``db``: this checkout's, or the one whose sources are ``src``."""
+        """``globe serve`` over ``db``: this checkout's, or the one whose sources are ``src`` (whose
+        own code makes the database and its token)."""
         self.db = db
-        self.admin = create_token(db, admin=True)
         self.env = dict(os.environ, GLOBE_LLM__BACKEND="none", GLOBE_SERVICE__MAX_CLOCK_SKEW="P400D", **env)
         if src is None:
             self.env["GLOBE_SELECTION__DEPLOY"] = "ngram"
-        else:
-            self.env["PYTHONPATH"] = str(src)
-            with_deploy = "DeployMethod" in (src / "globe" / "config.py").read_text(encoding="utf-8")
-            self.env |= {"GLOBE_SELECTION__DEPLOY": "ngram"} if with_deploy else {}
+            self.admin = create_token(db, admin=True)
+            return
+        self.env["PYTHONPATH"] = str(src)
+        if "DeployMethod" in (src / "globe" / "config.py").read_text(encoding="utf-8"):
+            self.env["GLOBE_SELECTION__DEPLOY"] = "ngram"
+        made = subprocess.run([sys.executable, "-m", "globe", "token", "create", "--db", str(db), "--admin"],
+                              env=self.env, capture_output=True, text=True, check=True)
+        self.admin = made.stdout.strip().splitlines()[-1]
 
     def start(self) -> float:
         """Start; returns seconds until /health answers (process start and imports included)."""

@@ -187,6 +187,22 @@ def test_serve_on_a_port_in_use_and_on_every_interface(tmp_path):
     assert first.startswith("warning: listening on 0.0.0.0") and "[yellow]" not in first, first
 
 
+@pytest.mark.parametrize("mqtt, message", [
+    ('broker = "mqtt://127.0.0.1:99999"', "mqtt.broker: Value error, broker 'mqtt://127.0.0.1:99999': the port"),
+    ('broker = "mqtts://127.0.0.1"\nca_file = "missing-ca.pem"', "ca_file missing-ca.pem: no such file"),
+])
+def test_serve_refuses_an_mqtt_section_it_cannot_start_with_in_one_line(tmp_path, mqtt, message):
+    """Both were a 55-line traceback from inside the app's start-up, exit 3."""
+    import os
+
+    config = tmp_path / "globe.toml"
+    config.write_text(f"[mqtt]\nenabled = true\n{mqtt}\n", encoding="utf-8")
+    res = globe("serve", "--db", str(tmp_path / "a.sqlite3"), "--config", str(config),
+                env={**os.environ, "GLOBE_LLM__BACKEND": "none"})
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
+    assert message in res.stderr and "GLOBE service on" not in res.stderr, res.stderr
+
+
 def test_data_import_reports_bad_options_and_bad_lines_in_one_line(tmp_path):
     log = tmp_path / "casas.txt"
     log.write_text("2010-11-04 05:00:00 M001 ON Sleeping begin\n2010-11-04 04:00:00 M001 OFF\n", encoding="utf-8")

@@ -38,13 +38,20 @@ EDITS = {
     "weekdays short": (lambda p: p["activity"].__setitem__("weekdays", [0]), "'weekdays'"),
     "weekdays on objects": (lambda p: p["objects"].__setitem__("weekdays", [0] * len(p["objects"]["data"])),
                             "'weekdays'"),
+    # accepted until now:
+    "an object the household lacks": (lambda p: p["objects"]["data"][0][1].append("unicorn"),
+                                      "'unicorn', not an object"),
+    "an ESC in an activity": (lambda p: p["activity"]["data"][0].__setitem__(0, "sleep\x1b[2J"), r"data\[0\] is not"),
+    "an ESC in an object": (lambda p: p["objects"]["data"][0][1].append("cup\x1b"), r"data\[0\] is not"),
+    "a 5 MB label": (lambda p: p["activity"]["data"][0].__setitem__(0, "x" * (5 << 20)), r"data\[0\] is not"),
 }
 
 
 @pytest.mark.parametrize("edit", EDITS, ids=list(EDITS))
 def test_a_resealed_model_file_is_checked_by_type_and_range(tmp_path, fitted, edit):
     f = fitted["A"]
-    save_household_model(tmp_path, f.activity, f.objects, household="A", fingerprint="f" * 64)
+    objects = tuple(sorted({o for _, run in f.objects.training_data_ for o in run}))
+    save_household_model(tmp_path, f.activity, f.objects, household="A", fingerprint="f" * 64, objects_columns=objects)
     assert load_household_model(tmp_path).activity.get_params() == f.activity.get_params()  # untouched: loads
     change, named = EDITS[edit]
     tamper(tmp_path / MODEL_FILE, change)

@@ -79,6 +79,16 @@ def test_host_header_is_checked_and_no_cors_by_default(server):
     pre = httpx.options(server.url + "/households",
                         headers={"Origin": "http://evil.example", "Access-Control-Request-Method": "GET"})
     assert "access-control-allow-origin" not in pre.headers
+    import socket
+
+    for hosts in (("127.0.0.1", "evil.example"), ("evil.example", "127.0.0.1"), ("127.0.0.1", "127.0.0.1")):
+        with socket.create_connection(("127.0.0.1", server.port), timeout=10) as sock:  # the last one won
+            sock.sendall(b"GET /households HTTP/1.1\r\n" + b"".join(f"Host: {h}\r\n".encode() for h in hosts)
+                         + f"Authorization: Bearer {server.admin}\r\nConnection: close\r\n\r\n".encode())
+            answer = b""
+            while chunk := sock.recv(65536):
+                answer += chunk
+        assert answer.startswith(b"HTTP/1.1 400") and b"2 Host headers" in answer, (hosts, answer[:200])
 
 
 def test_limits_are_4xx_naming_the_field(make_server, households):

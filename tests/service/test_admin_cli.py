@@ -29,6 +29,9 @@ def test_tokens_and_import_from_the_command_line(tmp_path, homer_root):
     robot = cli("token", "create", "--db", str(db), "--household", "home-b").stdout.strip().splitlines()[-1]
     with pytest.raises(DataError):
         cli("token", "create", "--db", str(db), "--admin", "--household", "home-b")
+    with pytest.raises(DataError, match="no household 'ghost'") as err:  # a token for nobody: refused
+        cli("token", "create", "--db", str(db), "--household", "ghost")
+    assert err.value.field == "household" and "ghost" not in cli("token", "list", "--db", str(db)).stdout
     srv = Server(db, tmp_path / "server.log")
     srv.start()
     try:
@@ -117,3 +120,18 @@ def test_import_takes_each_day_files_date_from_its_name(tmp_path):
     assert h.train[0].name == "2024-01-01"
     assert [d.date for d in store.training_days("numbered")] == [None] * len(h.train)
     store.close()
+
+
+def test_import_names_the_day_file_a_limit_refuses(tmp_path):
+    """A 300-character activity imports and validates, but the service's label limit refuses it:
+    the error named 'days[1]' (the service's name for an uploaded day), not the file on this disk."""
+    from tests.corpus.homes import day_rows, day_text, write_home
+
+    home = write_home(tmp_path / "data", train=3, test=0)
+    rows = day_rows(1)
+    rows[4][1] = "x" * 300
+    (home / "train" / "001.csv").write_text(day_text(rows), encoding="utf-8")
+    with pytest.raises(DataError) as err:
+        cli("household", "import", "--db", str(tmp_path / "db.sqlite3"), "--name", "t", "--method", "ngram", str(home))
+    assert (err.value.source, err.value.line) == (str(home / "train" / "001.csv"), 6)
+    assert "longer than 128 characters" in err.value.message and "x" * 65 not in str(err.value)

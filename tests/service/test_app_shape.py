@@ -93,7 +93,8 @@ def test_the_openapi_schema_says_what_the_server_enforces():
 
 @pytest.mark.parametrize(("label", "ok"), [
     ("cooking", True), (" cooking\t", True), ("café", True), ("", False), (" \t", False), ("idle\x07", False),
-    ("a\x85b", False), ("evil\u202etxt", False), ("x\u2066", False), ("in\tside", False),
+    ("a\x85b", False), ("evil\u202etxt", False), ("x\u2066", False), ("in\tside", False), ("\ufeffidle", False),
+    ("id\u200ble", False), ("persian\u200cword", True),
 ])
 def test_the_documented_label_pattern_is_the_servers_rule(label, ok):
     import re
@@ -126,3 +127,13 @@ def test_the_documented_node_pattern_is_the_servers_class_id_rule(label, ok):
     except DataError as err:
         accepted = "does not start with its class" in str(err)
     assert accepted == ok and bool(re.match(NODE_PATTERN[:-1] + r"\Z", label)) == ok
+
+
+def test_a_method_a_path_does_not_answer_names_every_method_it_does(token_store):
+    """``OPTIONS /households`` said ``Allow: GET`` (the router named its first route's methods only)."""
+    store, token = token_store
+    with client_of(UnknownHouseholdError("x"), store, token) as c:
+        for path, allowed in (("/households", "GET, POST"), ("/households/A", "DELETE"),
+                              ("/households/A/observations", "POST"), ("/households/A/shadow", "PUT")):
+            r = c.options(path)
+            assert (r.status_code, r.headers["allow"]) == (405, allowed), (path, r.headers)

@@ -144,6 +144,7 @@ def test_shadow_switches_from_the_dashboard_with_csrf_and_admin_only(browser, ho
 
 def test_logout_ends_the_session_and_needs_the_csrf_token(browser, home):
     assert login(browser, home[1]).status_code == 303
+    copied = browser.cookies.get(SESSION_COOKIE)  # a copy of the cookie, kept elsewhere
     csrf = csrf_of(browser.get("/dashboard/households").text)
     assert browser.post("/dashboard/logout", data={"csrf": "forged"}).status_code == 403
     r = browser.post("/dashboard/logout", data={"csrf": csrf})
@@ -151,6 +152,10 @@ def test_logout_ends_the_session_and_needs_the_csrf_token(browser, home):
     cookies = r.headers.get_list("set-cookie")
     assert any(h.startswith(SESSION_COOKIE + '=""') and "max-age=0" in h.lower() for h in cookies)
     assert browser.get("/dashboard/households").headers["location"] == "/dashboard/login"
+    # the copy ends with the session (it stayed valid for the session's 8 hours)
+    browser.cookies.set(SESSION_COOKIE, copied)
+    again = browser.get("/dashboard/households")
+    assert again.status_code == 303 and again.headers["location"] == "/dashboard/login"
 
 
 def test_sessions_are_signed_expire_and_end_with_their_token(tmp_path):

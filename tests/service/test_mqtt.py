@@ -145,12 +145,18 @@ def test_a_household_is_a_home_assistant_device_whose_state_follows_each_observa
     assert json.loads(again.payload) == payload
     assert health(srv)["mqtt"]["state"] == "connected" and health(srv)["status"] == "ok"
 
-    # a household deleted: its device is removed (an empty retained config)
+    # a household created over HTTP is a device at once, before any observation; a household
+    # deleted has its device removed at once (an empty retained config), not when GLOBE reconnects
     seen = len(ha.messages)
+    other = "homeassistant/device/globe_second/config"
     with srv.client() as c:
+        upload(c, "second", clock_home(days=6, test=1))
+        assert json.loads(ha.wait_for(lambda m: m.topic == other, after=seen).payload)
+        seen = len(ha.messages)
         c.delete_household(HOME)
-    ha.publish("homeassistant/status", "online")
-    assert ha.wait_for(lambda m: m.topic == DISCOVERY, after=seen).payload == b""
+        c.delete_household("second")
+    gone = {ha.wait_for(lambda m, t=t: m.topic == t, after=seen).payload for t in (DISCOVERY, other, STATE)}
+    assert gone == {b""}
 
     # GLOBE killed: the broker publishes its last will, and Home Assistant marks the entities unavailable
     seen = len(ha.messages)
@@ -226,3 +232,25 @@ def test_a_broker_down_at_start_and_restarted_is_reconnected_and_served_again(br
     assert discovery_problems(DISCOVERY, json.loads(ha.wait_for(lambda m: m.topic == DISCOVERY).payload)) == []
     assert json.loads(ha.wait_for(lambda m: m.topic == STATE).payload)["status"] == "ready"
     assert health(srv)["status"] == "ok"
+
+
+def test_a_wrong_place_in_the_mqtt_section_is_shown_and_leaves_the_rest_observed(broker, globe, listeners):
+    """``off = "counter#99"`` names no place of the household's map: once the kettle reported
+    off, every observation of the household was refused (activity and all) and /health said
+    nothing; now that state is left out, the activity is still observed, and /health names it."""
+    broker.start()
+    srv = globe(mqtt_config(broker, STATESTREAM.replace('off = "counter#3"', 'off = "counter#99"')))
+    household(srv)
+    ha = listeners(broker.port)
+    ha.publish(KETTLE_TOPIC, "off", retain=True)
+    ha.publish(ACTIVITY_TOPIC, "Making tea", retain=True)
+    deadline = time.time() + 5
+    while not [o for o in exported(srv) if (o["client_id"] or "").startswith("ha-")]:
+        assert time.time() < deadline, health(srv)
+        time.sleep(0.2)
+    stored = [o for o in exported(srv) if (o["client_id"] or "").startswith("ha-")]
+    assert stored[0]["activity"] == "breakfast" and json.loads(stored[0]["locations"]) == {}
+    problems = health(srv)["mqtt"]["problems"]
+    assert problems == ["home: binary_sensor.kettle_in_use state 'off' puts kettle at 'counter#99', not a place of "
+                        "the household's map"]
+    assert health(srv)["mqtt"]["rejected"] == 0

@@ -119,8 +119,16 @@ def test_mqtt_is_off_by_default_and_its_section_is_checked(tmp_path):
         load_config(overrides={"mqtt.password": "x", "mqtt.password_file": str(tmp_path / "p")}, environ={})
     assert broker_address("mqtts://broker.lan") == ("broker.lan", 8883, True)
     assert broker_address("mqtt://[::1]:1884") == ("::1", 1884, False)
-    with pytest.raises(ConfigError, match="port"):
-        broker_address("mqtt://broker:99999")
+    for broker in ("mqtt://broker:99999", "mqtt://broker:0"):  # found only when the bridge started, once
+        with pytest.raises(ConfigError, match="mqtt.broker: .*the port is not a number from 1 to 65535"):
+            load_config(overrides={"mqtt.broker": broker}, environ={})
+    tls = {"mqtt.enabled": True, "mqtt.broker": "mqtts://broker.lan", "mqtt.ca_file": str(tmp_path / "no-ca.pem")}
+    with pytest.raises(ConfigError, match="mqtt.ca_file .*no-ca.pem: no such file"):
+        load_config(overrides=tls, environ={}).mqtt.check_files()
+    load_config(overrides=tls | {"mqtt.enabled": False}, environ={}).mqtt.check_files()  # not used: fine
+    with pytest.raises(ConfigError, match="mqtt.password_file .*: cannot read it"):
+        load_config(overrides={"mqtt.enabled": True, "mqtt.username": "u", "mqtt.password_file": str(tmp_path)},
+                    environ={}).mqtt.check_files()
     assert "secret" not in repr(MqttConfig(password="secret"))
     configured = load_config(overrides={"mqtt.password": "secret"}, environ={})
     assert "secret" not in json.dumps(configured.model_dump(mode="json"))  # what results' config.json holds

@@ -222,3 +222,55 @@ def test_households_beyond_the_memory_bound_are_rebuilt_on_demand(make_server, h
         for name in "AB":
             assert c.stats(name)["observations"] == 6 and c.stats(name)["steps_today"] == 6
         assert httpx.get(srv.url + "/health").json()["built"] == 1
+
+
+def test_a_home_without_objects_is_served_activity_predictions(server, tmp_path):
+    """A home with no movable node (what ``globe data import home-assistant`` writes without
+    ``--objects``) is created over HTTP, and after an observation its prediction and its dashboard
+    page answer with the next activity and nothing to fetch (both were a 500, the fetch forecast
+    ran its kernels on no object)."""
+    from globe.data.csv_logs import load_household
+    from globe.service.client import household_payload
+    from tests.corpus.homes import activity_only
+
+    activity_only(tmp_path / "data", train=6)
+    home = load_household(tmp_path / "data", "Q")
+    assert home.objects == ()
+    with server.client() as c:
+        payload = household_payload(home)
+        assert c.create_household("Q", payload["nodes"], payload["days"], timezone="UTC")["objects"] == []
+        c.set_shadow("Q", False)
+        for minute, activity in ((360, "sleeping"), (370, "breakfast"), (380, "breakfast")):
+            c.observe("Q", at(0, minute), activity, {})
+            p = c.prediction("Q")
+            assert p.status == "ready" and p.activity is not None and 0 < p.activity_probability <= 1
+            assert p.fetches == [] and p.act is False and p.object is None
+    from tests.service.dashboard_helpers import csrf_of
+
+    with httpx.Client(base_url=server.url, timeout=30) as browser:
+        form = browser.get("/dashboard/login")
+        logged = browser.post("/dashboard/login", data={"csrf": csrf_of(form.text), "token": server.admin},
+                              headers={"Origin": server.url})
+        assert logged.status_code == 303, logged.text[:300]
+        for page in ("/dashboard/households/Q", "/dashboard/households/Q/live", "/dashboard/households/Q/settings"):
+            answer = browser.get(page)
+            assert answer.status_code == 200, (page, answer.text[:300])
+
+
+def test_a_database_cut_short_while_running_is_degraded_health(server, households):
+    """The database file truncated in place (a full disk's recovery, a careless copy) left /health
+    at ok: the writes that came after were acknowledged into a file that could not hold them."""
+    import time
+
+    with server.client() as c:
+        upload(c, "A", households["A"], days=False)
+        c.observe("A", at(0, 400), "idle", {})
+    server.stop()  # the log is copied into the file
+    server.start()
+    with open(server.db, "r+b") as fh:
+        fh.truncate(server.db.stat().st_size // 2)
+    deadline = time.time() + 10
+    while "cut short" not in (health := httpx.get(server.url + "/health").json())["database"]:
+        assert time.time() < deadline and health["status"] == "degraded", health  # reads fail meanwhile
+        time.sleep(0.2)
+    assert health["status"] == "degraded" and "truncated" in health["database"], health

@@ -150,8 +150,9 @@ def test_an_id_reused_for_another_observation_is_a_conflict(server, households):
 
 
 def test_one_activity_label_rule_for_observations_and_uploaded_days(server, households):
-    """NFC and NFD spellings of one word are one activity; control characters and bidirectional
-    overrides are refused, whether the label comes in an observation or in an uploaded day."""
+    """NFC and NFD spellings of one word are one activity; control characters, bidirectional
+    overrides and invisible characters (a byte-order mark, a zero-width space: a label that looks
+    like another) are refused, whether the label comes in an observation or in an uploaded day."""
     h = households["A"]
     composed, decomposed = "caf\u00e9", "cafe\u0301"
     assert unicodedata.normalize("NFC", decomposed) == composed and composed != decomposed
@@ -159,14 +160,14 @@ def test_one_activity_label_rule_for_observations_and_uploaded_days(server, hous
         upload(c, "A", h, days=False)
         c.observe("A", at(0, 400), decomposed, {})
         c.observe("A", at(0, 410), composed, {})
-        for bad in ("idle\x07", "idle\u202e", "idle\u2066", "\t", "idle\x85"):
+        for bad in ("idle\x07", "idle\u202e", "idle\u2066", "\t", "idle\x85", "\ufeffidle", "id\u200ble", "idle\u2060"):
             fails(lambda b=bad: c.observe("A", at(0, 420), b, {}), 422, "activity")
         activities = [o["activity"] for o in c._call("GET", "/households/A/export")["observations"]]
         assert activities == [composed, composed]
         payload = household_payload(h)
         day = payload["days"][0]
         lines = day.split("\n")
-        for bad, accepted in (("idle\u202e", False), (decomposed, True)):
+        for bad, accepted in (("idle\u202e", False), ("idle\u200b", False), (decomposed, True)):
             minute, _, rest = lines[1].split(",", 2)
             text = "\n".join([lines[0], f"{minute},{bad},{rest}", *lines[2:]])
             name = f"up-{accepted}"

@@ -40,6 +40,9 @@ def token_create(
         check_household_name(household, field="household")
     store = Store(db)
     try:
+        if household is not None and store.household(household) is None:
+            raise DataError(f"no household {household!r} in {db} (create it first; 'globe household import' or "
+                            "POST /households)", field="household")
         token, token_id = issue(store, household=household, admin=admin)
     finally:
         store.close()
@@ -114,7 +117,13 @@ def household_import(
              for f in (day_files(folder / split) if (folder / split).is_dir() else [])]
     texts = [f.read_text(encoding="utf-8-sig") for f in files]
     named = [named_date(f.name) for f in files]  # imported days are named by their date
-    household = household_from(name, nodes, texts, dates=named if None not in named else None)
+    try:
+        household = household_from(name, nodes, texts, dates=named if None not in named else None)
+    except DataError as err:  # days[i] is a file on this disk: named as such
+        index = err.source[5:-1] if err.source and err.source.startswith("days[") else ""
+        if not index.isdigit():
+            raise
+        raise type(err)(err.message, source=str(files[int(index)]), line=err.line, field=err.field) from None
     objects, days = household.objects, household.train
     tz = check_timezone(timezone)
     store = Store(db)

@@ -83,7 +83,8 @@ def _known(values: tuple[str, ...], known: tuple[str, ...] | list[str], what: st
     unknown = [v for v in values if v not in known]
     if unknown:
         shown = ", ".join(sorted(known)[:40]) + (", ..." if len(known) > 40 else "")
-        raise DataError(f"--{option}: unknown {what} {unknown[0]!r}; known: {shown or 'none'}")
+        label = unknown[0] if len(unknown[0]) <= 64 else unknown[0][:64] + "..."
+        raise DataError(f"--{option}: unknown {what} {label!r}; known: {shown or 'none'}")
 
 
 def _date(text: str | None) -> dt.date:

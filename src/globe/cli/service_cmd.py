@@ -33,6 +33,7 @@ def serve(
 ) -> None:
     """Start the GLOBE assistance service (OpenAPI at /docs). Requests need a token: globe token create."""
     cfg = resolve(config, service__database=database, service__host=host, service__port=port, llm__backend=backend)
+    cfg.mqtt.check_files()  # what the MQTT bridge reads: here, not from inside the running app
     try:
         import uvicorn  # noqa: F401 - checked here: the service extra
     except ImportError as err:

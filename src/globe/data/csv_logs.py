@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import re
+import stat
 import unicodedata
 from collections import Counter
 from itertools import chain, compress
@@ -27,6 +28,7 @@ from globe.errors import DataError
 NODE_COLUMNS = ("node", "class", "category", "movable", "start_location")
 FIXED_COLUMNS = ("minute", "activity")
 COVERING = "covering"
+RESERVED_COLUMNS = ("minute", "activity", COVERING)  # no object column may take these names
 """An optional column after ``activity``: the activity covering most of the row's step (the
 importers write it; a movement can be credited to it, ``sequences.alignment = "most"``)."""
 DAY_MINUTES = 1440  # minutes are 0..1440 (1440 = midnight at the end of the day)
@@ -37,6 +39,7 @@ Resample = Literal["none", "locf"]
 _MINUTE = re.compile(r"[0-9]+")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 _BIDI = re.compile("[\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069]")  # text-direction marks, embeddings, isolates
+_INVISIBLE = re.compile("[\u200b\u2060\ufeff]")  # zero-width space, word joiner, byte-order mark (zero-width no-break)
 _SURROGATE = re.compile("[\ud800-\udfff]")  # only in text that did not come from valid UTF-8 (e.g. JSON's "\\ud800")
 _BLANKS = " \t"
 
@@ -53,12 +56,23 @@ def _short(text: str, limit: int = 64) -> str:
 # -- reading text -------------------------------------------------------------------------------
 
 
+MAX_FILE_BYTES = 2 << 30  # a year of a busy home's events is some hundred megabytes
+
+
 def _read_bytes(path: Path, kind: str = "CSV file") -> bytes:
-    """The file's bytes; a folder, a missing or an unreadable file is a :class:`DataError`."""
+    """The file's bytes; a folder, a missing or an unreadable file, something that is no file (a
+    pipe would wait for ever, ``/dev/zero`` fill the memory) or one over :data:`MAX_FILE_BYTES` is
+    a :class:`DataError`."""
     path = Path(path)
     if path.is_dir():
         raise DataError(f"is a folder, not a {kind}", source=str(path))
     try:
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            raise DataError(f"is not a regular file (a pipe, a device or a socket), not a {kind}", source=str(path))
+        if info.st_size > MAX_FILE_BYTES:
+            raise DataError(f"is {info.st_size >> 20} MiB, larger than the {MAX_FILE_BYTES >> 30} GiB a {kind} may be "
+                            "(split it)", source=str(path))
         return path.read_bytes()
     except FileNotFoundError as err:
         raise DataError("file not found", source=str(path)) from err
@@ -146,6 +160,9 @@ def _label(value: str, source: str | None, line: int | None, field: str, what: s
     if _BIDI.search(value):
         raise DataError(f"{what} {_short(value)} contains a bidirectional formatting character (it would display "
                         "reordered)", source=source, line=line, field=field)
+    if _INVISIBLE.search(value):
+        raise DataError(f"{what} {_short(value)} contains an invisible character (a zero-width space, word joiner or "
+                        "byte-order mark: it would look like another label)", source=source, line=line, field=field)
     return value
 
 
@@ -187,8 +204,8 @@ def check_map(nodes: Sequence[Node], source: str | None = None, lines: Sequence[
     classes: dict[str, int] = {}
     for i, n in enumerate(nodes):
         if n.movable:
-            if n.cls in FIXED_COLUMNS:
-                raise DataError(f"a movable node may not be of class {n.cls!r} (a day file's fixed column)",
+            if n.cls in RESERVED_COLUMNS:
+                raise DataError(f"a movable node may not be of class {n.cls!r} (a day file's column of its own)",
                                 **where(i), field="class")
             if n.cls in classes:
                 also = nodes[classes[n.cls]].node
@@ -519,7 +536,7 @@ def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
 
 
 __all__: list[str] = [
-    "NODE_COLUMNS", "FIXED_COLUMNS", "DAY_MINUTES", "csv_table", "activity_label", "check_map", "parse_nodes_text",
-    "read_nodes", "parse_day_text", "read_day", "household_step", "check_step", "day_files", "read_household_map",
-    "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
+    "NODE_COLUMNS", "FIXED_COLUMNS", "RESERVED_COLUMNS", "DAY_MINUTES", "csv_table", "activity_label", "check_map",
+    "parse_nodes_text", "read_nodes", "parse_day_text", "read_day", "household_step", "check_step", "day_files",
+    "read_household_map", "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
 ]

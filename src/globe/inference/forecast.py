@@ -43,7 +43,7 @@ class Forecast:
 
     @property
     def horizon(self) -> int:
-        return len(self.activity) - 1
+        return len(self.departure) - 1
 
     def change_probability(self, s: int) -> np.ndarray:
         """P(each object is somewhere else than now at some step m+1..m+1+s)."""
@@ -118,6 +118,8 @@ def mixture(forecasts: Forecasts, weights: np.ndarray) -> Forecast:
     """One forecast from several of the same day (say, from its most probable histories), each
     weighted (``weights`` summing to 1, most probable first)."""
     n = len(forecasts)
+    if n == 1 and weights[0] == 1.0:
+        return forecasts[0]
     owners, ranks = np.zeros(n, dtype=np.int64), np.arange(n)
     departure = mix(forecasts.departure, owners, ranks, weights, 1)[0]
     compact = mix(forecasts.destination, owners, ranks, weights, 1)[0]
@@ -238,7 +240,8 @@ class Forecaster:
         targets, real, _ = mv.target_table()
         departure = np.zeros((nq, horizon + 1, nj))
         destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
-        self._propagate(trees, translate, src, cells, seen, earlier, departure, destination)
+        if nj:  # a home with no object to track has activities to forecast, and nothing to move
+            self._propagate(trees, translate, src, cells, seen, earlier, departure, destination)
         return Forecasts(starts, mv.objects_, mv.locations_, trees, departure, destination, targets, real)
 
     def _propagate(self, trees: TreeBatch, translate: np.ndarray, src: np.ndarray, cells: np.ndarray, seen: np.ndarray,

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
-from globe.data.csv_logs import check_map
+from globe.data.csv_logs import activity_label, check_map
 from globe.data.records import Day, Node, map_fingerprint
 from globe.errors import DataError, GlobeError, ModelFileError
 from globe.models.activity import ActivityModel
@@ -57,8 +57,20 @@ def model_to_dict(model: Any) -> dict[str, Any]:
     return out
 
 
+MAX_LABEL = 1024  # no activity, object or place of a sane model comes near it (the service allows 128)
+
+
 def _is_labels(value: Any) -> bool:
-    return isinstance(value, list) and all(isinstance(x, str) and x for x in value)
+    """A list of labels, each as the label rule has it (:func:`globe.data.csv_logs.activity_label`:
+    no control, bidirectional or invisible character) and at most :data:`MAX_LABEL` long."""
+    return isinstance(value, list) and all(isinstance(x, str) and 0 < len(x) <= MAX_LABEL and _fine(x) for x in value)
+
+
+def _fine(label: str) -> bool:
+    try:
+        return activity_label(label) == label
+    except DataError:
+        return False
 
 
 def _check_data(kind: str, data: Any, source: str) -> None:
@@ -67,8 +79,7 @@ def _check_data(kind: str, data: Any, source: str) -> None:
         raise ModelFileError(f"{source}: malformed model file: 'data' is {type(data).__name__}, expected a list")
     for i, item in enumerate(data):
         if kind == "object":
-            ok = (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and item[0]
-                  and _is_labels(item[1]))
+            ok = isinstance(item, list) and len(item) == 2 and _is_labels(item[:1]) and _is_labels(item[1])
         else:
             ok = _is_labels(item) and len(item) > 0
         if not ok:
@@ -340,6 +351,10 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None,
     if activity.kind not in _ACTIVITY_KINDS or objects.kind != "object":
         raise ModelFileError(f"{src}: malformed model file: parts are {activity.kind!r} and {objects.kind!r}, "
                              "expected an activity model and an object model")
+    foreign = sorted({o for _, run in objects.training_data_ for o in run} - set(columns)) if columns else []
+    if foreign:
+        raise ModelFileError(f"{src}: malformed model file: its object model names {foreign[0][:64]!r}, not an object "
+                             "of the household (objects_columns)")
     nodes = _nodes(payload.get("nodes", []), tuple(columns), fp, src)
     grid, deployment = payload.get("grid"), payload.get("deployment")
     days: tuple[Day, ...] = ()

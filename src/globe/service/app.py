@@ -23,12 +23,13 @@ from __future__ import annotations
 import logging
 import threading
 from contextlib import asynccontextmanager
-from typing import AsyncIterator
+from typing import Any, AsyncIterator, MutableMapping
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from globe import __version__, assembly
 from globe.config import GlobeConfig
@@ -106,6 +107,14 @@ def _watch(store: Store, stop: threading.Event) -> None:
             log.exception("checking the database files failed")
 
 
+METHODS = ("DELETE", "GET", "HEAD", "PATCH", "POST", "PUT")
+
+
+def allowed_methods(app: FastAPI, scope: MutableMapping[str, Any]) -> list[str]:
+    """The methods some route of ``scope``'s path answers: each asked of the router's routes."""
+    return [m for m in METHODS if any(r.matches({**scope, "method": m})[0] == Match.FULL for r in app.router.routes)]
+
+
 def _add_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(GlobeError)
     async def globe_error(request: Request, err: GlobeError) -> JSONResponse:
@@ -122,7 +131,10 @@ def _add_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def http_error(request: Request, err: StarletteHTTPException) -> JSONResponse:
-        return error_response(err.status_code, str(err.detail), None, getattr(err, "headers", None))
+        headers = dict(getattr(err, "headers", None) or {})
+        if err.status_code == 405:  # every method of the path (the router names only its first route's)
+            headers["Allow"] = ", ".join(allowed_methods(app, request.scope))
+        return error_response(err.status_code, str(err.detail), None, headers or None)
 
     @app.exception_handler(Exception)
     async def internal_error(request: Request, err: Exception) -> JSONResponse:

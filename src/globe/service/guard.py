@@ -70,6 +70,10 @@ class Guard:
             closing = {"Connection": "close"} if pending_body else {}  # the body is not read: neither is the rest
             await error_response(status, detail, field, {**(extra or {}), **closing})(scope, receive, send)
 
+        hosts = [v for k, v in scope.get("headers", []) if k.lower() == b"host"]
+        if len(hosts) > 1:  # which one a proxy or the app reads differs: a rebinding trick, or a broken client
+            await refuse(400, f"{len(hosts)} Host headers (a request has one)", "host")
+            return
         host = self._hostname(headers.get("host", ""))
         if not self.any_host and host not in self.hosts:
             await refuse(400, f"host {host[:64]!r} is not allowed (service.allowed_hosts)", "host")

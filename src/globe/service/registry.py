@@ -352,7 +352,8 @@ class Registry:
                         del self._served[name]
                     self._recent.pop(name, None)
                     self.failed.pop(name, None)
-                return
+                break
+        self._notify(name)  # a listener finds it gone (Home Assistant's device is removed at once)
 
     def export(self, name: str) -> dict:
         """Everything stored about the household, as stored (also when it cannot be built)."""
@@ -365,8 +366,9 @@ class Registry:
 
     # -- a household's requests --------------------------------------------------------------------
     def subscribe(self, listener: Callable[[str], None]) -> None:
-        """Call ``listener(household)`` after each observation applied and each household created
-        (its lock released, so a listener may ask for the new prediction); what it raises is logged."""
+        """Call ``listener(household)`` after each observation applied and each household created,
+        rebuilt with its chosen models or deleted (its lock released, so a listener may ask for the
+        new prediction, or find it gone); what it raises is logged."""
         self._listeners.append(listener)
 
     def _notify(self, name: str) -> None:

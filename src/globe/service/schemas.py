@@ -28,7 +28,7 @@ def check_household_name(name: str, field: str = "name") -> str:
 
 
 _CONTROL = r"\x00-\x1f\x7f-\x9f"
-_REFUSED = _CONTROL + r"\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069"  # control and bidi-formatting characters
+_REFUSED = _CONTROL + r"\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\u200b\u2060\ufeff"  # control, bidi, invisible
 LABEL_PATTERN = rf"^[ \t]*[^{_REFUSED}]*[^ \t{_REFUSED}][^{_REFUSED}]*[ \t]*$"
 """What the label rule (:func:`globe.data.csv_logs.activity_label`) accepts, as the OpenAPI
 schema says it: spaces and tabs around it, something else inside, no control or
@@ -302,6 +302,8 @@ class MqttHealth(_Body):
     observations: int = Field(0, description="observations made from Home Assistant's states and stored")
     rejected: int = Field(0, description="observations made from Home Assistant's states that GLOBE refused (logged)")
     published: int = Field(0, description="state messages published (one per household after each new prediction)")
+    problems: list[str] = Field(default_factory=list, description="what an [mqtt.households] entry names that its "
+                                                                  "household does not have (those states are left out)")
 
 
 class HealthOut(_Body):

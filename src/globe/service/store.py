@@ -526,6 +526,17 @@ class Store:
                                                      (key, make()))])
         return self._read("SELECT value FROM settings WHERE key = ?", (key,))[0][0]
 
+    def end_session(self, nonce: str, expires: int) -> None:
+        """Note a dashboard session as ended (logged out) until it would have expired; sessions
+        that have expired anyway are forgotten."""
+        now = int(time.time())
+        self._transaction("end a dashboard session", [
+            ("DELETE FROM settings WHERE key LIKE 'ended_session:%' AND CAST(value AS INTEGER) < ?", (now,)),
+            ("INSERT OR REPLACE INTO settings (key, value) VALUES (?, ?)", (f"ended_session:{nonce}", str(expires)))])
+
+    def session_ended(self, nonce: str) -> bool:
+        return bool(self._read("SELECT 1 FROM settings WHERE key = ?", (f"ended_session:{nonce}",)))
+
     # -- tokens ------------------------------------------------------------------------------
     def add_token(self, token_id: str, digest: str, household: str | None, admin: bool) -> None:
         self._transaction("store the token", [(
@@ -563,6 +574,7 @@ class Store:
             self._token_db.close()
         with self._lock:
             self._db.close()
+            self._files.close()
 
 
 def _aware(text: str) -> dt.datetime:

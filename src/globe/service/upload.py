@@ -59,8 +59,6 @@ def parse_nodes(rows: Sequence[Mapping[str, Any]], *, max_label: int = 128) -> t
         nodes = parse_nodes_text(out.getvalue(), NODES)
     except DataError as err:
         raise _renamed(err) from None
-    if not any(n.movable for n in nodes):  # a home the robot could fetch nothing in
-        raise DataError("no movable node (every node has movable false)", field=NODES)
     return tuple(Node(sys.intern(n.node), sys.intern(n.cls), n.category, n.movable, sys.intern(n.start_location))
                  for n in nodes)
 

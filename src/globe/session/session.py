@@ -42,6 +42,7 @@ from typing import Any, Literal, Mapping, Sequence
 import numpy as np
 
 from globe.config import Deployment
+from globe.data.csv_logs import activity_label
 from globe.data.labels import known_activity
 from globe.data.records import IN_USE_CLASS, Day, Household
 from globe.errors import DataError, UnknownLabelError
@@ -195,13 +196,14 @@ class HouseholdSession:
         return Placement(day, step if day != self._day or step > last else last, day != self._day or step > last)
 
     def observe(self, obs: Observation) -> Placement:
-        """Add one (already validated) observation; a new day first learns the finished one."""
+        """Add one observation (validated by :meth:`validate` where it may be refused: a replayed
+        day's labels are data); a new day first learns the finished one."""
         day, step = self.grid.place(obs.time)
         if day != self._day:
             if self._day is not None:
                 self._close()
             self._open(day)
-        activity = sys.intern(self.activity_label(obs.activity)) if obs.activity is not None else None
+        activity = sys.intern(activity_label(obs.activity)) if obs.activity is not None else None
         last = len(self._labels) - 1
         if step <= last:  # inside the step under way (or a clock repeating an hour): update it
             step = last
@@ -424,11 +426,13 @@ class HouseholdSession:
     def waiting(self) -> dict[str, int]:
         """Objects fetched today that still wait for their use (object -> step fetched), after the
         last observed step's uses (fetches decided at that step already included)."""
-        t = len(self._labels) - 1
-        minutes = [self.grid.minute(s) for s in range(t + 1)]
-        fetched = self.fetched_today
-        return follow_fetches(self.uses(), minutes, lambda s, _: fetched.get(s, ()), t + 1,
-                              self.policy.min_lead_steps, self.policy.window_steps)[1]
+        t, window = len(self._labels) - 1, self.policy.window_steps
+        lo = max(0, t - window + 1)  # a fetch made before lo has had its window
+        minutes = [self.grid.minute(s) for s in range(lo, t + 1)]
+        fetched = {s - lo: objs for s, objs in self.fetched_today.items() if lo <= s <= t}
+        found = follow_fetches(self._uses[lo:], minutes, lambda s, _: fetched.get(s, ()), t + 1 - lo,
+                               self.policy.min_lead_steps, window)[1]
+        return {obj: s + lo for obj, s in found.items()}
 
     def _fetches(self) -> tuple[tuple[FetchCandidate, ...], tuple[FetchCandidate, ...], frozenset[str]]:
         """(the fetches to start now, every candidate, the objects left alone)."""

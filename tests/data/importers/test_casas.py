@@ -343,3 +343,71 @@ def test_one_resident_of_a_multi_resident_log(tmp_path):
         _import(tmp_path / "x", text, resident="Alice")
     err = _error(tmp_path / "x", text, resident="R3")
     assert "no annotation is named for resident R3" in err.message and "R1, R2" in err.message
+
+
+def _month(last_end: str | None = None, first: str | None = None) -> str:
+    """Ten days of a kitchen item sensor every hour and Work 09:01-17:01, as CASAS lines; the last
+    ``Work end`` replaced by ``last_end`` and a line ``first`` put before the others."""
+    import datetime as dt
+
+    lines = []
+    for d in range(10):
+        day = dt.datetime(2010, 11, 4) + dt.timedelta(days=d)
+        for h in range(6, 23):
+            t = day + dt.timedelta(hours=h)
+            back = t + dt.timedelta(minutes=4)
+            lines += [f"{t:%Y-%m-%d %H:%M:%S}.000000 I001 ABSENT", f"{back:%Y-%m-%d %H:%M:%S}.000000 I001 PRESENT"]
+        lines += [f"{day:%Y-%m-%d} 09:01:00.000000 M002 ON Work begin",
+                  f"{day:%Y-%m-%d} 17:01:00.000000 M002 OFF Work end"]
+    lines.sort()
+    if last_end is not None:
+        lines.remove("2010-11-13 17:01:00.000000 M002 OFF Work end")
+        lines.append(f"{last_end} M002 OFF Work end")
+    return "\n".join(([first] if first else []) + lines) + "\n"
+
+
+@pytest.mark.parametrize("text, line, when", [
+    (_month(first="0001-01-01 00:00:00.000000 M003 ON"), 1, "0001-01-01 00:00:00"),
+    (_month(last_end="9999-12-31 10:00:00.000000"), 360, "9999-12-31 10:00:00"),
+    (_month(last_end="2012-11-13 17:01:00.000000"), 360, "2012-11-13 17:01:00"),
+])
+def test_a_timestamp_far_outside_the_log_is_refused_or_left_out(tmp_path, text, line, when):
+    """A year 0001 first line once wrote a 51 MB report, an end dated 9999 hung (every date of
+    the span listed), an end dated two years late wrote two years of one 'Work': judged against
+    the log's own records, each is refused naming its line, or left out with --skip-bad-lines
+    (with the annotation reaching it) and listed in the report."""
+    with pytest.raises(DataError) as err:
+        _import(tmp_path, text)
+    assert (err.value.line, err.value.field) == (line, "time") and when in err.value.message
+    assert "far outside the log" in err.value.message and "--skip-bad-lines" in err.value.message
+    assert not (tmp_path / "home").exists()
+    result, home = _import(tmp_path, text, skip_bad_lines=True)
+    report = json.loads(result.report.read_text())
+    assert [r["line"] for r in report["far_outside"]] == [line] and report["log_span"][1] < "2010-11-14"
+    assert len(home.train) + len(home.test) <= 10 and result.report.stat().st_size < 100_000
+    assert all(day.activities.count("Work") <= 48 for day in home.train + home.test)
+
+
+def test_old_mac_line_endings_read_as_lines(tmp_path):
+    """A log whose lines end with a carriage return only was one line ("line 1: 88 fields")."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    _, crlf = _import(tmp_path / "a", LOG.replace("\n", "\r\n"))
+    _, cr = _import(tmp_path / "b", LOG.replace("\n", "\r"))
+    assert [d.activities for d in cr.train] == [d.activities for d in crlf.train]
+    assert [d.locations for d in cr.train] == [d.locations for d in crlf.train]
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_something_that_is_no_file_is_refused_at_once(tmp_path, kind):
+    """A named pipe blocked the import for ever, /dev/zero read until memory ran out."""
+    import os
+
+    if kind == "fifo":
+        source = tmp_path / "pipe"
+        os.mkfifo(source)
+    else:
+        source = __import__("pathlib").Path("/dev/zero")
+    with pytest.raises(DataError, match="is not a regular file"):
+        import_casas(log_file=source, dest=tmp_path / "home")
+    assert not (tmp_path / "home").exists()

@@ -96,8 +96,9 @@ def test_the_destination_must_be_new_or_empty_and_a_failed_write_leaves_nothing(
         raise OSError("disk full")
 
     monkeypatch.setattr(grid, "write_day", broken)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(DataError, match="cannot write the household folder: disk full") as err:
         _write(tmp_path, 2)
+    assert err.value.source == str(tmp_path / "home")  # named as asked: once, the hidden draft folder's name
     assert sorted(p.name for p in tmp_path.iterdir()) == ["home"] and not any((tmp_path / "home").iterdir())
 
 
@@ -150,6 +151,20 @@ def test_a_stretch_without_events_far_longer_than_usual_is_listed(tmp_path):
     assert any(n.startswith("1 kept day has a stretch of 7.5 hours or more") for n in result.notes)
 
 
+def test_silent_days_are_listed_even_when_most_days_are_silent(tmp_path):
+    """Events on 3 of 10 annotated days only (a recorder that ran for 3 days): the usual silence is
+    judged on the days a sensor was heard at all, so the 7 silent days are listed (judged on every
+    day, the median day was silent and nothing could ever be)."""
+    sensor_log, selection = _log(10)
+    for day in (0, 4, 8):
+        for half_hours in range(48):
+            sensor_log.heard(START + timedelta(days=day, minutes=30 * half_hours))
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    kept = report["days"]["train"] + report["days"]["test"]
+    assert {s["date"] for s in report["silent_stretches"]} == set(kept) - {"2024-01-01", "2024-01-05", "2024-01-09"}
+
+
 def test_a_day_one_annotation_covers_whole_is_kept(tmp_path):
     """Away from the first evening to the third morning: the second day has no annotation of its
     own, but one covers it to its last row (a day away), so it is a day of the routine."""
@@ -172,3 +187,19 @@ def test_a_sensor_on_for_hours_is_no_silence(tmp_path):
     sensor_log.heard(day2 + timedelta(hours=10), day2 + timedelta(hours=20))  # a pressure mat, on all along
     result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(), dest=tmp_path / "home")
     assert json.loads(result.report.read_text(encoding="utf-8"))["silent_stretches"] == []
+
+
+def test_an_import_killed_before_it_cleaned_up_leaves_nothing_behind_the_next(tmp_path):
+    """A killed import's hidden folder was removed only by an import that got the same process id;
+    now the next import removes every one whose process is gone (one still running is left)."""
+    import os
+    import subprocess
+    import sys
+
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead = tmp_path / f".home.importing-{gone.stdout.strip()}"
+    (dead / "train").mkdir(parents=True)
+    alive = tmp_path / f".home.importing-{os.getppid()}"  # a process that runs: an import under way
+    alive.mkdir()
+    _write(tmp_path, 2)
+    assert not dead.exists() and alive.exists() and (tmp_path / "home" / "nodes.csv").is_file()

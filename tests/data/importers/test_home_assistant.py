@@ -146,7 +146,8 @@ def test_mapping_errors_name_the_mapping_line(tmp_path):
     for mapping, line, field, message in [
         ("sensor,object\nswitch.kettle,kettle\nswitch.kettle,pot\n", 3, "sensor", "mapped twice"),
         ("sensor,object\nswitch.kettle,my kettle\n", 2, "object", "must be letters"),
-        ("sensor,object\nswitch.kettle,activity\n", 2, "object", "fixed column"),
+        ("sensor,object\nswitch.kettle,activity\n", 2, "object", "column of its own"),
+        ("sensor,object\nswitch.kettle,covering\n", 2, "object", "column of its own"),
         ("sensor,object,room\nswitch.kettle,kettle,kitchen\nbinary_sensor.fridge_door,kettle,hall\n", 3, "room",
          "one object, one home place"),
         ("sensor,object,colour\nswitch.kettle,kettle,red\n", 1, "colour", "unknown column"),
@@ -178,3 +179,14 @@ def test_the_hour_a_clock_change_repeats_never_runs_the_clock_backwards(tmp_path
     acts = dict(zip(day.minutes, day.activities))
     assert [acts[m] for m in (360, 420, 430, 440, 450, 1370, 1380)] == [
         "sleeping", "sleeping", "breakfast", "breakfast", "relax", "relax", "sleeping"]
+
+
+def test_a_row_years_after_the_others_is_refused_naming_its_line(tmp_path):
+    """A row three years after the rest of the export (a corrupt clock) once made three years of
+    days; Home Assistant's importer has no --skip-bad-lines: the row is to be fixed."""
+    history, mapping = _files(tmp_path, HISTORY + "binary_sensor.fridge_door,on,2027-03-01T05:40:03Z\n")
+    with pytest.raises(DataError) as err:
+        import_home_assistant(history=history, dest=tmp_path / "home", activity_entity="input_select.activity",
+                              objects=mapping, timezone="Europe/Amsterdam")
+    assert err.value.line == HISTORY.count("\n") + 1 and err.value.field == "time"
+    assert "far outside the log" in err.value.message and err.value.message.endswith("fix the line")

@@ -82,7 +82,7 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     ``resident`` (``R1``), annotations named for another resident of a multi-resident log
     (``R2_Sleep``) are left out, and the resident's own lose the prefix."""
     source = str(path)
-    sensor_log = SensorLog("casas", (source,), annotation_field="activity")
+    sensor_log = SensorLog("casas", (source,), annotation_field="activity", skip_bad_lines=skip_bad_lines)
     open_since: dict[str, datetime] = {}  # object sensor -> when it went on
     begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
     applied = 0  # annotation lines applied
@@ -117,7 +117,7 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
             moment = previous[0]
         previous = (moment, line)
         selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
-        sensor_log.heard(moment)
+        sensor_log.heard(moment, line=line)
         sensor_log.events[key] += 1
         if choice.object is not None and _activation(sensor_log, open_since, key, moment, value in ACTIVE):
             lost_offs[key] += 1
@@ -130,8 +130,8 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
         if count % PROGRESS_EVERY == 0:
             log.info("%s: %d of %d lines read", source, count, len(lines))
     for activity, (start, line) in list(begun.items()):
-        unended = DataError(f"{activity!r} begins here (at {start}) but never ends (no '{activity} end' before the "
-                            "end of the file)", source=source, line=line, field="activity")
+        unended = DataError(f"{show(activity)} begins here (at {start}) but never ends (no end of it before the end "
+                            "of the file)", source=source, line=line, field="activity")
         if not skip_bad_lines:
             raise unended
         skipped.append(unended)
@@ -239,13 +239,13 @@ def _check_annotation(begun: dict[str, tuple[datetime, int]], activity: str, mar
     _label(activity, source, line, "activity", "activity")
     if marker.lower() == "begin":
         if activity in begun and not lost_ends:
-            raise DataError(f"{activity!r} begins again before it ended (it began at line {begun[activity][1]}; if "
+            raise DataError(f"{show(activity)} begins again before it ended (it began at line {begun[activity][1]}; if "
                             "its end line is lost or corrupt, --skip-bad-lines leaves that begin out)",
                             source=source, line=line, field="activity")
     elif marker.lower() == "end":
         if activity not in begun:
-            raise DataError(f"{activity!r} ends but never began (no open '{activity} begin')", source=source, line=line,
-                            field="activity")
+            raise DataError(f"{show(activity)} ends but never began (no begin of it is open)", source=source,
+                            line=line, field="activity")
     else:
         raise DataError(f"{show(marker)} is not 'begin' or 'end'", source=source, line=line, field="begin/end")
 
@@ -259,8 +259,8 @@ def _annotation(sensor_log: SensorLog, begun: dict[str, tuple[datetime, int]], a
         earlier = begun.get(activity)
         begun[activity] = (moment, line)
         if earlier is not None:
-            return DataError(f"{activity!r} begins here (at {earlier[0]}) and again at line {line} before it ends: its "
-                             "end was lost, so this begin is left out", source=source, line=earlier[1],
+            return DataError(f"{show(activity)} begins here (at {earlier[0]}) and again at line {line} before it "
+                             "ends: its end was lost, so this begin is left out", source=source, line=earlier[1],
                              field="activity")
     else:
         start, first = begun.pop(activity)

@@ -21,8 +21,12 @@ every format and are written once:
   a day away, is kept), and a day the log does not cover from its first step to its last (the
   log's first and last days, usually). All are listed in the report.
 - A kept day whose longest stretch without an event from any sensor is far longer than the
-  home's usual (1.5 times the median day's longest, and 6 hours at least) is listed in the
-  report (``silent_stretches``): a recorder outage, or nobody home.
+  home's usual (1.5 times the median longest of the days a sensor was heard on, and 6 hours at
+  least) is listed in the report (``silent_stretches``): a recorder outage, or nobody home.
+- A record far outside the rest of the log (a corrupt timestamp: a year 9999 or 0001, an end
+  dated years late; see :data:`FAR_GAP`) is an error naming its line, or, where the format has
+  ``--skip-bad-lines`` and it is given, left out with the annotations and sensor stretches
+  reaching it and listed in the report (``far_outside``).
 - The last ``test_days`` kept days (default: the last 20 %, at least one when two or more days are
   kept) are test days; the rest are training days.
 
@@ -48,6 +52,7 @@ import numpy as np
 
 from globe.data.csv_logs import DAY_MINUTES, write_day, write_nodes
 from globe.data.importers.objects import HomeMap, ObjectSelection, ObjectSpec, build_map
+from globe.data.importers.text import show
 from globe.data.records import Day
 from globe.errors import ConfigError, DataError
 
@@ -59,6 +64,11 @@ DEFAULT_DAY_END = 1440  # 24:00, HOMER+'s last row
 DEFAULT_TEST_FRACTION = 0.2
 IDLE = "idle"
 REPORT_FILE = "import.json"
+FAR_GAP, STRAY_RECORDS, STRAY_SHARE = timedelta(days=30), 10, 0.01
+"""A log's records split where FAR_GAP passes with none; beside the part holding most of them
+(more than STRAY_RECORDS), a part holding at most STRAY_RECORDS or STRAY_SHARE of them lies far
+outside the log: a corrupt timestamp (a year 9999 or 0001, an end dated years later), refused,
+or left out with --skip-bad-lines. A part holding more is a second stretch of recording: kept."""
 SILENCE_NOTED, SILENCE_FACTOR = timedelta(hours=6), 1.5
 """A kept day's longest stretch with no event from any sensor is listed in the report (a recorder
 outage, or nobody home; the day is kept) when it lasts this long and this many times the median
@@ -133,23 +143,33 @@ class SensorLog:
     notes: list[str] = field(default_factory=list)  # what else the report must say
     annotation_field: str = "start"  # the field an overlap error names (CASAS: 'activity')
     moments: array = field(default_factory=lambda: array("d"))  # when a sensor was heard, seconds since 1970
+    skip_bad_lines: bool | None = None  # whether the format leaves bad lines out (None: it offers no such option)
+    stamps: array = field(default_factory=lambda: array("d"))  # every record's time, seconds since 1970 ...
+    stamp_lines: array = field(default_factory=lambda: array("q"))  # ... its line, and its file (sources index)
+    stamp_sources: array = field(default_factory=lambda: array("b"))
+    left_out: list[dict[str, Any]] = field(default_factory=list)  # records left out for lying far outside the log
 
-    def heard(self, start: datetime, end: datetime | None = None) -> None:
-        """A sensor's record: an event at ``start``, or on from ``start`` to ``end`` (heard
-        throughout: a stretch it is on is no silence)."""
+    def heard(self, start: datetime, end: datetime | None = None, *, line: int = 0, source: int = 0) -> None:
+        """A sensor's record (on ``line`` of the ``source``-th file): an event at ``start``, or on
+        from ``start`` to ``end`` (heard throughout: a stretch it is on is no silence)."""
+        self.saw(start, line=line, source=source)
+        if end is not None and end != start:
+            self.saw(end, line=line, source=source)
         end = start if end is None else end
-        self.saw(start)
-        self.saw(end)
         lo, hi = (start - _EPOCH).total_seconds(), (end - _EPOCH).total_seconds()
-        self.moments.extend(np.arange(lo, hi, 3600.0).tolist() if hi - lo > 3600.0 else [lo])
+        if hi - lo < FAR_GAP.total_seconds():  # a stretch on for longer lies far outside the log by itself
+            self.moments.extend(np.arange(lo, hi, 3600.0).tolist() if hi - lo > 3600.0 else [lo])
         self.moments.append(hi)
 
-    def saw(self, moment: datetime) -> None:
+    def saw(self, moment: datetime, *, line: int = 0, source: int = 0) -> None:
         """A record at ``moment`` (the log's span)."""
         if self.first is None or moment < self.first:
             self.first = moment
         if self.last is None or moment > self.last:
             self.last = moment
+        self.stamps.append((moment - _EPOCH).total_seconds())
+        self.stamp_lines.append(line)
+        self.stamp_sources.append(source)
 
 
 @dataclass(frozen=True, slots=True)
@@ -180,14 +200,14 @@ def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *,
     ``overlaps="latest"``; an interval ending before it begins is always one."""
     for ann in annotations:
         if ann.end < ann.start:
-            raise DataError(f"{ann.activity!r} ends at {ann.end} before it begins at {ann.start}", source=ann.source,
-                            line=ann.line, field="end")
+            raise DataError(f"{show(ann.activity)} ends at {ann.end} before it begins at {ann.start}",
+                            source=ann.source, line=ann.line, field="end")
     ordered = sorted(annotations, key=lambda a: (a.start, a.line))
     if overlaps == "error":
         longest: Annotation | None = None
         for ann in ordered:
             if longest is not None and ann.start < longest.end:
-                raise DataError(f"{ann.activity!r} begins at {ann.start} while {longest.activity!r} (line "
+                raise DataError(f"{show(ann.activity)} begins at {ann.start} while {show(longest.activity)} (line "
                                 f"{longest.line}) lasts until {longest.end}: annotations may not overlap (one person, "
                                 "one activity; --overlaps latest lets the later one win while it lasts)",
                                 source=ann.source, line=ann.line, field=error_field)
@@ -346,12 +366,31 @@ def _prepare_dest(dest: Path) -> Path:
     dest = Path(dest)
     if dest.exists() and (not dest.is_dir() or any(dest.iterdir())):
         raise DataError("already exists and is not an empty folder; import into a new folder", source=str(dest))
-    dest.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise DataError(f"cannot make the folder it goes in: {err.strerror or err}", source=str(dest)) from None
+    for left in dest.parent.glob(f".{dest.name}.importing-*"):  # an import killed before it could clean up
+        pid = left.name.rsplit("-", 1)[1]
+        if not pid.isdigit() or int(pid) == os.getpid() or not _running(int(pid)):
+            shutil.rmtree(left, ignore_errors=True)
     tmp = dest.parent / f".{dest.name}.importing-{os.getpid()}"
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir()
+    try:
+        tmp.mkdir()
+    except OSError as err:
+        raise DataError(f"cannot write beside it: {err.strerror or err}", source=str(dest)) from None
     return tmp
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` runs (an import under way keeps its folder)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: GridOptions, dest: Path,
@@ -361,6 +400,58 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
     options.check()
     if sensor_log.first is None or sensor_log.last is None:
         raise DataError("no records", source=sensor_log.sources[0])
+    keep_to_the_log(sensor_log)
+    try:
+        return _write_import(sensor_log, selection, options, dest, settings)
+    except OverflowError:  # the log runs up to the calendar's last days (9999): its days cannot be cut
+        raise DataError(f"the log's times run to {sensor_log.last}: too near the calendar's end to cut into days",
+                        source=", ".join(sensor_log.sources)) from None
+
+
+def keep_to_the_log(sensor_log: SensorLog) -> None:
+    """Records lying far outside the rest of the log (see :data:`FAR_GAP`) are refused, naming
+    the first of them, or, where the format leaves bad lines out and is asked to, left out with
+    every annotation and sensor stretch reaching them, and listed in the report."""
+    times = np.frombuffer(sensor_log.stamps, dtype=np.float64)
+    if not len(times):
+        return
+    order = np.argsort(times, kind="stable")
+    cuts = np.flatnonzero(np.diff(times[order]) > FAR_GAP.total_seconds()) + 1
+    parts = np.split(order, cuts)
+    main = max(range(len(parts)), key=lambda i: len(parts[i]))
+    stray = [p for i, p in enumerate(parts) if i != main and len(p) <= max(STRAY_RECORDS, STRAY_SHARE * len(times))]
+    if not stray or len(parts[main]) <= STRAY_RECORDS:  # too few records to judge the others by
+        return
+    lo, hi = (_EPOCH + timedelta(seconds=float(times[parts[main]].min())),
+              _EPOCH + timedelta(seconds=float(times[parts[main]].max())))
+    where = sensor_log.stamp_sources, sensor_log.stamp_lines
+    first = min((int(i) for p in stray for i in p), key=lambda i: (where[0][i], where[1][i]))
+    line, source = where[1][first] or None, sensor_log.sources[where[0][first]]
+    when = _EPOCH + timedelta(seconds=float(times[first]))
+    span = f"the rest of the log ({len(parts[main])} of its {len(times)} records) runs {lo} .. {hi}"
+    if not sensor_log.skip_bad_lines:
+        fix = ("fix the line, or pass --skip-bad-lines to leave such records out" if sensor_log.skip_bad_lines is False
+               else "fix the line")
+        raise DataError(f"{when} lies far outside the log ({span}): a corrupt timestamp? {fix}", source=source,
+                        line=line, field="time")
+    inside = (lambda t: lo <= t <= hi)  # noqa: E731
+    sensor_log.annotations = [a for a in sensor_log.annotations if inside(a.start) and inside(a.end)]
+    for key, stretches in sensor_log.activations.items():
+        sensor_log.activations[key] = [a for a in stretches if inside(a.start) and inside(a.end)]
+    sensor_log.first, sensor_log.last = lo, hi
+    moments = np.frombuffer(sensor_log.moments, dtype=np.float64)
+    keep = moments[(moments >= (lo - _EPOCH).total_seconds()) & (moments <= (hi - _EPOCH).total_seconds())]
+    sensor_log.moments = array("d", keep.tolist())
+    sensor_log.left_out = [{"source": sensor_log.sources[where[0][i]], "line": where[1][i],
+                            "time": str(_EPOCH + timedelta(seconds=float(times[i])))}
+                           for p in stray for i in p.tolist()]
+    sensor_log.notes.append(f"{len(sensor_log.left_out)} records far outside the rest of the log ({lo} .. {hi}) left "
+                            "out (--skip-bad-lines), with the annotations and sensor stretches reaching them: see "
+                            "far_outside in the report")
+
+
+def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: GridOptions, dest: Path,
+                  settings: dict[str, Any] | None) -> ImportResult:
     objects = selection.objects()
     home = build_map(objects)
     ordered = check_overlaps(sensor_log.annotations, options.overlaps, error_field=sensor_log.annotation_field)
@@ -393,11 +484,14 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
             for day in days:
                 write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
         report = _report(sensor_log, selection, objects, home, options, settings or {}, grid, per_label, splits,
-                         dropped) | {"silent_stretches": silent}
+                         dropped) | {"silent_stretches": silent, "far_outside": sensor_log.left_out}
         (tmp / REPORT_FILE).write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
         if Path(dest).exists():
             Path(dest).rmdir()
         tmp.rename(dest)
+    except OSError as err:  # a full disk, a folder made read-only: named as the folder asked for, not its draft
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise DataError(f"cannot write the household folder: {err.strerror or err}", source=str(dest)) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -422,7 +516,8 @@ def _silent_stretches(sensor_log: SensorLog, kept: dict[date, datetime], options
         edges = np.concatenate(([lo], inside, [lo + window]))
         k = int(np.argmax(np.diff(edges)))
         longest[day] = (float(edges[k + 1] - edges[k]), float(edges[k]), float(edges[k + 1]))
-    usual = float(np.median([g for g, _, _ in longest.values()])) if longest else 0.0
+    busy = [g for g, _, _ in longest.values() if g < window]  # days a sensor was heard on at all
+    usual = float(np.median(busy)) if busy else 0.0
     limit = max(SILENCE_NOTED.total_seconds(), SILENCE_FACTOR * usual)
     silent = [{"date": day.isoformat(), "from": _clock_time(lo), "to": _clock_time(hi)}
               for day, (gap, lo, hi) in sorted(longest.items()) if gap >= limit]

@@ -103,10 +103,10 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
         last_local[entity] = moment
         sensor_log.events[entity] += 1
         if entity == activity_entity:  # the activity, not a sensor: its rows are no sign of the recorder
-            sensor_log.saw(moment)
+            sensor_log.saw(moment, line=line)
             states.append((moment, state, line))
             continue
-        sensor_log.heard(moment)
+        sensor_log.heard(moment, line=line)
         if selection.choose(Sensor(entity, entity.split(".", 1)[1], entity.split(".", 1)[0], ""), source=source,
                             line=line).object is None:
             continue
@@ -122,7 +122,7 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
             sensor_log.activations.setdefault(entity, []).append(Activation(on_since.pop(entity), moment))
     if not states:
         shown = ", ".join(sorted(e for e in sensor_log.events if e.startswith(("input_select.", "sensor.")))[:5])
-        raise DataError(f"the activity entity {activity_entity!r} is not in the export"
+        raise DataError(f"the activity entity {show(activity_entity)} is not in the export"
                         + (f" (entities such as {shown})" if shown else ""), source=source)
     _finish(sensor_log, states, on_since, no_data, activity_entity, source)
     if repeated:
@@ -164,7 +164,7 @@ def import_home_assistant(*, history: Path, dest: Path, activity_entity: str, op
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
     if mapping is not None and activity_entity in mapping.rows:
-        raise DataError(f"{activity_entity!r} is the activity entity; it cannot also be an object",
+        raise DataError(f"{show(activity_entity)} is the activity entity; it cannot also be an object",
                         source=mapping.source, line=mapping.rows[activity_entity].line, field="sensor")
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
     sensor_log = read_home_assistant(history, selection, activity_entity=activity_entity, timezone=timezone)

@@ -182,7 +182,7 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
             raise DataError("sensors named differently from the first record's (one log, one form: 'id [1]' or "
                             "'Location Type Place')", source=sources[0], line=record.line, field="sensor")
         sensor = _sensor_of(record, named, sources[0])
-        sensor_log.heard(record.start, record.end)
+        sensor_log.heard(record.start, record.end, line=record.line)
         sensor_log.events[sensor.key] += 1
         if selection.choose(sensor, source=sources[0], line=record.line).object is not None:
             sensor_log.activations.setdefault(sensor.key, []).append(Activation(record.start, record.end))
@@ -199,8 +199,8 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
             activity = labels[text]
         else:
             activity = _label(text, sources[1], record.line, "activity", "activity")
-        sensor_log.saw(record.start)
-        sensor_log.saw(record.end)
+        sensor_log.saw(record.start, line=record.line, source=1)
+        sensor_log.saw(record.end, line=record.line, source=1)
         sensor_log.annotations.append(Annotation(activity, record.start, record.end, sources[1], record.line, text))
     log.info("%s: %d activity intervals", sources[1], len(records))
     return sensor_log

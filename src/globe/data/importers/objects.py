@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from globe.data.csv_logs import FIXED_COLUMNS, csv_table
+from globe.data.csv_logs import RESERVED_COLUMNS, csv_table
 from globe.data.importers.text import read_text, show, slug, table_cells
 from globe.data.records import IN_USE_CLASS, Node
 from globe.errors import DataError
@@ -107,8 +107,8 @@ def read_mapping(path: Path) -> ObjectMapping:
             raise DataError(f"sensor {show(sensor)} is mapped twice (also line {mapping[sensor].line})", source=source,
                             line=line, field="sensor")
         obj = _name(cell["object"], what="object", source=source, line=line, field="object")
-        if obj in FIXED_COLUMNS:
-            raise DataError(f"an object may not be called {obj!r} (a day file's fixed column)", source=source,
+        if obj in RESERVED_COLUMNS:
+            raise DataError(f"an object may not be called {show(obj)} (a day file's column of its own)", source=source,
                             line=line, field="object")
         room = cell.get("room", "")
         furniture = cell.get("furniture", "")
@@ -117,7 +117,7 @@ def read_mapping(path: Path) -> ObjectMapping:
         if furniture:
             _name(furniture, what="furniture", source=source, line=line, field="furniture")
         if obj in homes and homes[obj][:2] != (room, furniture):
-            raise DataError(f"object {obj!r} is placed differently at line {homes[obj][2]} (one object, one home "
+            raise DataError(f"object {show(obj)} is placed differently at line {homes[obj][2]} (one object, one home "
                             "place)", source=source, line=line, field="room")
         homes.setdefault(obj, (room, furniture, line))
         mapping[sensor] = MappingRow(obj, room, furniture, line)
@@ -159,8 +159,9 @@ class ObjectSelection:
         else:
             is_object, why = self.default(sensor)
             name = slug(sensor.name)
-            if is_object and not name:
-                raise DataError(f"sensor {show(sensor.key)} has no usable name for an object; map it with --objects",
+            if is_object and (not name or name in RESERVED_COLUMNS):
+                why_not = "no usable name" if not name else f"the name {name!r}, a day file's column of its own,"
+                raise DataError(f"sensor {show(sensor.key)} has {why_not} for an object; map it with --objects",
                                 source=source, line=line)
             choice = Choice(name if is_object else None, room_of_log or DEFAULT_ROOM, "", why)
         return choice
@@ -183,8 +184,8 @@ class ObjectSelection:
             for obj, keys in by_object.items():
                 if len(keys) > 1:
                     source, line = self.first_seen[keys[1]]
-                    raise DataError(f"sensors {show(keys[0])} and {show(keys[1])} would both become object {obj!r}; "
-                                    "name them in a mapping file (--objects)", source=source, line=line)
+                    raise DataError(f"sensors {show(keys[0])} and {show(keys[1])} would both become object "
+                                    f"{show(obj)}; name them in a mapping file (--objects)", source=source, line=line)
             order = {obj: 0 for obj in sorted(by_object)}
         specs = []
         for obj in sorted(by_object, key=lambda o: (order[o], o)):
@@ -194,8 +195,8 @@ class ObjectSelection:
             if other is not None:
                 source, line = self.first_seen[other]
                 rooms = f"{first.room!r}, {self.choices[other].room!r}"
-                raise DataError(f"sensors {show(keys[0])} and {show(other)} of object {obj!r} are in different rooms "
-                                f"({rooms}); give the object's room in the mapping", source=source, line=line)
+                raise DataError(f"sensors {show(keys[0])} and {show(other)} of object {show(obj)} are in different "
+                                f"rooms ({rooms}); give the object's room in the mapping", source=source, line=line)
             whys = "; ".join(dict.fromkeys(self.choices[k].why for k in keys))
             specs.append(ObjectSpec(obj, first.room, first.furniture, tuple(keys), whys))
         return tuple(specs)

@@ -75,9 +75,11 @@ def read_lines(path: Path) -> list[tuple[int, str]]:
     """The non-blank lines of a text log, each with its 1-based line number (``\\r`` dropped).
 
     Lines are split on ``\\n`` only, so numbers match what an editor shows even when a line
-    holds a form feed or a Unicode line separator.
+    holds a form feed or a Unicode line separator; a file with ``\\r`` and no ``\\n`` (old Mac
+    line endings) is split on ``\\r``.
     """
-    lines = enumerate(read_text(path).split("\n"), start=1)
+    text = read_text(path)
+    lines = enumerate(text.split("\n" if "\n" in text or "\r" not in text else "\r"), start=1)
     return [(number, line.rstrip("\r")) for number, line in lines if line.strip()]
 
 

@@ -1,7 +1,8 @@
 """Dashboard sessions and CSRF tokens, signed with a server secret (HMAC-SHA256, stdlib only).
 
 A session cookie names the token it was opened with by its id (never the token itself) and
-expires; every request looks the token up again, so revoking a token ends its sessions at once.
+expires; every request looks the token up again, so revoking a token ends its sessions at once,
+and a logged-out session is noted in the database until it would have expired.
 A form carries a CSRF token: for the login form, the signature of a random value also sent as a
 cookie (double submit); once logged in, the signature of the session's own random nonce.
 """
@@ -77,7 +78,10 @@ class Sessions:
         return Session(token_id, expiry, nonce)
 
     def caller(self, store: Store, session: Session) -> auth.Caller | None:
-        """Who the session is for, if its token still exists and is not revoked."""
+        """Who the session is for, if its token still exists and is not revoked, and the session
+        was not logged out (a copy of its cookie ends with it)."""
+        if store.session_ended(session.nonce):
+            return None
         row = store.token_by_id(session.token_id)
         if row is None or row.revoked_at is not None:
             return None

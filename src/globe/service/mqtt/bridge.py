@@ -25,12 +25,11 @@ import queue
 import sys
 import threading
 import time
-from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
-from globe.config import GlobeConfig, MqttConfig
-from globe.errors import ConfigError, GlobeError, MissingExtraError, UnknownHouseholdError
+from globe.config import GlobeConfig
+from globe.config.mqtt import broker_address
+from globe.errors import GlobeError, MissingExtraError, UnknownHouseholdError
 from globe.service.mqtt import payloads
 from globe.service.mqtt.statestream import MalformedMessage, StateBook
 from globe.service.registry import Registry
@@ -48,36 +47,13 @@ _ANNOUNCE = "\0announce"  # publisher job: discovery and state of every househol
 _STOP = "\0stop"
 
 
-def broker_address(url: str) -> tuple[str, int, bool]:
-    """``mqtt[s]://host[:port]`` -> (host, port, tls)."""
-    parts = urlsplit(url)
-    tls = parts.scheme == "mqtts"
-    try:
-        port = parts.port or (8883 if tls else 1883)
-    except ValueError:
-        raise ConfigError(f"mqtt.broker {url!r}: the port is not a number from 0 to 65535") from None
-    if parts.scheme not in ("mqtt", "mqtts") or not parts.hostname:
-        raise ConfigError(f"mqtt.broker {url!r}: expected mqtt://host:port or mqtts://host:port")
-    return parts.hostname, port, tls
-
-
-def _password(config: MqttConfig) -> str | None:
-    if config.password_file is None:
-        return None if config.password is None else config.password.get_secret_value()
-    try:
-        lines = Path(config.password_file).read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(f"mqtt.password_file {config.password_file}: cannot read it ({err})") from None
-    return lines[0] if lines else ""
-
-
 class MqttBridge:
     """Home Assistant over MQTT for one service (see the module doc)."""
 
     def __init__(self, registry: Registry, config: GlobeConfig) -> None:
         self.registry = registry
         self.config = config.mqtt
-        self.host, self.port, tls = broker_address(self.config.broker)
+        self.host, self.port, tls = broker_address(self.config.broker)  # checked with the configuration
         self.book = StateBook(self.config, config.service.max_label_length)
         self._lock = threading.Lock()  # guards the fields below
         self._connected = False
@@ -86,6 +62,8 @@ class MqttBridge:
         self._counts = {"malformed": 0, "observations": 0, "rejected": 0, "published": 0}
         self._announced: set[str] = set()
         self._steps: dict[str, int] = {}  # household -> seconds between its observations
+        self._maps: dict[str, tuple[frozenset[str], frozenset[str]]] = {}  # household -> (objects, places)
+        self._problems: dict[str, list[str]] = {}  # household -> what its [mqtt.households] entry names wrong
         self._jobs: queue.Queue[str] = queue.Queue()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -93,11 +71,9 @@ class MqttBridge:
         client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=self.config.client_id,
                              protocol=paho.MQTTv311)
         if self.config.username is not None:
-            client.username_pw_set(self.config.username, _password(self.config))
+            client.username_pw_set(self.config.username, self.config.password_text())
         if tls:
             ca = self.config.ca_file
-            if ca is not None and not Path(ca).is_file():
-                raise ConfigError(f"mqtt.ca_file {ca}: no such file")
             client.tls_set(ca_certs=str(ca) if ca is not None else None)
         client.will_set(payloads.availability_topic(self.config), payloads.OFFLINE, qos=QOS, retain=True)
         client.reconnect_delay_set(self.config.reconnect_min_s, self.config.reconnect_max_s)
@@ -146,7 +122,8 @@ class MqttBridge:
     def health(self) -> MqttHealth:
         with self._lock:
             return MqttHealth(state="connected" if self._connected else "disconnected", broker=self.config.broker,
-                              last_error=self._last_error, **self._counts)
+                              last_error=self._last_error, **self._counts,
+                              problems=[p for found in self._problems.values() for p in found])
 
     def _count(self, what: str) -> None:
         with self._lock:
@@ -262,6 +239,10 @@ class MqttBridge:
         self._publish(payloads.discovery_topic(self.config, name), "")
         self._publish(payloads.state_topic(self.config, name), "")
         self._announced.discard(name)
+        with self._lock:  # a household made again under this name is looked at afresh
+            self._maps.pop(name, None)
+            self._problems.pop(name, None)
+            self._steps.pop(name, None)
 
     # -- in: observations from Home Assistant's states ----------------------------------------------
     def _step_loop(self) -> None:
@@ -297,6 +278,31 @@ class MqttBridge:
                 return None
         return self._steps[name]
 
+    def _map(self, name: str) -> tuple[frozenset[str], frozenset[str]] | None:
+        """The household's objects and places (None while it cannot be built); its
+        ``[mqtt.households]`` entry checked against them once: an object it does not have, or a
+        place not on its map, is logged and shown in /health, and that entity's state is left out
+        of the household's observations (once, it refused every observation, activity and all)."""
+        if name not in self._maps:
+            try:
+                with self.registry.locked(name) as session:
+                    found = frozenset(session.household.objects), frozenset(session.household.locations)
+            except GlobeError:
+                return None
+            entry, problems = self.config.households.get(name), []
+            for entity, mapped in (entry.objects.items() if entry is not None else ()):
+                if mapped.object not in found[0]:
+                    problems.append(f"{name}: {entity} follows {mapped.object!r}, not an object of the household")
+                problems += [f"{name}: {entity} state {state!r} puts {mapped.object} at {place!r}, not a place of "
+                             "the household's map" for state, place in mapped.locations.items()
+                             if place not in found[1]]
+            for problem in problems:
+                log.warning("MQTT: [mqtt.households.%s]: %s (that state is left out of its observations)", name,
+                            problem)
+            with self._lock:
+                self._maps[name], self._problems[name] = found, problems
+        return self._maps[name]
+
     def _observe(self, name: str, instant: int) -> None:
         """One observation of the household at ``instant`` (epoch seconds) from the latest states."""
         snap = self.book.snapshot(name)
@@ -304,9 +310,13 @@ class MqttBridge:
             live = self._connected and self._ha_online
         if not snap.seen or not live:
             return
+        known = self._map(name)
+        if known is None:
+            return
+        locations = {obj: place for obj, place in snap.locations.items() if obj in known[0] and place in known[1]}
         when = dt.datetime.fromtimestamp(instant, dt.timezone.utc)
         try:
-            self.registry.observe(name, time=when, activity=snap.activity, locations=snap.locations,
+            self.registry.observe(name, time=when, activity=snap.activity, locations=locations,
                                   client_id=f"ha-{when:%Y%m%dT%H%M%SZ}")
         except GlobeError as err:
             self._count("rejected")

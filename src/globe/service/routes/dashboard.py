@@ -159,6 +159,8 @@ async def logout(request: Request, registry: RegistryDep) -> Response:
         return failure(403, "Refused", str(err))
     if session is not None and not signer.check_csrf(session, fields.get("csrf")):
         return failure(403, "Refused", "the form did not come from this dashboard (CSRF token missing or wrong)")
+    if session is not None:
+        registry.store.end_session(session.nonce, session.expires)
     response = redirect("/dashboard/login")
     response.delete_cookie(SESSION_COOKIE, path="/dashboard", httponly=True, samesite="strict")
     return response

@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping
 
-from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from globe.errors import ConfigError
 
@@ -29,6 +29,9 @@ CV_METHODS: dict[str, str] = {"routine": "routine", "ngram_smoothed": "witten_be
 
 class _Section(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+from globe.config.mqtt import MqttConfig, MqttHousehold, MqttObject  # noqa: E402 F401 - sections built on _Section
 
 
 class DataConfig(_Section):
@@ -372,92 +375,6 @@ class FilterConfig(_Section):
         False, description="choose the missing-label lookahead's change threshold by CV on training days with the same "
         "share of labels visible (else: on fully labelled days; costs a filter pass over every training day per share)"
     )
-
-
-_TOPIC = r"^[^#+\x00]+$"  # an MQTT topic name: no wildcard, no NUL (checked further by MqttConfig)
-_ENTITY_ID = r"^[a-z0-9_]+\.[a-z0-9_]+$"  # a Home Assistant entity id: domain.object_id
-
-
-class MqttObject(_Section):
-    """One Home Assistant entity that tells where an object is (a binary sensor, a device tracker)."""
-
-    object: str = Field(..., min_length=1, description="the GLOBE object (a movable node's class) the entity follows")
-    locations: dict[str, str] = Field(
-        ..., min_length=1, description="entity state -> node label where the object then is, e.g. on = 'in_use#4'; "
-        "other states (unknown, unavailable) leave the object where it was last seen",
-    )
-
-
-class MqttHousehold(_Section):
-    """The Home Assistant entities one household learns from (through ``mqtt_statestream``)."""
-
-    activity: str | None = Field(
-        None, pattern=_ENTITY_ID, description="entity whose state is the person's activity, e.g. input_select.activity",
-    )
-    activities: dict[str, str] = Field(
-        {}, description="activity entity state -> GLOBE activity label (states not listed are used as they are)",
-    )
-    objects: dict[Annotated[str, Field(pattern=_ENTITY_ID)], MqttObject] = Field(
-        {}, description="entity id -> the object it follows and where each of its states puts it",
-    )
-
-
-class MqttConfig(_Section):
-    """Home Assistant over MQTT: GLOBE's households as discovered devices, and observations learned
-    from the states Home Assistant's ``mqtt_statestream`` publishes (see docs/home-assistant.md)."""
-
-    enabled: bool = Field(False, description="connect to the broker when the service starts")
-    broker: str = Field(
-        "mqtt://127.0.0.1:1883", pattern=r"^mqtts?://[^/?#@\s]+$",
-        description="broker URL: mqtt://host:port, or mqtts://host:port for TLS (port 1883 / 8883 when left out)",
-    )
-    username: str | None = Field(None, description="broker user name (None: connect anonymously)")
-    password: SecretStr | None = Field(
-        None,
-        description="broker password (prefer password_file or GLOBE_MQTT__PASSWORD to a file in clear; "
-        "never written out: results' config.json shows it masked)",
-    )
-    password_file: Path | None = Field(None, description="file whose first line is the broker password")
-    ca_file: Path | None = Field(
-        None, description="CA certificates (PEM) the mqtts:// broker is checked with; None = the system's"
-    )
-    client_id: str = Field("globe", min_length=1, max_length=64, description="MQTT client id (unique on the broker)")
-    keepalive_s: int = Field(60, ge=5, le=3600, description="seconds between keep-alive pings")
-    reconnect_min_s: int = Field(1, ge=1, le=3600, description="first wait before reconnecting to a lost broker")
-    reconnect_max_s: int = Field(60, ge=1, le=3600, description="longest wait between reconnections (the wait doubles)")
-    discovery_prefix: str = Field("homeassistant", pattern=_TOPIC, description="Home Assistant's MQTT discovery prefix")
-    status_topic: str = Field(
-        "homeassistant/status", pattern=_TOPIC,
-        description="where Home Assistant says 'online' (discovery is sent again) or 'offline' (no observation "
-                    "meanwhile)",
-    )
-    statestream_topic: str = Field(
-        "homeassistant", pattern=_TOPIC, description="base_topic of Home Assistant's mqtt_statestream integration",
-    )
-    topic_prefix: str = Field(
-        "globe", pattern=_TOPIC,
-        description="GLOBE's own topics: <prefix>/status (online/offline) and <prefix>/<household>/state",
-    )
-    observe_interval_s: int | None = Field(
-        None, ge=1, le=86400, description="seconds between observations made from Home Assistant's states; None = "
-        "one per step of the household (observations inside one step update that step)",
-    )
-    households: dict[str, MqttHousehold] = Field({}, description="household name -> the entities it learns from")
-
-    @field_validator("discovery_prefix", "status_topic", "statestream_topic", "topic_prefix")
-    @classmethod
-    def _no_empty_level(cls, value: str) -> str:
-        if value.startswith("/") or value.endswith("/") or "//" in value:
-            raise ValueError("an MQTT topic has no empty level ('/' at an end, or doubled)")
-        return value
-
-    @model_validator(mode="after")
-    def _secrets(self) -> "MqttConfig":
-        if self.password is not None and self.password_file is not None:
-            raise ValueError("give password or password_file, not both")
-        if self.reconnect_max_s < self.reconnect_min_s:
-            raise ValueError(f"reconnect_max_s {self.reconnect_max_s} is below reconnect_min_s {self.reconnect_min_s}")
-        return self
 
 
 class Deployment(_Section):
