@@ -1,7 +1,8 @@
 # Two commands on a fresh machine: `make reproduce` (the main job) and `make test` (the checks).
 # Both create .venv and install the project with every extra on first use (and again when
 # pyproject.toml changes); the plain pip route is in the README. llama-cpp-python is compiled
-# once per machine without AMX kernels (tools/llama_wheel.py says why) into $(WHEELS).
+# once per machine kind for one instruction set, x86-64-v3 where the CPU has it, into $(WHEELS)
+# (tools/llama_wheel.py says why), and installed by it.
 
 PYTHON ?= python3
 VENV ?= .venv
@@ -16,7 +17,7 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml setup.py $(wildcard src/globe/*/*.c) tools/llama_wheel.py
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python tools/llama_wheel.py $(WHEELS)
-	$(VENV)/bin/python -m pip install --find-links $(WHEELS) -e ".[all,dev,docs]"
+	$(VENV)/bin/python -m pip install -e ".[all,dev,docs]"
 	touch $(STAMP)
 
 reproduce: $(STAMP)

@@ -1,4 +1,6 @@
-"""tools/llama_wheel.py: the version it builds is the one pyproject pins, without AMX on x86."""
+"""tools/llama_wheel.py: the version it builds is the one pyproject pins, for one instruction set
+(x86-64-v3 wherever the CPU has it: the same kernels, so the same LLM answers, on every such
+machine), never with AMX."""
 
 import importlib.util
 import platform
@@ -58,3 +60,41 @@ def test_only_wheels_for_this_interpreter_and_machine_are_reused(tool):
 def test_the_installed_build_has_no_amx_kernels():
     llama_cpp = pytest.importorskip("llama_cpp")
     assert "AMX_INT8 = 1" not in llama_cpp.llama_print_system_info().decode()
+
+
+def test_an_avx2_machine_builds_for_x86_64_v3_and_nothing_else(tool, monkeypatch):
+    monkeypatch.delenv("CMAKE_ARGS", raising=False)
+    v3 = {"sse4_2", "avx", "avx2", "fma", "f16c", "bmi2"}
+    if platform.machine().lower() in ("x86_64", "amd64"):
+        assert tool.variant(v3 | {"avx512f", "amx_tile"}) == tool.variant(v3) == "x86-64-v3"
+        assert tool.variant({"sse4_2", "avx"}) == "x86-64-native"
+    args = tool.cmake_args("x86-64-v3")
+    for flag in ("-DGGML_NATIVE=OFF", "-DGGML_AVX2=ON", "-DGGML_FMA=ON", "-DGGML_AVX512=OFF", "-DGGML_AMX_INT8=OFF"):
+        assert flag in args
+    assert "GGML_NATIVE" not in tool.cmake_args("x86-64-native") and tool.cmake_args("native") == ""
+
+
+def test_the_installed_build_runs_the_kernels_of_its_instruction_set(tool):
+    """The kernels this machine runs are those of the build's instruction set, not of its CPU."""
+    llama_cpp = pytest.importorskip("llama_cpp")
+    info = llama_cpp.llama_print_system_info().decode()
+    if tool.variant() == "x86-64-v3":
+        assert "AVX2 = 1" in info and "AVX512" not in info and "AMX" not in info, info
+
+
+@pytest.mark.llm
+@pytest.mark.slow
+def test_this_build_answers_as_the_build_that_made_the_reference_results(tool, gguf_path):
+    """On an x86-64-v3 build (what make setup installs wherever the CPU has AVX2), the LLM's scores
+    are bit for bit those of the build behind reference/homer_plus, so its LLM rows are too."""
+    import subprocess
+    import sys
+
+    llama_cpp = pytest.importorskip("llama_cpp")
+    info = llama_cpp.llama_print_system_info().decode()
+    if tool.variant() != "x86-64-v3" or "AVX512 = 1" in info or "AMX" in info:
+        pytest.skip(f"not an x86-64-v3 build ({tool.variant()}: {info.strip()[:80]})")
+    done = subprocess.run([sys.executable, str(TOOL.parent / "llm_fingerprint.py"), str(gguf_path), "--threads", "2"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout[-500:] + done.stderr[-1500:]
+    assert "the same as the build that made reference/homer_plus" in done.stdout
