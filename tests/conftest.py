@@ -25,6 +25,19 @@ def pytest_report_header(config):
     return f"GLOBE_TEST_SEED={seed}"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _nothing_written_where_the_tests_run():
+    """The tests use their own folders: a default file (the service's database, the LLM answer
+    cache) appearing in the folder they run from means one of them did not."""
+    from pathlib import Path
+
+    names = ("globe.sqlite3", ".globe-cache")
+    before = {n for n in names if Path(n).exists()}
+    yield
+    appeared = [n for n in names if Path(n).exists() and n not in before]
+    assert not appeared, f"a test wrote {appeared} into {Path.cwd()} instead of its own folder"
+
+
 @pytest.fixture(scope="session")
 def seed() -> int:
     return int(os.environ.get("GLOBE_TEST_SEED", "0"))

@@ -1,6 +1,7 @@
 """The command line as a user runs it: a real subprocess, exit codes and visible lines."""
 
 import csv
+import json
 import subprocess
 import sys
 
@@ -240,6 +241,41 @@ def test_tables_keep_full_method_names_in_a_file_or_a_pipe(monkeypatch, capsys):
     for label in labels.values():
         assert label in printed, label
     assert max(len(line) for line in printed.splitlines()) > 80  # wider than rich's default for a pipe
+
+
+def test_one_home_of_ones_own_is_summed_up_plainly(tmp_path, capsys):
+    """One household that is not HOMER+: no "Table I/II" (the paper's names, kept for HOMER+), no
+    "mean of households", and its scores once; HOMER+'s three households keep the paper's layout."""
+    from globe.cli.common import print_table
+    from globe.cli.evaluate_cmd import print_anticipation, table1_table, timing_table
+    from globe.evaluation.published import DataScope
+
+    rows = [{"method": m, "household": h, "average": "weighted", "activity_f1": 0.8, "object_f1": 0.6, "mean_f1": 0.7}
+            for m in ("persistence", "ngram") for h in ("Mine", "mean")]
+    timing = [{"method": "ngram", "household": "Mine", "train_s": 0.1, "inference_s": 0.2, "llm_calls": 0, "llm_s": 0.0,
+               "selection_s": 0.0}]
+    mine = DataScope("household Mine", ("Mine",), False)
+    table = table1_table(rows, {}, mine)
+    assert table.title == "Scores on the test days of household Mine, weighted F1"
+    assert [c.header for c in table.columns] == ["method", "activity", "object", "mean"]
+    assert timing_table(timing, mine).title == "Time for the whole test split (s)"
+    homer = DataScope("HOMER+", ("A", "B", "C"), True)
+    three = [dict(r, household=h) for r in rows if r["household"] == "mean" for h in ("A", "B", "C", "mean")]
+    table = table1_table(three, {}, homer)
+    assert table.title == "Table I - HOMER+ test days, weighted F1 (mean of households)"
+    assert [c.header for c in table.columns][4:] == ["A: act/obj", "B: act/obj", "C: act/obj"]
+    assert timing_table(timing, homer).title == "Table II - time for the whole test split (s)"
+    (tmp_path / "data.json").write_text(json.dumps(mine.as_dict()), encoding="utf-8")
+    (tmp_path / "lookahead.csv").write_text("method,household,horizon_min,f1\nngram,Mine,10,0.5\nngram,mean,10,0.5\n")
+    (tmp_path / "fetch_policy.csv").write_text("household,configured\n")
+    (tmp_path / "missing_labels.csv").write_text("household,labels_pct,activity_f1,object_f1\nmean,0,0.7,0.6\n")
+    capsys.readouterr()
+    print_table(table1_table(rows, {}, mine))
+    print_anticipation(tmp_path)
+    printed = " ".join(capsys.readouterr().out.split())  # titles wrap over narrow tables
+    assert "mean of households" not in printed and "Table I" not in printed
+    assert "Lookahead on household Mine: relocation F1" in printed
+    assert "Missing activity labels (household Mine)" in printed
 
 
 def test_the_main_job_tables_are_whole_when_piped(tmp_path):

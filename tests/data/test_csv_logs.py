@@ -170,3 +170,20 @@ def test_a_covering_column_round_trips_and_is_checked(home, households):
     with pytest.raises(DataError) as err:
         parse_day_text(bad, h.objects, h.locations, day.name, "x.csv")
     assert err.value.field == "covering"
+
+
+def test_places_are_named_as_a_person_would_by_their_class_and_room():
+    from globe.data.records import Household, Node
+
+    nodes = (Node("home#0", "home", "Home", False, "home#0"), Node("kitchen#1", "kitchen", "Rooms", False, "home#0"),
+             Node("in_use#2", "in_use", "InUse", False, "kitchen#1"),
+             Node("kitchen_counter#3", "kitchen_counter", "Furniture", False, "kitchen#1"),
+             Node("coffee_maker#4", "coffee_maker", "Appliances", False, "kitchen_counter#3"),
+             Node("loop#5", "loop", "Furniture", False, "loop#6"), Node("loop#6", "loop", "Furniture", False, "loop#5"))
+    h = Household("H", nodes, (), (), ())
+    assert h.place_name("in_use#2") == "in use, kitchen"
+    assert h.place_name("kitchen_counter#3") == "kitchen counter, kitchen"
+    assert h.place_name("coffee_maker#4") == "coffee maker, kitchen"  # up to the room
+    assert h.place_name("kitchen#1") == "kitchen"
+    assert h.place_name("loop#5") == "loop"  # a map that loops ends without a room
+    assert h.place_name("gone#9") == "gone#9"

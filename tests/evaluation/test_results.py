@@ -44,3 +44,52 @@ def test_published_figures_stand_beside_homer_plus_only(households):
     assert not DataScope.of([replace(a, test=a.test[:-1])]).homer_plus
     assert not DataScope.of([replace(a, name="my-home", train=a.train[1:])]).homer_plus
     assert DataScope.of([replace(a, name="my-home", train=a.train[1:])]).title == "household my-home"
+
+
+def _headers(markdown: str) -> list[list[str]]:
+    """The header cells of every Markdown table in ``markdown``."""
+    lines = markdown.splitlines()
+    return [[c.strip() for c in line.strip("|").split("|")] for line, below in zip(lines, lines[1:])
+            if line.startswith("|") and below.startswith("|---")]
+
+
+def test_a_home_of_ones_own_gets_plain_names_and_its_columns_once(tmp_path):
+    """One home that is not HOMER+: no "Table I/II" (those are the paper's), and its scores once,
+    not again as a "mean" of that one household."""
+    from tests.simulated import clock_home
+
+    home = clock_home(20, 3)
+    cfg = GlobeConfig()
+    write_table1_results(tmp_path, run_methods(cfg, [home], ["persistence", "ngram"], None), cfg, DataScope.of([home]))
+    md = (tmp_path / "table1.md").read_text(encoding="utf-8")
+    assert "Table I" not in md and "published" not in md and "mean act" not in md
+    assert md.startswith("# Scores on the test days (household Clock)\n")
+    assert "\n# Time for the whole test split\n" in md
+    headers = _headers(md)
+    assert headers[:3] == [["Method", "Clock act", "Clock obj", "Clock mean"]] * 3
+    for cells in headers:
+        assert len(cells) == len(set(cells)), cells
+    assert json.loads((tmp_path / "data.json").read_text()) == {"title": "household Clock", "households": ["Clock"],
+                                                               "homer_plus": False}
+
+
+def test_homer_plus_tables_keep_the_papers_layout():
+    """On HOMER+ (one household or three) Table I keeps every household's columns, the mean's and
+    the published rows beneath, under the mean, as before."""
+    from pathlib import Path
+
+    from globe.evaluation.methods import METHODS
+    from globe.evaluation.report import table1_markdown
+
+    reference = Path(__file__).resolve().parents[2] / "reference" / "homer_plus" / "table1.csv"
+    rows = list(csv.DictReader(reference.open(encoding="utf-8")))
+    labels = {name: m.label for name, m in METHODS.items()}
+    md = table1_markdown(rows, labels, "weighted", DataScope("HOMER+", ("A", "B", "C"), True))
+    assert md.startswith("F1 (weighted) on HOMER+ test days\n")
+    assert _headers(md)[0] == ["Method", *[f"{h} {p}" for h in ("A", "B", "C", "mean") for p in ("act", "obj", "mean")]]
+    assert md.rstrip().endswith("| *stot (published)* | " + " | ".join(["–"] * 11 + ["0.43"]) + " |")
+    b = [r for r in rows if r["household"] == "B"]
+    one = b + [dict(r, household="mean") for r in b]
+    md = table1_markdown(one, labels, "weighted", DataScope("HOMER+", ("B",), True))
+    assert _headers(md)[0] == ["Method", "B act", "B obj", "B mean", "mean act", "mean obj", "mean mean"]
+    assert "| *globe (published)* | – | – | – | 0.80 | 0.65 | 0.73 |" in md

@@ -31,6 +31,7 @@ PLATFORM_KEYS = {
     "sensor": _COMMON | {"last_reset_value_template", "options", "state_class", "suggested_display_precision",
                          "unit_of_measurement"},
     "binary_sensor": _COMMON | {"off_delay", "payload_off", "payload_on"},
+    "event": (_COMMON - {"expire_after", "force_update"}) | {"event_types"},  # integrations/event.mqtt
 }
 STATE_CLASSES = {"measurement", "measurement_angle", "total", "total_increasing"}
 ENTITY_CATEGORIES = {"config", "diagnostic"}
@@ -106,6 +107,10 @@ def discovery_problems(topic: str, payload: dict[str, Any], prefix: str = "homea
             problems += _topic_problems(f"{where}.json_attributes_topic", comp["json_attributes_topic"])
         if comp.get("entity_category", "diagnostic") not in ENTITY_CATEGORIES:
             problems.append(f"{where}: entity_category {comp['entity_category']!r}")
+        if platform == "event":
+            types = comp.get("event_types")
+            if not isinstance(types, list) or not types or not all(isinstance(t, str) for t in types):
+                problems.append(f"{where}: an event needs event_types, a list of strings")
         if platform == "sensor":
             if comp.get("state_class", "measurement") not in STATE_CLASSES:
                 problems.append(f"{where}: state_class {comp['state_class']!r}")
@@ -133,6 +138,8 @@ def entity_states(payload: dict[str, Any], state: dict[str, Any]) -> dict[str, t
     and attributes (the rendered attributes template, a JSON object) for one state message."""
     out = {}
     for key, comp in payload["components"].items():
+        if comp["platform"] == "event":
+            continue  # it reads its own topic
         value = render(comp.get("value_template", "{{ value }}"), state).strip()
         attrs = None
         if "json_attributes_template" in comp:

@@ -129,7 +129,6 @@ def test_uploaded_maps_and_days_are_validated_like_files(server, households):
     bad_day = days[0].replace(f"\n{minute},", "\n1,", 1)  # minutes no longer increase
     cases = [
         ({"nodes": nodes[:1] + [dict(nodes[1], start_location="nowhere#0")] + nodes[2:]}, "nodes[1].start_location"),
-        ({"nodes": [dict(n, movable=False) for n in nodes]}, "nodes"),
         ({"nodes": nodes + [nodes[0]]}, f"nodes[{len(nodes)}].node"),
         ({"nodes": nodes, "days": [days[0], bad_day]}, "days[1].minute"),
         ({"nodes": nodes, "days": ["minute,activity\n360,idle\n"]}, f"days[0].{h.objects[0]}"),

@@ -88,7 +88,9 @@ def test_the_today_page_shows_the_timeline_the_next_hour_and_the_scores(browser,
     assert login(browser, home[2]["A"]).status_code == 303
     html = browser.get("/dashboard/households/A").text
     assert "ready" in html and re.search(r'id="days-learned">66<', html)  # 65 training days + the first test day
-    assert len(re.findall(r"<title>\d\d:\d\d predicted ", html)) == 12  # every step of today's 13 but the first
+    # every step of today's 13 but the first, in the chart for a desktop and in the one for a phone
+    assert len(re.findall(r"<title>\d\d:\d\d predicted ", html)) == 2 * 12
+    assert html.count('<g class="now">') == 2
     assert "Robot takes it to" in html and "fetch now" in html  # a forecast for the coming hour
     assert 'id="recent-steps"' in html and "shadow" in html  # a new household is in shadow mode
     assert "Activity accuracy, 1 step ahead" in html and re.search(r"\d+%", html)
@@ -135,7 +137,12 @@ def test_shadow_switches_from_the_dashboard_with_csrf_and_admin_only(browser, ho
     settings = browser.get("/dashboard/households/A/settings").text
     assert 'id="shadow-toggle"' in settings
     assert browser.post("/dashboard/households/A/shadow", data={"csrf": "forged", "shadow": "off"}).status_code == 403
-    r = browser.post("/dashboard/households/A/shadow", data={"csrf": csrf_of(settings), "shadow": "off"})
+    unconfirmed = browser.post("/dashboard/households/A/shadow", data={"csrf": csrf_of(settings), "shadow": "off"})
+    assert unconfirmed.status_code == 422 and "tick the box" in unconfirmed.text
+    with app_client(db, admin) as api:
+        assert api.get("/households/A/stats").json()["shadow"] is True
+    confirmed = {"csrf": csrf_of(settings), "shadow": "off", "confirm": "yes"}
+    r = browser.post("/dashboard/households/A/shadow", data=confirmed)
     assert r.status_code == 303
     with app_client(db, admin) as api:
         assert api.get("/households/A/stats").json()["shadow"] is False

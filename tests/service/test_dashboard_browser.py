@@ -73,12 +73,30 @@ def no_console_errors(driver) -> None:
     assert not severe, severe
 
 
+FITS = """
+const wide = document.documentElement.scrollWidth > window.innerWidth + 1;
+const boxes = [...document.querySelectorAll('.chartbox, .scroll, table, svg.chart')]
+  .filter(e => e.offsetParent !== null && e.scrollWidth > e.clientWidth + 1)
+  .map(e => e.className.baseVal ?? e.className);
+const now = [...document.querySelectorAll('svg .now')].filter(e => e.getBoundingClientRect().width > 0)
+  .map(e => { const r = e.getBoundingClientRect(); return [r.left, r.right]; });
+return [wide, boxes, now, window.innerWidth];
+"""
+
+
 def shoot(driver, name: str) -> None:
-    """Screenshots of the whole page at both widths (the window grows to the page's height)."""
+    """Screenshots of the whole page at both widths (the window grows to the page's height), each
+    checked to fit: no sideways scrolling, the page's or any chart's or table's, and "now", where
+    the page marks it, inside the window."""
     folder = results_folder("screenshots")
     for label, (w, h) in (("desktop", DESKTOP), ("phone", PHONE)):
         driver.set_window_size(w, h)
         time.sleep(0.15)
+        wide, boxes, now, width = driver.execute_script(FITS)
+        assert not wide and not boxes, (name, label, wide, boxes)
+        assert all(0 <= left and right <= width for left, right in now), (name, label, now)
+        if name == "today":
+            assert len(now) == 1, (label, now)  # one chart shown at each width, "now" on it
         height = driver.execute_script("return document.documentElement.scrollHeight")
         driver.set_window_size(w, max(h, min(int(height) + 140, 5000)))
         time.sleep(0.15)
@@ -121,7 +139,7 @@ def test_log_in_see_the_day_and_the_next_hour_then_log_out(driver, service):
 
     log_in(driver, service.url, service.admin)
     WebDriverWait(driver, 10).until(ec.url_contains("/dashboard/households"))
-    assert driver.find_element(By.ID, "households").text.startswith("Household")
+    assert driver.find_element(By.ID, "households").text.startswith("Name")
     no_console_errors(driver)
     shoot(driver, "households")
     session = next(c for c in driver.get_cookies() if c["name"] == "globe_session")

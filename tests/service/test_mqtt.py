@@ -138,6 +138,18 @@ def test_a_household_is_a_home_assistant_device_whose_state_follows_each_observa
     assert states["fetch"][0] == ("ON" if expected.act else "OFF")
     assert states["days_learned"][0] == "5"
 
+    # shadow mode switched off: the state says so at once, not at the next step; a fetch due now is
+    # one event on the fetch topic (never retained)
+    seen = len(ha.messages)
+    with srv.client() as c:
+        c.set_shadow(HOME, False)
+        now = c.prediction(HOME)
+    switched = ha.wait_for(lambda m: m.topic == STATE and json.loads(m.payload)["shadow"] is False, after=seen)
+    assert json.loads(switched.payload)["act"] == now.act
+    if now.act:
+        event = ha.wait_for(lambda m: m.topic == f"globe/{HOME}/fetch", after=seen)
+        assert not event.retain and json.loads(event.payload)["object"] == now.fetch_object
+
     # Home Assistant restarts and says so: the discovery is sent again
     seen = len(ha.messages)
     ha.publish("homeassistant/status", "online")

@@ -40,8 +40,9 @@ def test_the_discovery_payload_follows_home_assistants_schema(name):
     assert topic.startswith("homeassistant/device/globe_")
     assert payload["availability"] == [{"topic": "globe/status", "payload_available": "online",
                                         "payload_not_available": "offline"}]
-    assert {c["state_topic"] for c in payload["components"].values()} == {f"globe/{name}/state"}
-    assert {c["platform"] for c in payload["components"].values()} == {"sensor", "binary_sensor"}
+    assert {c["state_topic"] for c in payload["components"].values()} == {f"globe/{name}/state", f"globe/{name}/fetch"}
+    assert {c["platform"] for c in payload["components"].values()} == {"sensor", "binary_sensor", "event"}
+    assert payload["components"]["fetch_request"]["event_types"] == ["fetch"]
 
 
 def test_the_checker_finds_what_home_assistant_would_refuse():
@@ -50,8 +51,9 @@ def test_the_checker_finds_what_home_assistant_would_refuse():
     del broken["origin"]
     broken["components"]["fetch"]["platfrom"] = broken["components"]["fetch"].pop("platform")
     broken["components"]["status"]["unique_id"] = broken["components"]["activity"]["unique_id"]
+    broken["components"]["fetch_request"]["event_types"] = []
     problems = discovery_problems("homeassistant/device/a.b/config", broken)
-    assert len(problems) == 4, problems
+    assert len(problems) == 5, problems
 
 
 def test_dotted_household_names_get_distinct_valid_ids():
@@ -73,6 +75,17 @@ def test_the_entities_follow_a_prediction():
     assert idle["fetch"][0] == "OFF"
     assert idle["fetch_object"][0] == idle["fetch_probability"][0] == "None"  # Home Assistant's unknown
     assert idle["status"][0] in payload["components"]["status"]["options"]
+
+
+def test_each_fetch_due_is_one_event_and_none_in_shadow_mode_or_while_learning():
+    two = prediction(fetches=[{"object": "kettle", "to": "in_use#4", "probability": 0.7},
+                              {"object": "cup", "to": None, "probability": 0.6}])
+    events = [json.loads(e) for e in payloads.fetch_events(two)]
+    assert events == [{"event_type": "fetch", "object": "kettle", "to": "in_use#4", "probability": 0.7,
+                       "day": "2026-11-24", "step": 30},
+                      {"event_type": "fetch", "object": "cup", "to": None, "probability": 0.6,
+                       "day": "2026-11-24", "step": 30}]
+    assert payloads.fetch_events(prediction(act=False, shadow=True, fetches=two.fetches)) == []
 
 
 def test_statestream_states_make_a_snapshot():
@@ -160,7 +173,7 @@ def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():
     slug = lambda s: re.sub(r"[^a-z0-9]+", "_", s.lower()).strip("_")  # noqa: E731
     made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}"
             for c in payload["components"].values()}
-    named = set(re.findall(r"`((?:binary_)?sensor\.globe_home_\w+)`", text))
+    named = set(re.findall(r"`((?:binary_sensor|sensor|event)\.globe_home_\w+)`", text))
     assert named == made
 
 

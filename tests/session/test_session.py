@@ -178,6 +178,23 @@ def test_fetches_follow_one_rule(home):
             assert used_between or not set(objs) & set(fetched.get(u, ()))
 
 
+def test_a_live_fetch_precision_counts_only_fetches_whose_window_settled(home):
+    """Fed part of a day, the fetches still waiting inside their window are left out of the live
+    report (neither right nor wrong yet); the whole report counts them."""
+    s = session_of(home)
+    day = home.test[2]
+    for cut in range(10, len(day.minutes), 5):
+        s = session_of(home)
+        feed(s, home, day, rows=range(cut))
+        whole, settled = s.fetch_report(), s.fetch_report(settled_only=True)
+        if whole.fetches > settled.fetches:
+            break
+    else:
+        pytest.fail("no cut of the day leaves a fetch waiting")
+    assert settled.useful_fetches == whole.useful_fetches and settled.fetches < whole.fetches
+    assert settled.fetches >= settled.useful_fetches
+
+
 def test_no_fetch_touches_an_object_in_use_or_just_put_back():
     """A home whose sensors put an object in use while it is on: the policy would fetch what the
     person holds (its departure, the return, is all but certain), the rule never does."""

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from globe.cli.common import console, out
+from globe.cli.common import console, count, out
 from globe.errors import DataError
 
 DbOption = Annotated[Path, typer.Option("--db", help="the service's SQLite file (created if missing)")]
@@ -137,7 +137,8 @@ def household_import(
         store.add_household(household, tz, texts, settings=settings)
     finally:
         store.close()
-    learned = f"{len(days)} days ({'training and test' if include_test else 'training; --include-test adds test/'})"
+    which = "training and test" if include_test else "training; --include-test adds test/"
+    learned = f"{count(len(days), 'day')} ({which})"
     console.print(f"imported household {name!r}: {len(objects)} objects, {learned}, time zone {tz}; it runs "
                   f"{deployment_summary(deployment)}", soft_wrap=True)
 

@@ -63,6 +63,11 @@ def household_map(cfg: GlobeConfig, data: Path | None, name: str) -> tuple[str, 
     return folder.name, map_fingerprint(nodes, tuple(n.cls for n in nodes if n.movable))
 
 
+def count(n: int, noun: str) -> str:
+    """``1 day``, ``2 days``: a number with its noun (plural by ``s``)."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def print_table(table: Table) -> None:
     """Print a table on stdout. A terminal fits it to its width; a file or a pipe (a log, CI,
     ``| less``) gets it at its natural width, since rich would otherwise squeeze it into 80

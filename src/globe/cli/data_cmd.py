@@ -12,6 +12,7 @@ from globe.cli.common import (
     ConfigOption,
     DataOption,
     HouseholdsOption,
+    count,
     households_from,
     out,
     plain,
@@ -101,11 +102,11 @@ def _summary(result: ImportResult) -> None:
         out.print(text, markup=False, highlight=False, soft_wrap=True)
 
     objects = f"objects: {', '.join(result.objects)}" if result.objects else "no objects"
-    say(f"wrote {result.train_days} training and {result.test_days} test days to {result.dest} ({objects}; activities: "
-        f"{', '.join(result.activities)})")
+    say(f"wrote {result.train_days} training and {count(result.test_days, 'test day')} to {result.dest} "
+        f"({objects}; activities: {', '.join(result.activities)})")
     if result.dropped_days:
-        say(f"left out {result.dropped_days} days (unannotated, only carrying an annotation over from the day before, "
-            f"or not covered by the log from first to last row): see {result.report}")
+        say(f"left out {count(result.dropped_days, 'day')} (unannotated, only carrying an annotation over from the day "
+            f"before, or not covered by the log from first to last row): see {result.report}")
     for note in result.notes:
         say(f"note: {note}")
 

@@ -38,32 +38,44 @@ def _num(x: float | None) -> str:
     return "–" if x is None else f"{x:.3f}"
 
 
+def _over(households: list[str] | tuple[str, ...]) -> str:
+    """What the tables' numbers are: the mean of several households, or one household's own."""
+    return f"household {households[0]}" if len(households) == 1 else "mean of households"
+
+
 def table1_table(rows: list[dict], labels: dict[str, str], scope: DataScope) -> Table:
-    """Compact terminal view of Table I: weighted F1 averaged over households, and per household;
-    the paper's published rows beside HOMER+ only."""
+    """Compact terminal view of Table I: weighted F1 averaged over households, and per household
+    (one household: its own figures once); the paper's published rows beside HOMER+ only, which
+    alone keeps the paper's name for the table."""
     from globe.evaluation.published import TABLE1, TABLE1_MEAN_ONLY
 
     weighted = [r for r in rows if r["average"] == "weighted"]
     households = [h for h in dict.fromkeys(r["household"] for r in weighted) if h != "mean"]
-    table = Table(title=f"Table I - {scope.title} test days, weighted F1 (mean of households)")
-    for col in ["method", "activity", "object", "mean", *[f"{h}: act/obj" for h in households]]:
+    if scope.homer_plus:
+        title = f"Table I - {scope.title} test days, weighted F1 ({_over(households)})"
+    else:
+        title = f"Scores on the test days of {scope.title}, weighted F1" + (
+            f" ({_over(households)})" if len(households) > 1 else "")
+    table = Table(title=title)
+    each = households if len(households) > 1 else []  # one household: its columns would repeat the first ones
+    for col in ["method", "activity", "object", "mean", *[f"{h}: act/obj" for h in each]]:
         table.add_column(col, justify="left" if col == "method" else "right")
     for method in dict.fromkeys(r["method"] for r in weighted):
         get = {r["household"]: r for r in weighted if r["method"] == method}
         m = get["mean"]
         table.add_row(labels.get(method, method), _num(m["activity_f1"]), _num(m["object_f1"]), _num(m["mean_f1"]),
-                      *[f"{_num(get[h]['activity_f1'])} / {_num(get[h]['object_f1'])}" for h in households])
+                      *[f"{_num(get[h]['activity_f1'])} / {_num(get[h]['object_f1'])}" for h in each])
     published = [(m, f"{a:.2f}", f"{o:.2f}", f"{mean:.2f}") for m, (a, o, mean) in TABLE1.items()]
     published += [(m, "–", "–", f"{mean:.2f}") for m, mean in TABLE1_MEAN_ONLY.items()]
     for method, *figures in published if scope.homer_plus else ():
-        table.add_row(f"[dim]{method} (published)[/dim]", *figures, *["" for _ in households])
+        table.add_row(f"[dim]{method} (published)[/dim]", *figures, *["" for _ in each])
     return table
 
 
 def timing_table(rows: list[dict], scope: DataScope) -> Table:
     from globe.evaluation.published import TABLE2
 
-    table = Table(title="Table II - time for the whole test split (s)")
+    table = Table(title=f"{'Table II - time' if scope.homer_plus else 'Time'} for the whole test split (s)")
     for col in ("method", "household", "train", "inference", "LLM calls", "LLM s", "CV s"):
         table.add_column(col, justify="left" if col in ("method", "household") else "right")
     for r in rows:
@@ -229,7 +241,10 @@ def print_anticipation(out_dir: Path) -> None:
     scope = _scope(out_dir)
     published = "; SLaTe-PRO published 0.57, 0.60 with queries" if scope and scope.homer_plus else ""
     where = f" on {scope.title}" if scope else ""
-    table = Table(title=f"Lookahead{where}: relocation F1 (mean of households{published})")
+    one = scope is not None and len(scope.households) == 1 and not scope.homer_plus  # the title names it
+    over = "" if one else _over(scope.households if scope else ())
+    notes = f" ({over}{published})" if over or published else ""
+    table = Table(title=f"Lookahead{where}: relocation F1{notes}")
     table.add_column("method")
     for h in horizons:
         table.add_column(f"{h} min", justify="right")
@@ -243,7 +258,7 @@ def print_anticipation(out_dir: Path) -> None:
                   f"recall {float(r['recall']):.3f}, median lead {r['median_lead_min']} min, {r['fetches']} fetches",
                   markup=False)
     missing = rows("missing_labels.csv")
-    table = Table(title="Missing activity labels (mean of households)")
+    table = Table(title=f"Missing activity labels ({_over(scope.households if scope else ())})")
     for col in ("labels %", "activity F1", "object F1", "lookahead F1 (mean)"):
         table.add_column(col, justify="right")
     for r in missing:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import sys
 import traceback
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.text import Text
@@ -104,6 +104,23 @@ def _usage(err: BaseException) -> int:
     return int(getattr(err, "exit_code", 2))
 
 
+def _command() -> Any:
+    """The click command of :data:`app`, its flags shown without a value (typer labels a flag
+    ``<bool>``, as if it took one). Duck-typed: typer may bundle its own click."""
+    command = typer.main.get_command(app)
+
+    def walk(cmd: Any) -> None:
+        help_option = cmd.get_help_option(cmd.context_class(cmd))
+        for param in [*cmd.params, help_option]:
+            if getattr(param, "is_flag", False):
+                param.metavar = ""
+        for sub in getattr(cmd, "commands", {}).values():
+            walk(sub)
+
+    walk(command)
+    return command
+
+
 def main(argv: list[str] | None = None) -> None:
     """The one error boundary: a result, or one line on stderr. Exit 1 for bad data (a GlobeError or
     a file the system refuses), 2 for bad usage, 70 for a bug (``-v`` shows the traceback)."""
@@ -111,7 +128,7 @@ def main(argv: list[str] | None = None) -> None:
     _state["verbose"] = False
     code = 0
     try:
-        rv = app(args=args, prog_name="globe", standalone_mode=False)
+        rv = _command().main(args=args, prog_name="globe", standalone_mode=False)
         code = rv if isinstance(rv, int) else 0
     except GlobeError as err:
         if _verbose(args):

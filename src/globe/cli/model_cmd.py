@@ -9,7 +9,7 @@ from typing import Annotated, get_args
 
 import typer
 
-from globe.cli.common import ConfigOption, DataOption, console, household_map, households_from, out, resolve
+from globe.cli.common import ConfigOption, DataOption, console, count, household_map, households_from, out, resolve
 from globe.config import Deployment, DeployMethod
 from globe.data.records import Household, map_fingerprint
 from globe.errors import DataError, ModelFileError
@@ -54,7 +54,7 @@ def train(
                                 household=Path(h.source).name or h.name, fingerprint=fingerprint,
                                 objects_columns=h.objects, nodes=h.nodes, grid=session.grid.as_dict(),
                                 deployment=deployment.model_dump(mode="json"), days=h.train)
-    _say(f"trained on {len(h.train)} days of household {h.name} -> {path}")
+    _say(f"trained on {count(len(h.train), 'day')} of household {h.name} -> {path}")
     _say(f"it runs {deployment_summary(deployment)}")
     s = deployment.scores
     if "activity_log_loss" in s and "persistence_log_loss" in s:

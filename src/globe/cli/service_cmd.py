@@ -22,7 +22,8 @@ from globe.errors import MissingExtraError
 
 
 def serve(
-    database: Annotated[Path | None, typer.Option("--db", help="SQLite file (created if missing)")] = None,
+    database: Annotated[Path | None, typer.Option(
+        "--db", help="SQLite file (default: globe.sqlite3 in the current folder; created if missing)")] = None,
     host: Annotated[str | None, typer.Option(
         "--host", help="bind address (keep loopback; put a TLS reverse proxy in front)")] = None,
     port: Annotated[int | None, typer.Option("--port", help="TCP port")] = None,
@@ -44,6 +45,7 @@ def serve(
     from globe.service.dbfile import set_aside_database
     from globe.service.store import Store
 
+    new = not cfg.service.database.exists()
     try:
         Store(cfg.service.database).close()  # refuse a foreign, newer or damaged database here, with a clear message
     except DamagedDatabaseError:
@@ -58,7 +60,11 @@ def serve(
         warning.append(f" listening on {cfg.service.host}: tokens travel in clear text over plain HTTP; keep the "
                        "service on 127.0.0.1 behind a TLS reverse proxy (see the README)")
         console.print(warning, soft_wrap=True)
-    console.print(f"GLOBE service on http://{cfg.service.host}:{cfg.service.port} (database {cfg.service.database})")
+    where = cfg.service.database.resolve()
+    if new:  # e.g. no --db: the default file in the current folder
+        console.print(f"created a new, empty database {where} (--db names another); globe token create --db {where} "
+                      "gives the first token", soft_wrap=True)
+    console.print(f"GLOBE service on http://{cfg.service.host}:{cfg.service.port} (database {where})", soft_wrap=True)
     server.run(create_app(cfg), cfg.service, sock)
 
 

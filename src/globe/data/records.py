@@ -83,6 +83,25 @@ class Household:
     def node(self, label: str) -> Node | None:
         return self._node_index.get(label)
 
+    def place_name(self, label: str) -> str:
+        """A place as a person names it: its class in words and the room it is in
+        (``kitchen_counter#119`` -> "kitchen counter, dining room"; an ``in_use`` place -> "in use,
+        kitchen"); a label not on the map, as it is."""
+        node = self.node(label)
+        if node is None:
+            return label
+        name = node.cls.replace("_", " ")
+        if node.category.lower() == "rooms":
+            return name
+        around = self.node(node.start_location)
+        for _ in range(len(self.nodes)):  # up the map to the room (a map may loop: bounded)
+            if around is None or around.category.lower() == "rooms":
+                break
+            around = self.node(around.start_location)
+        if around is None or around.category.lower() != "rooms":
+            return name
+        return f"{name}, {around.cls.replace('_', ' ')}"
+
     @property
     def locations(self) -> frozenset[str]:
         """Every label an object may be at."""

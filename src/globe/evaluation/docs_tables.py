@@ -310,7 +310,7 @@ def _type_name(annotation: Any) -> str:
     if typing.get_origin(annotation) is typing.Literal:
         return "str"
     text = str(annotation) if not isinstance(annotation, type) else annotation.__name__
-    text = re.sub(r"typing\.|pathlib\.|datetime\.|globe\.\w+\.", "", text)
+    text = re.sub(r"typing\.|pathlib\.|datetime\.|globe\.(\w+\.)+", "", text)
     text = re.sub(r"Annotated\[(\w+), [^\]]*\]", r"\1", text)
     return text.replace("NoneType", "None")
 

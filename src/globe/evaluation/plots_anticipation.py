@@ -3,6 +3,7 @@ backend, callers save the figures."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Sequence
 
@@ -10,7 +11,9 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter  # noqa: E402
 
 from globe.evaluation.published import DataScope  # noqa: E402
 
@@ -93,25 +96,88 @@ def lead_time_figure(rows: Sequence[dict]) -> Figure:
     return fig
 
 
+LINE_STYLES = (("o", "-"), ("s", "--"), ("^", ":"), ("D", "-."), ("v", (0, (5, 1, 1, 1))))
+"""(marker, line style) of the methods of :func:`activity_horizon_figure`, in their order."""
+
+
+def _same_series(rows: Sequence[dict], method: str, other: str) -> bool:
+    """Whether ``method`` scored exactly as ``other`` at every horizon (accuracy and log loss)."""
+    def series(name: str) -> list[tuple[float, float, float]]:
+        return sorted((float(r["horizon_min"]), float(r["accuracy"]), float(r["log_loss"]))
+                      for r in rows if r["method"] == name)
+    mine, theirs = series(method), series(other)
+    return bool(mine) and len(mine) == len(theirs) and all(
+        a[0] == b[0] and abs(a[1] - b[1]) < 1e-9 and abs(a[2] - b[2]) < 1e-9 for a, b in zip(mine, theirs))
+
+
+def _legend_label(rows: Sequence[dict], homes: Sequence[str], methods: Sequence[str], method: str) -> str:
+    """The method's name, with "(same as ...)" where it scored exactly as an earlier method (in
+    every home, or in the homes named)."""
+    for other in methods[: methods.index(method)]:
+        equal = [hh for hh in homes if any(r["household"] == hh and r["method"] == method for r in rows)
+                 and _same_series([r for r in rows if r["household"] == hh], method, other)]
+        if equal:
+            present = [hh for hh in homes if any(r["household"] == hh and r["method"] == method for r in rows)]
+            where = "" if equal == present else f" in home {', '.join(equal)}"
+            return f"{method} (same as {other}{where})"
+    return method
+
+
+def _plain_log_ticks(ax: Axes) -> None:
+    """Ticks of a log-scaled y axis at plain numbers (0.5, 1, 2, 3, 5, 10, ...), labelled as
+    such (never ``4×10⁰``); at least two, widening the limits to the nearest if need be."""
+    lo, hi = ax.get_ylim()
+    lo, hi = max(lo, 1e-6), max(hi, 2e-6)  # a log axis is positive; guard one drawn from no data
+    exponents = range(math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 2)
+    nice = sorted(round(m * 10.0 ** e, 12) for e in exponents for m in (1, 2, 3, 5))
+    ticks = [v for v in nice if lo <= v <= hi]
+    if len(ticks) < 2:
+        lo, hi = max(v for v in nice if v <= lo), min(v for v in nice if v >= hi)
+        ax.set_ylim(lo, hi)
+        ticks = [v for v in nice if lo <= v <= hi]
+    ax.yaxis.set_major_locator(FixedLocator(ticks))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+
+
 def activity_horizon_figure(rows: Sequence[dict], title: str) -> Figure:
     """Accuracy and log loss of the activity 10-60 minutes ahead per method, one column per
-    household (``rows``: ``activity_anticipation.csv``)."""
+    household (``rows``: ``activity_anticipation.csv``). Each method has its own marker and line
+    style; the first (the chosen model) is drawn on top, and a method that scored exactly as an
+    earlier one says so in the legend ("same as ..."), its line drawn wider beneath it."""
     homes = list(dict.fromkeys(r["household"] for r in rows))
-    fig, axes = plt.subplots(2, max(len(homes), 1), figsize=(3.6 * max(len(homes), 1), 5.6), squeeze=False)
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    labels = {m: _legend_label(rows, homes, methods, m) for m in methods}
+    fig, axes = plt.subplots(2, max(len(homes), 1), figsize=(max(3.6 * len(homes), 4.8), 6.4), squeeze=False,
+                             layout="constrained")
+    named: set[str] = set()  # methods in the legend already (each once, from the first home it is in)
     for col, hh in enumerate(homes):
         mine = [r for r in rows if r["household"] == hh]
-        for i, method in enumerate(dict.fromkeys(r["method"] for r in mine)):
-            line = [r for r in mine if r["method"] == method]
-            x = [r["horizon_min"] for r in line]
-            axes[0][col].plot(x, [r["accuracy"] for r in line], marker="o", color=f"C{i}", label=method)
-            axes[1][col].plot(x, [r["log_loss"] for r in line], marker="o", color=f"C{i}", label=method)
+        for i, method in enumerate(methods):
+            line = sorted((r for r in mine if r["method"] == method), key=lambda r: float(r["horizon_min"]))
+            if not line:
+                continue
+            marker, style = LINE_STYLES[i % len(LINE_STYLES)]
+            under = labels[method] != method  # scored as an earlier method: wider, hollow, beneath it
+            look = {"marker": marker, "linestyle": style, "color": f"C{i}", "zorder": 3 + len(methods) - i,
+                    "linewidth": 3.0 if under else 1.5, "markersize": 9 if under else 5,
+                    "markerfacecolor": "none" if under else f"C{i}"}
+            x = [float(r["horizon_min"]) for r in line]
+            label = None if method in named else labels[method]
+            axes[0][col].plot(x, [float(r["accuracy"]) for r in line], label=label, **look)
+            axes[1][col].plot(x, [float(r["log_loss"]) for r in line], **look)
+            named.add(method)
         axes[0][col].set_title(f"home {hh}", fontsize=9)
         axes[0][col].set_ylim(0, 1)
         axes[1][col].set_yscale("log")
+        _plain_log_ticks(axes[1][col])
         axes[1][col].set_xlabel("minutes ahead")
+        for ax in axes[:, col]:
+            minutes = sorted({float(r["horizon_min"]) for r in mine})
+            if 0 < len(minutes) <= 8:
+                ax.set_xticks(minutes, [f"{m:g}" for m in minutes])
     axes[0][0].set_ylabel("accuracy")
     axes[1][0].set_ylabel("log loss (nats, log scale)")
-    axes[0][0].legend(fontsize=7)
+    fig.legend(fontsize=7, loc="outside lower center", ncols=1 if len(homes) < 2 else 2)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     return fig

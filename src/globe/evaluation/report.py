@@ -43,9 +43,12 @@ def _fmt(x: float | str | None) -> str:
 
 def table1_markdown(rows: Sequence[dict], labels: dict[str, str], average: str, scope: DataScope) -> str:
     """The paper's Table I layout: methods x (activity, object, mean) per household and mean; on
-    HOMER+ the paper's published rows follow, each labelled as published."""
+    HOMER+ the paper's published rows follow, each labelled as published. A single home that is
+    not HOMER+ gets its own columns only (its mean would repeat them)."""
     mine = [r for r in rows if r["average"] == average]
     households = list(dict.fromkeys(r["household"] for r in mine))
+    if not scope.homer_plus and len([h for h in households if h != "mean"]) == 1:
+        households = [h for h in households if h != "mean"]
     head = "| Method | " + " | ".join(f"{h} act | {h} obj | {h} mean" for h in households) + " |"
     sep = "|---|" + "---|" * (3 * len(households))
     lines = [f"F1 ({average}) on {scope.title} test days", "", head, sep]

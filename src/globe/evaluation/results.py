@@ -11,6 +11,7 @@ from globe.evaluation import experiments, report
 from globe.evaluation.experiments import MethodRun
 from globe.evaluation.methods import METHODS
 from globe.evaluation.plots import reliability_figure, table1_figure
+from globe.evaluation.plots_anticipation import save_figure
 from globe.evaluation.published import DataScope
 
 
@@ -44,20 +45,23 @@ def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: Globe
     calib, curves = experiments.calibration_rows(runs, config.evaluation.calibration_bins)
     report.write_csv(out_dir / "calibration.csv", calib)
     for part, per_method in curves.items():
-        figure = reliability_figure(per_method, f"Reliability of {part} probabilities")
-        figure.savefig(out_dir / f"reliability_{part}.png", dpi=120)
+        save_figure(reliability_figure(per_method, f"Reliability of {part} probabilities"),
+                    out_dir / f"reliability_{part}.png", dpi=120)
     for run in runs:
         stem = f"{run.method}_{run.household}"
         report.write_records(out_dir / "records", f"{stem}_activity", run.evaluation.activity)
         report.write_records(out_dir / "records", f"{stem}_objects", run.evaluation.objects)
         report.write_records(out_dir / "records", f"{stem}_objects_oracle", run.oracle.objects)
+    # the paper's names for HOMER+ (its tables stand beside the paper's); plain ones for a home of one's own
+    scores, times = (f"# Table I ({scope.title})", "# Table II (timing)") if scope.homer_plus else (
+        f"# Scores on the test days ({scope.title})", "# Time for the whole test split")
     md = "\n".join([
-        f"# Table I ({scope.title})", "", report.table1_markdown(rows, labels, "weighted", scope),
+        scores, "", report.table1_markdown(rows, labels, "weighted", scope),
         report.table1_markdown(rows, labels, "micro", scope), report.table1_markdown(rows, labels, "macro", scope),
-        "# Table II (timing)", "", report.timing_markdown(timing, scope),
+        times, "", report.timing_markdown(timing, scope),
         "# Details", "", report.details_markdown(details),
         "# Calibration (expected calibration error)", "", report.rows_markdown(calib),
     ])
     (out_dir / "table1.md").write_text(md, encoding="utf-8")
-    table1_figure(rows, labels, scope).savefig(out_dir / "table1.png", dpi=130)
+    save_figure(table1_figure(rows, labels, scope), out_dir / "table1.png")
     return Table1Results(rows, timing, labels, scope)

@@ -479,12 +479,14 @@ class Registry:
             return prediction(d, shadow)
 
     def set_shadow(self, name: str, shadow: bool) -> ShadowOut:
-        """Switch the household's shadow mode (stored: it outlives a restart)."""
+        """Switch the household's shadow mode (stored: it outlives a restart; the listeners are told,
+        so Home Assistant's state says so at once, not at the next step)."""
         with self._held(name) as held:
             self._write(name, held, lambda: self.store.set_shadow(name, shadow))
             with self._lock:
                 held.row = dataclasses.replace(held.row, shadow=shadow)
-            return ShadowOut(household=name, shadow=shadow)
+        self._notify(name)
+        return ShadowOut(household=name, shadow=shadow)
 
     def scores(self, name: str, days: int = 28) -> OnlineScores:
         """The online scores of the last ``days`` days (today's so far included)."""

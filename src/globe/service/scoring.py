@@ -67,12 +67,13 @@ def restore(session: HouseholdSession, store: Store, name: str) -> None:
 
 
 def today_score(session: HouseholdSession, store: Store, name: str) -> DayScore | None:
-    """Today's scores so far: the settled steps from the store, and today's fetches scored now."""
+    """Today's scores so far: the settled steps from the store, and today's fetches scored now
+    (those still inside their window left out)."""
     day = session.day
     if day is None:
         return None
     stored = next(iter(store.day_scores(name, day)), DayScore(day))
-    report = session.fetch_report()
+    report = session.fetch_report(settled_only=True)
     return DayScore(day, stored.predictions, stored.correct, stored.fetches + report.fetches,
                     stored.useful_fetches + report.useful_fetches, stored.uses + report.used_objects,
                     stored.uses_fetched + report.used_fetched_in_advance)

@@ -138,6 +138,7 @@ class HouseholdSession:
         # the training days are counted, then dropped: the map is kept (memory per household stays small)
         self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
         self.days_learned = len(household.train)
+        self.learned_days = [d.name for d in household.train]  # their names, in the order learned
         self.observations = 0
         self.fallbacks: Counter[str] = Counter()
         self._last_instant: dt.datetime | None = None
@@ -304,14 +305,19 @@ class HouseholdSession:
         """Per step today, the objects used (moved) at it (none at steps after one nobody observed)."""
         return list(self._uses)
 
-    def fetch_report(self) -> FetchReport:
+    def fetch_report(self, settled_only: bool = False) -> FetchReport:
         """Today's fetches so far, scored against today so far by the one rule of fetches
-        (:func:`~globe.inference.fetch_policy.follow_fetches`)."""
+        (:func:`~globe.inference.fetch_policy.follow_fetches`). ``settled_only`` leaves out the
+        fetches still waiting for their use inside their window (not yet right or wrong: a live
+        precision counting them would read 0 % the minute after a first fetch)."""
         minutes = [self.grid.minute(t) for t in range(len(self._labels))]
         p = self.policy
         fetched = self.fetched_today
-        return follow_fetches(self.uses(), minutes, lambda t, _: fetched.get(t, ()), len(minutes), p.min_lead_steps,
-                              p.window_steps)[0]
+        report, waiting = follow_fetches(self.uses(), minutes, lambda t, _: fetched.get(t, ()), len(minutes),
+                                         p.min_lead_steps, p.window_steps)
+        if settled_only:
+            report.fetches -= len(waiting)  # a waiting fetch was not used since: none of them counted useful
+        return report
 
     # -- online scores ---------------------------------------------------------------------------
     def settle(self, place: Placement) -> Settled:
@@ -504,6 +510,7 @@ class HouseholdSession:
         self.emission.partial_fit(days, objects)
         self.policy.learn(days)
         self.days_learned += len(days)
+        self.learned_days += [d.name for d in days]
 
     def stats(self) -> dict[str, Any]:
         return {"household": self.household.name, "status": self.status, "days_learned": self.days_learned,

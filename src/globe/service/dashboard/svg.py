@@ -60,20 +60,40 @@ class TimelineStep:
     probability: float | None
 
 
-def timeline(steps: Sequence[TimelineStep], *, day_start: int, step_minutes: int, colour: Mapping[str, str]) -> str:
+@dataclass(frozen=True, slots=True)
+class Layout:
+    """A chart's horizontal layout: the plot's width and left margin (user units, drawn 1:1 at
+    their size in CSS pixels) and the hours between ticks. :data:`WIDE` for a desktop,
+    :data:`NARROW` for a phone (the page shows one of the two by its width)."""
+
+    width: float
+    x0: float
+    tick_minutes: int
+
+
+WIDE, NARROW = Layout(900.0, 78.0, 120), Layout(270.0, 70.0, 360)
+
+
+def day_span(steps_per_day: int, step_minutes: int) -> int:
+    """The minutes a chart of the day spans: the household's day (whole hours), at most 24 h,
+    so a day of 18 hours leaves no empty quarter."""
+    return min(1440, -(-steps_per_day * step_minutes // 60) * 60)
+
+
+def timeline(steps: Sequence[TimelineStep], *, day_start: int, step_minutes: int, span: int,
+             colour: Mapping[str, str], now: int | None = None, layout: Layout = WIDE) -> str:
     """Today: the observed activity and, beneath it, GLOBE's prediction for each step made before
-    it (shaded by its probability), over the whole day."""
-    width, x0, lane = 900.0, 78.0, 26.0
-    span = 1440
-    rows = (("observed", 8.0), ("predicted", 8.0 + lane + 8))
-    parts = [f'<svg viewBox="0 0 {x0 + width + 24:.0f} {2 * lane + 46:.0f}" '
+    it (shaded by its probability), over the household's day; ``now`` (a minute) marked."""
+    width, x0, lane, top = layout.width, layout.x0, 26.0, 18.0
+    rows = (("observed", top), ("predicted", top + lane + 8))
+    parts = [f'<svg viewBox="0 0 {x0 + width + 16:.0f} {2 * lane + top + 38:.0f}" '
              'class="chart" role="img" aria-label="today: observed and predicted activity per step">']
     for name, y in rows:
-        parts.append(f'<text x="{x0 - 8}" y="{y + lane / 2 + 4}" class="lane" text-anchor="end">{name}</text>')
+        parts.append(f'<text x="{x0 - 6}" y="{y + lane / 2 + 4}" class="lane" text-anchor="end">{name}</text>')
         parts.append(f'<rect x="{x0}" y="{y}" width="{width}" height="{lane}" class="lane-bg"/>')
     w = width * step_minutes / span
     for s in steps:
-        x = x0 + (s.minute - day_start) / span * width
+        x = x0 + (s.minute - day_start) % 1440 / span * width
         when = _clock(s.minute)
         if s.observed is not None:
             parts.append(f'<rect x="{x:.1f}" y="{rows[0][1]}" width="{w:.2f}" height="{lane}" '
@@ -86,25 +106,29 @@ def timeline(steps: Sequence[TimelineStep], *, day_start: int, step_minutes: int
                          f'fill="{colour.get(s.predicted, UNKNOWN)}" fill-opacity="{0.25 + 0.75 * s.probability:.2f}"'
                          f'{mark}><title>{when} predicted {escape(s.predicted)} '
                          f'(p = {s.probability:.2f}){" - missed" if miss else ""}</title></rect>')
-    parts += _hour_ticks(x0, width, day_start, span, 4, 2 * lane + 24)
+    bottom = top + 2 * lane + 16
+    parts += _hour_ticks(x0, width, day_start, span, top - 4, bottom, layout.tick_minutes)
+    if now is not None:
+        x = x0 + min((now - day_start) % 1440, span) / span * width
+        parts.append(f'<g class="now"><line x1="{x:.1f}" y1="{top - 4}" x2="{x:.1f}" y2="{bottom - 8}"/>'
+                     f'<text x="{x:.1f}" y="{top - 7}" text-anchor="middle">now {_clock(now)}</text></g>')
     parts.append("</svg>")
     return "".join(parts)
 
 
-def actogram(rows: Sequence[tuple[str, Sequence[str | None]]], *, day_start: int, step_minutes: int,
-             colour: Mapping[str, str]) -> str:
-    """The routine at a glance: one row per day (most recent at the top), time of day across,
-    coloured by activity (runs of one activity drawn as one bar)."""
-    width, x0, h = 900.0, 78.0, 13.0
-    span = 1440
+def actogram(rows: Sequence[tuple[str, Sequence[str | None]]], *, day_start: int, step_minutes: int, span: int,
+             colour: Mapping[str, str], layout: Layout = WIDE) -> str:
+    """The routine at a glance: one row per day (most recent at the top), time of day across the
+    household's day, coloured by activity (runs of one activity drawn as one bar)."""
+    width, x0, h = layout.width, layout.x0, 13.0
     top = 4.0
-    parts = [f'<svg viewBox="0 0 {x0 + width + 24:.0f} {top + h * len(rows) + 24:.0f}" '
+    parts = [f'<svg viewBox="0 0 {x0 + width + 16:.0f} {top + h * len(rows) + 24:.0f}" '
              'class="chart" role="img" aria-label="actogram: activity by day and time of day">']
     w = width * step_minutes / span
     for r, (label, values) in enumerate(rows):
         y = top + r * h
-        parts.append(f'<text x="{x0 - 8}" y="{y + h - 3}" class="tick" text-anchor="end">{escape(label)}</text>')
-        for start, length, value in _runs(values):
+        parts.append(f'<text x="{x0 - 6}" y="{y + h - 3}" class="tick" text-anchor="end">{escape(label)}</text>')
+        for start, length, value in _runs(values[:span // step_minutes]):
             if value is None:
                 continue
             x = x0 + start * w
@@ -112,14 +136,14 @@ def actogram(rows: Sequence[tuple[str, Sequence[str | None]]], *, day_start: int
             parts.append(f'<rect x="{x:.1f}" y="{y:.1f}" width="{length * w:.2f}" height="{h - 1}" '
                          f'fill="{colour.get(value, UNKNOWN)}"><title>{escape(label)} {when}'
                          f' {escape(value)}</title></rect>')
-    parts += _hour_ticks(x0, width, day_start, span, top, top + h * len(rows) + 4)
+    parts += _hour_ticks(x0, width, day_start, span, top, top + h * len(rows) + 4, layout.tick_minutes)
     parts.append("</svg>")
     return "".join(parts)
 
 
-def score_chart(days: Sequence[tuple[str, float | None, float | None, float | None]]) -> str:
+def score_chart(days: Sequence[tuple[str, float | None, float | None, float | None]], layout: Layout = WIDE) -> str:
     """Per day (oldest left): activity accuracy, fetch precision and recall, 0 to 1."""
-    width, height, x0, y0 = 900.0, 160.0, 40.0, 8.0
+    width, height, x0, y0 = layout.width + layout.x0 - 40.0, 160.0, 40.0, 8.0
     n = max(len(days), 1)
     parts = [f'<svg viewBox="0 0 {x0 + width + 10:.0f} {y0 + height + 26:.0f}" '
              'class="chart" role="img" aria-label="online scores per day">']
@@ -140,7 +164,7 @@ def score_chart(days: Sequence[tuple[str, float | None, float | None, float | No
         for px, py, day, value in points:
             parts.append(f'<circle class="score {name}" cx="{px:.1f}" cy="{py:.1f}" r="3"><title>{escape(day)} {name} '
                          f'{value:.2f}</title></circle>')
-    step = max(1, n // 7)
+    step = max(1, n // round(width / 120))
     for i in range(0, len(days), step):
         parts.append(f'<text x="{x(i):.1f}" y="{y0 + height + 18}" class="tick" text-anchor="middle">'
                      f'{escape(days[i][0][5:])}</text>')
@@ -161,4 +185,5 @@ def step_bars(probabilities: Sequence[float], colour: str = "#0072B2") -> str:
     return "".join(parts)
 
 
-__all__ = ["TimelineStep", "actogram", "colours", "score_chart", "step_bars", "timeline"]
+__all__ = ["NARROW", "WIDE", "Layout", "TimelineStep", "actogram", "colours", "day_span", "score_chart", "step_bars",
+           "timeline"]

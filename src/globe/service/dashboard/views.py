@@ -7,6 +7,7 @@ from a prediction (a prediction records the fetch it decides)."""
 from __future__ import annotations
 
 import datetime as dt
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -34,6 +35,7 @@ def environment() -> jinja2.Environment:
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
     env.filters["pct"] = lambda v: "–" if v is None else f"{100 * v:.0f}%"
     env.filters["prob"] = lambda v: "–" if v is None else f"{v:.2f}"
+    env.filters["words"] = lambda label: str(label).replace("_", " ")  # brushing_teeth -> brushing teeth
     return env
 
 
@@ -94,26 +96,29 @@ def today(registry: Registry, name: str) -> dict[str, Any]:
     """The "today" page: status, timeline, next hour, fetches with feedback, scores."""
     with registry.locked(name) as a:
         colour = _colours(a)
-        steps = []
+        steps, recent = [], []
         for i, (minute, observed, seen) in enumerate(a.today()):
-            if not seen:
-                continue
             predicted = a.step_predictions.get(i)
-            steps.append(svg.TimelineStep(minute, observed, predicted[0] if predicted else None,
-                                          predicted[1] if predicted else None))
+            step = svg.TimelineStep(minute, observed if seen else None, predicted[0] if predicted else None,
+                                    predicted[1] if predicted else None)
+            if seen:
+                steps.append(step)
+            recent.append({"time": _clock(minute), "seen": seen, "observed": step.observed,
+                           "predicted": step.predicted, "probability": step.probability,
+                           "hit": None if step.predicted is None or step.observed is None
+                           else step.predicted == step.observed})
         top = a.next_activity()
-        recent = [{"time": _clock(s.minute), "observed": s.observed, "predicted": s.predicted,
-                   "probability": s.probability,
-                   "hit": None if s.predicted is None or s.observed is None else s.predicted == s.observed}
-                  for s in steps[-RECENT_STEPS:]][::-1]
         scores = online_scores(registry.store, name, a)
         grid = a.grid
+        chart = {"day_start": grid.day_start_minute, "step_minutes": grid.step_minutes,
+                 "span": svg.day_span(grid.steps, grid.step_minutes), "colour": colour,
+                 "now": grid.minute(a.step) if a.step is not None else None}
         return {
             **status(registry, name, a),
-            "timeline": svg.timeline(steps, day_start=grid.day_start_minute, step_minutes=grid.step_minutes,
-                                     colour=colour),
+            "timeline": {n: svg.timeline(steps, layout=layout, **chart)  # type: ignore[arg-type]
+                         for n, layout in (("wide", svg.WIDE), ("narrow", svg.NARROW))},
+            "recent": recent[-RECENT_STEPS:][::-1],
             "legend": _legend(colour, [s.observed for s in steps] + [s.predicted for s in steps]),
-            "recent": recent,
             "next_activity": top,
             "next_hour": next_hour(registry, a),
             "fetches": fetches_today(registry, name, a),
@@ -145,10 +150,15 @@ def next_hour(registry: Registry, a: HouseholdSession) -> list[dict[str, Any]]:
         peak = max(range(len(probs)), key=probs.__getitem__)
         useful = sum(probs[max(lo - 1, 0):hi])
         out.append({"object": obj, "probability": min(total, 1.0), "when": _clock(now + (peak + 1) * step)
-                    if now is not None else "–", "to": target, "bars": svg.step_bars(probs),
+                    if now is not None else "–", "to": _place(a, target), "to_node": target,
+                    "bars": svg.step_bars(probs),
                     "fetch": obj in fetching if decided is not None else useful > policy.threshold})
     out.sort(key=lambda r: -r["probability"])  # type: ignore[operator]
     return out[:8]
+
+
+def _place(a: HouseholdSession, label: str | None) -> str | None:
+    return None if label is None else a.household.place_name(label)
 
 
 def fetches_today(registry: Registry, name: str, a: HouseholdSession) -> list[dict[str, Any]]:
@@ -172,7 +182,7 @@ def fetches_today(registry: Registry, name: str, a: HouseholdSession) -> list[di
                 break
         # f.step is the clock step of today it was decided after
         when = _clock(a.grid.minute(f.step)) if a.step is not None and 0 <= f.step <= a.step else "–"
-        out.append({"time": when, "object": f.object, "to": f.to_location,
+        out.append({"time": when, "object": f.object, "to": _place(a, f.to_location), "to_node": f.to_location,
                     "probability": f.probability, "shadow": f.shadow, "feedback": said})
     return out
 
@@ -181,21 +191,41 @@ def routine(registry: Registry, name: str) -> dict[str, Any]:
     """The "routine" page: the actogram of the last days and the online scores per day."""
     with registry.locked(name) as a:
         colour = _colours(a)
-        learned = list(getattr(a.activity_model, "training_data_", ()))[-(ACTOGRAM_DAYS - 1):]
+        sequences = list(getattr(a.activity_model, "training_data_", ()))
+        names = [_day_label(n) for n in a.learned_days[-len(sequences):]] if sequences else []
+        names = [""] * (len(sequences) - len(names)) + names
         rows: list[tuple[str, list[str | None]]] = []
         if a.today():
             rows.append(("today", [x for _, x, _ in a.today()]))
-        rows += [(f"-{i + 1} d", list(seq)) for i, seq in enumerate(reversed(learned))]
+        rows += [(label, list(seq)) for label, seq in zip(reversed(names), reversed(sequences))]
+        rows = rows[:ACTOGRAM_DAYS]
         scores: OnlineScores = online_scores(registry.store, name, a)
+        grid = a.grid
+        span = svg.day_span(grid.steps, grid.step_minutes)
+        per_day = [(d.day, d.accuracy, d.precision, d.recall) for d in scores.days]
         return {
             **status(registry, name, a),
-            "actogram": svg.actogram(rows, day_start=a.grid.day_start_minute, step_minutes=a.grid.step_minutes,
-                                     colour=colour),
+            "actogram": {n: svg.actogram(rows, day_start=grid.day_start_minute, step_minutes=grid.step_minutes,
+                                         span=span, colour=colour, layout=layout)
+                         for n, layout in (("wide", svg.WIDE), ("narrow", svg.NARROW))},
             "legend": _legend(colour, [x for _, seq in rows for x in seq]),
             "actogram_days": len(rows),
-            "score_chart": svg.score_chart([(d.day, d.accuracy, d.precision, d.recall) for d in scores.days]),
+            "score_chart": {n: svg.score_chart(per_day, layout) for n, layout in (("wide", svg.WIDE),
+                                                                                 ("narrow", svg.NARROW))},
             "scores": scores,
         }
+
+
+_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
+
+
+def _day_label(name: str) -> str:
+    """A learned day's row label: its date where its name holds one (an imported day of another
+    year is not "yesterday"), else its file name."""
+    found = _DATE.search(name)
+    if found:
+        return found.group()
+    return name.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".csv")[:12]
 
 
 def settings(registry: Registry, name: str) -> dict[str, Any]:

@@ -2,7 +2,8 @@
 
 Out: each household is published as a Home Assistant device (:mod:`.payloads`) when the broker
 connects and whenever Home Assistant says ``online`` on its status topic; its state is published
-(retained) after each observation applied, whoever sent it (:meth:`Registry.subscribe`).
+(retained) after each observation applied, whoever sent it (:meth:`Registry.subscribe`), and after
+a change of shadow mode; each fetch due is one (unretained) message on its fetch topic, sent once.
 
 In: the states of the entities mapped in ``[mqtt.households]`` (:mod:`.statestream`) become one
 observation per step of the household, submitted through :meth:`Registry.observe` like a robot's
@@ -55,6 +56,7 @@ class MqttBridge:
         self.config = config.mqtt
         self.host, self.port, tls = broker_address(self.config.broker)  # checked with the configuration
         self.book = StateBook(self.config, config.service.max_label_length)
+        self._fetched: dict[str, tuple[str, int]] = {}  # per household, the step whose fetches were sent (publisher)
         self._lock = threading.Lock()  # guards the fields below
         self._connected = False
         self._ha_online = True  # until Home Assistant says otherwise on its status topic
@@ -233,9 +235,15 @@ class MqttBridge:
             self._announced.add(name)
         self._publish(payloads.state_topic(self.config, name), payloads.state_payload(prediction))
         self._count("published")
+        events = payloads.fetch_events(prediction)
+        if events and self._fetched.get(name) != (prediction.day, prediction.step):  # each fetch once
+            self._fetched[name] = (prediction.day, prediction.step)
+            for event in events:
+                self.client.publish(payloads.fetch_topic(self.config, name), event, qos=QOS, retain=False)
 
     def _remove(self, name: str) -> None:
         """An empty retained config removes the device from Home Assistant (and its state)."""
+        self._fetched.pop(name, None)
         self._publish(payloads.discovery_topic(self.config, name), "")
         self._publish(payloads.state_topic(self.config, name), "")
         self._announced.discard(name)

@@ -6,7 +6,10 @@ object per device: a ``device`` block (``identifiers`` required), an ``origin`` 
 required) and ``components``, each with its ``platform`` and a ``unique_id``. Full key names are
 used, not their abbreviations, so the payloads read like the documentation. Every entity reads
 the household's one retained state message (the prediction as ``GET .../prediction`` returns it)
-through a value template, and is available while GLOBE's status topic says ``online``."""
+through a value template, and is available while GLOBE's status topic says ``online``. Each fetch
+the robot should make is also one message on the household's fetch topic, read by an event entity:
+an automation triggered by it runs once per fetch, also when two fetches follow each other (a state
+that stays ``on`` would trigger only the first)."""
 
 from __future__ import annotations
 
@@ -40,6 +43,11 @@ def availability_topic(config: MqttConfig) -> str:
 
 def state_topic(config: MqttConfig, household: str) -> str:
     return f"{config.topic_prefix}/{household}/state"
+
+
+def fetch_topic(config: MqttConfig, household: str) -> str:
+    """One message per fetch to make (never retained: a fetch is an event, not a state)."""
+    return f"{config.topic_prefix}/{household}/fetch"
 
 
 def discovery_topic(config: MqttConfig, household: str) -> str:
@@ -76,8 +84,10 @@ _COMPONENTS: dict[str, tuple[str, str, str, dict[str, Any]]] = {
                "json_attributes_template": '{{ {"object": value_json.fetch_object, "to": value_json.fetch_to, '
                                            '"probability": value_json.fetch_probability} | tojson }}'}),
 }
-COMPONENTS = tuple(_COMPONENTS)
-"""The component keys of a household's device (``fetch`` is the binary sensor the robot acts on)."""
+FETCH_EVENT = "fetch_request"
+COMPONENTS = (*_COMPONENTS, FETCH_EVENT)
+"""The component keys of a household's device (``fetch_request``, the event an automation sends the
+robot by; ``fetch``, the binary sensor saying a fetch is due now)."""
 
 
 def discovery_payload(config: MqttConfig, household: str) -> dict[str, Any]:
@@ -91,6 +101,9 @@ def discovery_payload(config: MqttConfig, household: str) -> dict[str, Any]:
         if "json_attributes_template" in extra:
             component["json_attributes_topic"] = topic
         components[key] = component
+    components[FETCH_EVENT] = {"platform": "event", "name": "Fetch request", "unique_id": f"{ident}_{FETCH_EVENT}",
+                               "state_topic": fetch_topic(config, household), "event_types": ["fetch"],
+                               "icon": "mdi:robot-excited"}
     return {
         "device": {"identifiers": [ident], "name": f"GLOBE {household}", "manufacturer": "GLOBE",
                    "model": "Household assistant", "sw_version": __version__},
@@ -107,9 +120,18 @@ def state_payload(prediction: Prediction) -> str:
     return prediction.model_dump_json()
 
 
+def fetch_events(prediction: Prediction) -> list[str]:
+    """The fetch topic's messages for a prediction: one per fetch when the robot is to act (none in
+    shadow mode or while learning). Its keys besides ``event_type`` are the event's attributes."""
+    if not prediction.act:
+        return []
+    return [encode({"event_type": "fetch", "object": f.object, "to": f.to, "probability": f.probability,
+                    "day": prediction.day, "step": prediction.step}) for f in prediction.fetches]
+
+
 def encode(payload: dict[str, Any]) -> str:
     return json.dumps(payload, separators=(",", ":"), ensure_ascii=False)
 
 
-__all__ = ["COMPONENTS", "ONLINE", "OFFLINE", "object_id", "availability_topic", "state_topic", "discovery_topic",
-           "discovery_payload", "state_payload", "encode"]
+__all__ = ["COMPONENTS", "ONLINE", "OFFLINE", "object_id", "availability_topic", "state_topic", "fetch_topic",
+           "discovery_topic", "discovery_payload", "state_payload", "fetch_events", "encode", "FETCH_EVENT"]

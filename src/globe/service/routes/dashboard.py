@@ -230,6 +230,9 @@ async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDe
         return failure(403, "Admins only", "only an admin token switches shadow mode", **v.context(registry))
     if fields.get("shadow") not in ("on", "off"):
         return failure(422, "Bad form", "shadow must be 'on' or 'off'", **v.context(registry))
+    if fields["shadow"] == "off" and fields.get("confirm") != "yes":  # letting the robot act is never one stray click
+        return failure(422, "Not confirmed", "tick the box saying the scores were looked at, then switch shadow mode "
+                       "off", **v.context(registry))
     try:
         await _in_thread(registry.set_shadow, name, fields["shadow"] == "on")
     except GlobeError as err:
