@@ -25,17 +25,19 @@ def pytest_report_header(config):
     return f"GLOBE_TEST_SEED={seed}"
 
 
-@pytest.fixture(scope="session", autouse=True)
-def _nothing_written_where_the_tests_run():
+_WRITTEN_BY_DEFAULT = ("globe.sqlite3", ".globe-cache")
+
+
+@pytest.fixture(autouse=True)
+def _nothing_written_where_the_tests_run(request):
     """The tests use their own folders: a default file (the service's database, the LLM answer
-    cache) appearing in the folder they run from means one of them did not."""
+    cache) appearing in the folder they run from means this test did not."""
     from pathlib import Path
 
-    names = ("globe.sqlite3", ".globe-cache")
-    before = {n for n in names if Path(n).exists()}
+    before = {n for n in _WRITTEN_BY_DEFAULT if Path(n).exists()}
     yield
-    appeared = [n for n in names if Path(n).exists() and n not in before]
-    assert not appeared, f"a test wrote {appeared} into {Path.cwd()} instead of its own folder"
+    appeared = [n for n in _WRITTEN_BY_DEFAULT if Path(n).exists() and n not in before]
+    assert not appeared, f"{request.node.nodeid} wrote {appeared} into {Path.cwd()} instead of its own folder"
 
 
 @pytest.fixture(scope="session")

@@ -61,7 +61,8 @@ def test_every_field_is_covered():
 
 
 def _built(tmp_path, section: str, table: dict, extra_env: dict) -> dict:
-    env = dict(os.environ, **extra_env, **{f"GLOBE_{section.upper()}__{k.upper()}": v for k, (v, *_) in table.items()})
+    env = dict(os.environ, **extra_env, **{f"GLOBE_{section.upper()}__{k.upper()}": v for k, (v, *_) in table.items()},
+               GLOBE_LLM__CACHE_DIR=str(tmp_path / "cache"))
     res = subprocess.run([sys.executable, "-m", "globe", "evaluate", "--methods", "globe", "--households", "B",
                           "--out", str(tmp_path)], capture_output=True, text=True, env=env, timeout=900)
     assert res.returncode == 0, res.stderr
