@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+from datetime import date
 from pathlib import Path
 from typing import Annotated
 
@@ -21,7 +23,7 @@ from globe.cli.common import (
 )
 from globe.data.csv_logs import household_step
 from globe.data.importers import GridOptions, ImportResult, import_casas, import_home_assistant, import_kasteren
-from globe.data.importers.grid import DEFAULT_STEP_MINUTES, DEFAULT_TEST_FRACTION
+from globe.data.importers.options import DEFAULT_STEP_MINUTES, DEFAULT_TEST_FRACTION, USE_MODES
 from globe.data.importers.text import parse_clock
 from globe.sequences.runs import activity_runs
 
@@ -76,10 +78,36 @@ TestFractionOption = Annotated[float | None, typer.Option(
                             "at least one when two or more days are kept)")]
 OverlapsOption = Annotated[str, typer.Option(
     "--overlaps", help="overlapping annotations: 'error', or 'latest' (the one that began last wins while it lasts)")]
+UseOption = Annotated[str, typer.Option(
+    "--use", help="'while-on': an object is in use in every step its sensor is on; 'start': only in the step a use "
+                  "begins in (either way one use per switch-on)")]
+MaxUseOption = Annotated[float | None, typer.Option(
+    "--max-use-minutes", help="a use longer than this is a sensor left on, cut to its start and listed in "
+                              "import.json (default: by each object's usual uses, see docs/your-home.md)")]
+TestFromOption = Annotated[str | None, typer.Option(
+    "--test-from", help="YYYY-MM-DD: the kept days from this date on are the test days (instead of --test-days or "
+                        "--test-fraction)")]
+UntilOption = Annotated[str | None, typer.Option(
+    "--until", help="YYYY-MM-DD: leave out the days after this date (the date itself is kept)")]
+SkipBadLinesOption = Annotated[bool, typer.Option(
+    "--skip-bad-lines", help="leave out lines that break a rule (corrupt values, times out of order, an annotation "
+                             "that ends before it begins), listed in import.json, instead of stopping at the first")]
+
+
+def _date(value: str | None, name: str) -> date | None:
+    if value is None:
+        return None
+    try:
+        if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", value):
+            raise ValueError
+        return date.fromisoformat(value)
+    except ValueError:
+        raise typer.BadParameter(f"{value!r} is not a date YYYY-MM-DD", param_hint=f"'{name}'") from None
 
 
 def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_fraction: float | None,
-          overlaps: str) -> GridOptions:
+          overlaps: str, use: str = "while-on", max_use_minutes: float | None = None, test_from: str | None = None,
+          until: str | None = None) -> GridOptions:
     """The grid options from the command line (parsing only; GridOptions.check judges them)."""
     minutes = {}
     for name, value in (("--day-start", day_start), ("--day-end", day_end)):
@@ -89,12 +117,22 @@ def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_f
             raise typer.BadParameter(str(err), param_hint=f"'{name}'") from None
     if test_days is not None and test_fraction is not None:
         raise typer.BadParameter("give --test-days or --test-fraction, not both", param_hint="'--test-days'")
+    if test_from is not None and (test_days is not None or test_fraction is not None):
+        raise typer.BadParameter("give --test-from, --test-days or --test-fraction, not two",
+                                 param_hint="'--test-from'")
     if overlaps not in ("error", "latest"):
         raise typer.BadParameter(f"{overlaps!r} is not 'error' or 'latest'", param_hint="'--overlaps'")
+    mode = next((m for m in USE_MODES if m == use), None)
+    if mode is None:
+        raise typer.BadParameter(f"{use!r} is not 'while-on' or 'start'", param_hint="'--use'")
+    if max_use_minutes is not None and not max_use_minutes > 0:
+        raise typer.BadParameter(f"{max_use_minutes:g} is not more than 0", param_hint="'--max-use-minutes'")
     fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
     return GridOptions(step_minutes=step, day_start_minute=minutes["--day-start"], day_end_minute=minutes["--day-end"],
                        test_days=test_days, test_fraction=fraction,
-                       overlaps="latest" if overlaps == "latest" else "error")
+                       overlaps="latest" if overlaps == "latest" else "error", use=mode,
+                       max_use_minutes=max_use_minutes, test_from=_date(test_from, "--test-from"),
+                       until=_date(until, "--until"))
 
 
 def _summary(result: ImportResult) -> None:
@@ -106,7 +144,13 @@ def _summary(result: ImportResult) -> None:
         f"({objects}; activities: {', '.join(result.activities)})")
     if result.dropped_days:
         say(f"left out {count(result.dropped_days, 'day')} (unannotated, only carrying an annotation over from the day "
-            f"before, or not covered by the log from first to last row): see {result.report}")
+            f"before, not covered by the log from first to last row, or after --until): see {result.report}")
+    if result.bad_lines:
+        say(f"left out {count(result.bad_lines, 'bad line')} (--skip-bad-lines), the first: {result.first_bad_line}; "
+            f"all in {result.report} (bad_lines)")
+    if result.left_on:
+        say(f"cut {count(result.left_on, 'use')} far longer than its object's usual to its start (a sensor left on?): "
+            f"see {result.report} (left_on)")
     for note in result.notes:
         say(f"note: {note}")
 
@@ -122,10 +166,11 @@ def import_casas_cmd(
     test_days: TestDaysOption = None,
     test_fraction: TestFractionOption = None,
     overlaps: OverlapsOption = "error",
-    skip_bad_lines: Annotated[bool, typer.Option(
-        "--skip-bad-lines", help="leave out lines that break a rule (corrupt values, events out of order, an "
-                                 "activity that ends without beginning), listed in import.json, instead of stopping "
-                                 "at the first")] = False,
+    use: UseOption = "while-on",
+    max_use_minutes: MaxUseOption = None,
+    test_from: TestFromOption = None,
+    until: UntilOption = None,
+    skip_bad_lines: SkipBadLinesOption = False,
     timezone: Annotated[str | None, typer.Option("--timezone", help="the IANA time zone of the log's local times, "
                                                                     "so that the hour logged twice when the clocks go "
                                                                     "back is read in order")] = None,
@@ -134,7 +179,8 @@ def import_casas_cmd(
                                                                     "other residents' are left out)")] = None,
 ) -> None:
     """A CASAS event log (without --objects, item sensors I... are the objects)."""
-    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
+    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps, use, max_use_minutes, test_from,
+                    until)
     _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects,
                           skip_bad_lines=skip_bad_lines, timezone=timezone, resident=resident))
 
@@ -149,6 +195,9 @@ def import_kasteren_cmd(
                                                                            "numeric sensor ids")] = None,
     activity_list: Annotated[Path | None, typer.Option("--activity-list", help="CSV id,activity for numeric "
                                                                                "activity ids")] = None,
+    allow_numeric_labels: Annotated[bool, typer.Option(
+        "--allow-numeric-labels", help="keep numbered activities that no list names as the activities ('1', '10', "
+                                       "...) instead of refusing them")] = False,
     objects: ObjectsOption = None,
     step: StepOption = DEFAULT_STEP_MINUTES,
     day_start: DayStartOption = "06:00",
@@ -156,14 +205,21 @@ def import_kasteren_cmd(
     test_days: TestDaysOption = None,
     test_fraction: TestFractionOption = None,
     overlaps: OverlapsOption = "error",
+    use: UseOption = "while-on",
+    max_use_minutes: MaxUseOption = None,
+    test_from: TestFromOption = None,
+    until: UntilOption = None,
+    skip_bad_lines: SkipBadLinesOption = False,
 ) -> None:
     """A van Kasteren or Ordóñez interval log (without --objects, contact and electric sensors are the objects).
 
-    Doors are left out; the report lists every sensor and why.
+    Doors are left out; the report lists every sensor and why. Files with their own id lists need no lists.
     """
-    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
+    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps, use, max_use_minutes, test_from,
+                    until)
     _summary(import_kasteren(sensors_file=sensors, activities_file=activities, dest=dest, options=options,
-                             objects=objects, sensor_list=sensor_list, activity_list=activity_list))
+                             objects=objects, sensor_list=sensor_list, activity_list=activity_list,
+                             skip_bad_lines=skip_bad_lines, allow_numeric_labels=allow_numeric_labels))
 
 
 @import_app.command("home-assistant")
@@ -181,8 +237,14 @@ def import_home_assistant_cmd(
     test_days: TestDaysOption = None,
     test_fraction: TestFractionOption = None,
     overlaps: OverlapsOption = "error",
+    use: UseOption = "while-on",
+    max_use_minutes: MaxUseOption = None,
+    test_from: TestFromOption = None,
+    until: UntilOption = None,
+    skip_bad_lines: SkipBadLinesOption = False,
 ) -> None:
     """A Home Assistant history export (objects only from --objects)."""
-    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps)
+    options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps, use, max_use_minutes, test_from,
+                    until)
     _summary(import_home_assistant(history=history, dest=dest, activity_entity=activity_entity, options=options,
-                                   objects=objects, timezone=timezone))
+                                   objects=objects, timezone=timezone, skip_bad_lines=skip_bad_lines))

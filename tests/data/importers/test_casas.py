@@ -110,7 +110,8 @@ def test_report_says_what_became_of_every_sensor_annotation_and_day(tmp_path):
 
 def test_a_mapping_chooses_the_objects_and_their_rooms(tmp_path):
     mapping = _write(tmp_path, "sensor,object,room\nD001,front_door,hall\nI002,pot,kitchen\n", "map.csv")
-    _, home = _import(tmp_path, objects=mapping)
+    # the door's one activation, open for two days, would be cut as left on (over a day): no limit here
+    _, home = _import(tmp_path, objects=mapping, options=GridOptions(max_use_minutes=10_000))
     assert home.objects == ("front_door", "pot")  # the mapping's order; I001 is not mapped, so left out
     place = {n.cls: n.start_location for n in home.nodes if n.movable}
     assert place == {"front_door": "hall#1", "pot": "kitchen#3"}
@@ -231,10 +232,10 @@ def test_skip_bad_lines_leaves_out_exactly_the_bad_lines_and_lists_them(tmp_path
     sensors = [{k: json.loads((d / "home" / "import.json").read_text())[k] for k in ("objects", "sensors_left_out")}
                for d in (expected_dir, dirty_dir)]
     assert sensors[0] == sensors[1]
-    note = next(n for n in result.notes if "lines left out" in n)
-    assert note.startswith(f"{len(bad) + 1} lines left out")
-    for number in [3, 4, 5, 6, 7, 8, 12, 13, len(dirty)]:
-        assert f"data.txt:{number}:" in note
+    listed = json.loads(result.report.read_text())["bad_lines"]
+    assert result.bad_lines == len(bad) + 1 and result.first_bad_line.startswith(f"{tmp_path / 'dirty'}")
+    assert [r["line"] for r in listed] == [3, 4, 5, 6, 7, 8, 12, 13, len(dirty)]
+    assert all(r["source"].endswith("data.txt") and r["field"] and r["why"] for r in listed)
     with pytest.raises(DataError) as err:
         _import(tmp_path, "\n".join(dirty) + "\n")
     assert err.value.line == 3 and "--skip-bad-lines" in err.value.message
@@ -270,8 +271,8 @@ def test_a_begin_whose_end_was_lost_is_left_out_with_skip_bad_lines(tmp_path):
     first, second = home.train[0], home.test[0]
     assert _rows(first, {360, 420, 1440}) == {360: "idle", 420: "Cook", 1440: "Sleeping"}
     assert second.activities[0] == "Sleeping"  # 06:00 of the second day: the night that did end
-    note = next(n for n in result.notes if "lines left out" in n)
-    assert "data.txt:1:" in note and "end was lost" in note
+    [lost] = json.loads(result.report.read_text())["bad_lines"]
+    assert lost["line"] == 1 and "end was lost" in lost["why"] and result.bad_lines == 1
 
 
 # US daylight saving time ended on 2010-11-07 at 02:00: 01:00-02:00 was logged twice.

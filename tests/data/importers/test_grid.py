@@ -1,14 +1,17 @@
 """The rules every importer shares (days, steps, the split, the folder), on logs built in code."""
 
 import json
-from datetime import datetime, timedelta
+from datetime import date, datetime, timedelta
 
 import pytest
 
 from globe.data.csv_logs import load_household
 from globe.data.importers import grid
-from globe.data.importers.grid import Activation, Annotation, GridOptions, SensorLog, write_import
+from globe.data.importers.grid import write_import
 from globe.data.importers.objects import ObjectSelection, Sensor
+from globe.data.importers.options import GridOptions
+from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
+from globe.data.importers.uses import USE_RULES, use_limit
 from globe.errors import ConfigError, DataError
 
 START = datetime(2024, 1, 1)
@@ -78,6 +81,12 @@ def test_the_last_days_are_test_days(tmp_path, days, options, test_days):
     ({"test_fraction": 1.0}, "test fraction"),
     ({"test_days": -1}, "0 or more"),
     ({"test_days": 2}, "would leave no training day"),
+    ({"use": "sometimes"}, "use must be 'while-on' or 'start'"),
+    ({"max_use_minutes": 0}, "more than 0 minutes"),
+    ({"test_from": date(2024, 1, 1)}, "--test-from 2024-01-01 leaves no training day"),
+    ({"test_from": date(2024, 1, 3)}, "--test-from 2024-01-03 leaves no test day"),
+    ({"test_from": date(2024, 1, 2), "test_days": 1}, "not both"),
+    ({"test_from": date(2024, 1, 2), "until": date(2024, 1, 1)}, "there would be no test day"),
 ])
 def test_options_are_checked_when_the_import_starts(tmp_path, options, message):
     with pytest.raises(ConfigError, match=message):
@@ -203,3 +212,97 @@ def test_an_import_killed_before_it_cleaned_up_leaves_nothing_behind_the_next(tm
     alive.mkdir()
     _write(tmp_path, 2)
     assert not dead.exists() and alive.exists() and (tmp_path / "home" / "nodes.csv").is_file()
+
+
+def _clock(day: int, hhmm: str) -> datetime:
+    hours, minutes = hhmm.split(":")
+    return START + timedelta(days=day, hours=int(hours), minutes=int(minutes))
+
+
+def _in_use(day) -> list[int]:
+    return [m for m, row in zip(day.minutes, day.locations) if row[0].startswith("in_use#")]
+
+
+def _departures(day) -> int:
+    """Moves into the in_use place: what the evaluation counts as uses."""
+    places = [row[0] for row in day.locations]
+    return sum(a.startswith("in_use#") and not b.startswith("in_use#") for b, a in zip(places, places[1:]))
+
+
+@pytest.mark.parametrize("use, steps", [
+    ("while-on", [420, 430, 440, 540, 550, 660, 670]),
+    ("start", [420, 540, 660, 670]),
+])
+def test_a_use_is_in_use_while_on_or_at_its_start_only(tmp_path, use, steps):
+    """On 07:05-07:25; on 09:02-09:12 and again 09:12-09:14 (never off between: one use); a firing
+    at 11:00 and a use 11:10-11:11. Four uses; the last two begin in consecutive steps, which the
+    grid can only show as one stay in use, so either mode makes three departures."""
+    sensor_log, selection = _log(1)
+    spans = [("07:05", "07:25"), ("09:02", "09:12"), ("09:12", "09:14"), ("11:00", "11:00"), ("11:10", "11:11")]
+    sensor_log.activations["c1"] = [Activation(_clock(0, a), _clock(0, b)) for a, b in spans]
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(use=use),
+                          dest=tmp_path / "home")
+    day = load_household(tmp_path, "home").train[0]
+    assert _in_use(day) == steps and _departures(day) == 3
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    assert report["grid"]["use"] == use and report["grid"]["use_rule"] == USE_RULES[use]
+    assert report["objects"][0]["uses"] == 4 and report["objects"][0]["rows_in_use"] == len(steps)
+
+
+@pytest.mark.parametrize("durations, options, minutes", [
+    ([60.0] * 200 + [7 * 86400.0], {}, 60),  # the 99th percentile (1 minute) x 3 is under the floor
+    ([60.0] * 100 + [1e6], {}, 60),  # from 101 on, one stuck activation never sets its own limit
+    ([60.0] * 99 + [1e6], {}, 60),  # 100: the median's rule (1 minute x 10), under the floor
+    ([7200.0] * 150, {}, 360),  # usual uses of two hours: 3 x 2 hours
+    ([7200.0] * 4 + [7 * 86400.0], {}, 1200),  # a few: 10 x the median, 20 hours
+    ([60.0, 7 * 86400.0], {}, 1440),  # two: nothing usual to judge by, a day
+    ([], {}, 1440),
+    ([60.0] * 200, {"max_use_minutes": 30}, 30),
+    ([60.0] * 200, {"step_minutes": 60}, 120),  # two steps at least
+])
+def test_the_limit_of_a_use_follows_the_objects_usual_uses(durations, options, minutes):
+    assert use_limit(durations, GridOptions(**options)) == pytest.approx(minutes * 60)
+
+
+def test_a_sensor_stuck_on_for_seven_days_is_cut_to_a_firing_and_listed(tmp_path):
+    """A kettle used 07:05-07:09 each day is switched on on the third morning and left on for 7
+    days: it is in use in that morning's 07:00 step only, not for a week; its other uses and the
+    cupboard's stay as they were, and the report lists the stuck one with its limit."""
+    sensor_log, selection = _log(12)
+    selection.choose(Sensor("k1", "kettle", "", "kitchen"), source="made-up", line=1)
+    stuck = Activation(_clock(2, "07:05"), _clock(9, "07:05"))
+    sensor_log.activations["k1"] = [Activation(_clock(d, "07:05"), _clock(d, "07:09")) for d in (0, 1, 9, 10, 11)]
+    sensor_log.activations["k1"].insert(2, stuck)
+    sensor_log.events["k1"] += 6
+    result = write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(test_days=0),
+                          dest=tmp_path / "home")
+    home = load_household(tmp_path, "home")
+    assert home.objects == ("cupboard", "kettle")
+    for i, day in enumerate(home.train):
+        cupboard = [m for m, row in zip(day.minutes, day.locations) if row[0].startswith("in_use#")]
+        kettle = [m for m, row in zip(day.minutes, day.locations) if row[1].startswith("in_use#")]
+        assert cupboard == [420]
+        assert kettle == ([] if 3 <= i <= 8 else [420]), day.name
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    assert report["left_on"] == [{"object": "kettle", "sensor": "k1", "start": "2024-01-03 07:05:00",
+                                  "end": "2024-01-10 07:05:00", "minutes": 10080.0, "limit_minutes": 60.0}]
+    kettle = report["objects"][1]
+    assert (kettle["left_on"], kettle["use_limit_minutes"], kettle["uses"]) == (1, 60.0, 6)
+    assert report["objects"][0]["left_on"] == 0 and result.left_on == 1
+
+
+def test_test_from_makes_the_days_from_a_date_on_test_days_and_until_drops_later_ones(tmp_path):
+    result = _write(tmp_path / "a", 10, test_from=date(2024, 1, 8))
+    assert (result.train_days, result.test_days) == (7, 3)
+    home = load_household(tmp_path / "a", "home")
+    assert [d.name for d in home.test] == ["test/2024-01-08", "test/2024-01-09", "test/2024-01-10"]
+    result = _write(tmp_path / "b", 10, until=date(2024, 1, 6))
+    assert (result.train_days, result.test_days) == (5, 1)  # six days kept: the 20 %, at least one
+    report = json.loads(result.report.read_text(encoding="utf-8"))
+    assert report["days"]["test"] == ["2024-01-06"] and report["grid"]["until"] == "2024-01-06"
+    assert report["dropped_days"] == [{"date": f"2024-01-{d:02d}", "why": "after --until 2024-01-06"}
+                                      for d in range(7, 12)]
+    result = _write(tmp_path / "c", 10, until=date(2024, 1, 6), test_from=date(2024, 1, 5))
+    assert (result.train_days, result.test_days) == (4, 2)
+    with pytest.raises(DataError, match="no day to import.*: 6 after --until 2023-12-31"):
+        _write(tmp_path / "d", 5, until=date(2023, 12, 31))

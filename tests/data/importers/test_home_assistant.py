@@ -70,7 +70,8 @@ def test_round_trip_on_the_homes_clock_computed_by_hand(tmp_path):
     assert relax["from"] == ["input_select.activity: relax"] and relax["annotations"] == 1
     left = {s["sensor"] for s in report["sensors_left_out"]}
     assert left == {"binary_sensor.hallway_motion", "sensor.living_room_temperature"}
-    assert report["settings"] == {"activity_entity": "input_select.activity", "timezone": "Europe/Amsterdam"}
+    assert report["settings"] == {"activity_entity": "input_select.activity", "timezone": "Europe/Amsterdam",
+                                  "skip_bad_lines": False}
 
 
 def test_timestamps_without_offset_are_the_homes_clock(tmp_path):
@@ -99,7 +100,7 @@ def _error(tmp_path, history, mapping=MAPPING, **kwargs):
     return info.value, path, map_path
 
 
-@pytest.mark.parametrize("row, field, message", [
+BAD_ROWS = [
     ("Binary Sensor,on,2024-03-01T05:00:00Z", "entity_id", "is not an entity id"),
     ("switch.kettle,on,2024-03-01 25:00:00Z", "last_changed", "not a valid date"),
     ("switch.kettle,on,1709269200", "last_changed", "is not an ISO 8601 timestamp"),
@@ -108,13 +109,32 @@ def _error(tmp_path, history, mapping=MAPPING, **kwargs):
     ("switch.kettle,opening,2024-03-01T05:00:00Z", "state", "is not a state of a mapped binary sensor"),
     ("input_select.activity,a\x07b,2024-03-01T23:00:00Z", "state", "contains a control character"),
     ("switch.kettle,on", "last_changed", "ragged row"),
-])
+]
+
+
+@pytest.mark.parametrize("row, field, message", BAD_ROWS)
 def test_a_bad_row_names_file_line_and_field(tmp_path, row, field, message):
     lines = HISTORY.splitlines()
     lines.insert(15, row)  # after switch.kettle's first row (line 15), so it is line 16
     err, path, _ = _error(tmp_path, "\n".join(lines) + "\n")
     assert (err.source, err.line, err.field) == (str(path), 16, field)
     assert message in err.message
+
+
+def test_skip_bad_lines_leaves_out_every_bad_row_and_lists_it(tmp_path):
+    """Every bad row of the test above at once: with --skip-bad-lines the household is the one the
+    export without them gives, and each row is listed by line and column."""
+    rows = [row for row, _, _ in BAD_ROWS]
+    lines = HISTORY.splitlines()
+    dirty = "\n".join(lines[:15] + rows + lines[15:]) + "\n"
+    (tmp_path / "clean").mkdir()
+    (tmp_path / "dirty").mkdir()
+    _, want = _import(tmp_path / "clean")
+    result, got = _import(tmp_path / "dirty", dirty, skip_bad_lines=True)
+    assert [(d.activities, d.locations) for d in got.train] == [(d.activities, d.locations) for d in want.train]
+    listed = json.loads(result.report.read_text())["bad_lines"]
+    assert [(r["line"], r["field"]) for r in listed] == [(16 + i, field) for i, (_, field, _) in enumerate(BAD_ROWS)]
+    assert result.bad_lines == len(BAD_ROWS) and "is not an entity id" in result.first_bad_line
 
 
 def test_utc_timestamps_need_the_homes_time_zone(tmp_path):
@@ -183,10 +203,14 @@ def test_the_hour_a_clock_change_repeats_never_runs_the_clock_backwards(tmp_path
 
 def test_a_row_years_after_the_others_is_refused_naming_its_line(tmp_path):
     """A row three years after the rest of the export (a corrupt clock) once made three years of
-    days; Home Assistant's importer has no --skip-bad-lines: the row is to be fixed."""
+    days: it is refused naming its line, or left out with --skip-bad-lines."""
     history, mapping = _files(tmp_path, HISTORY + "binary_sensor.fridge_door,on,2027-03-01T05:40:03Z\n")
     with pytest.raises(DataError) as err:
         import_home_assistant(history=history, dest=tmp_path / "home", activity_entity="input_select.activity",
                               objects=mapping, timezone="Europe/Amsterdam")
     assert err.value.line == HISTORY.count("\n") + 1 and err.value.field == "time"
-    assert "far outside the log" in err.value.message and err.value.message.endswith("fix the line")
+    assert "far outside the log" in err.value.message and "--skip-bad-lines" in err.value.message
+    result = import_home_assistant(history=history, dest=tmp_path / "home", activity_entity="input_select.activity",
+                                   objects=mapping, timezone="Europe/Amsterdam", skip_bad_lines=True)
+    far = json.loads(result.report.read_text())["far_outside"]
+    assert [r["line"] for r in far] == [HISTORY.count("\n") + 1] and result.train_days == 1

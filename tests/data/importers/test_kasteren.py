@@ -118,7 +118,8 @@ def test_van_kasteren_round_trip_with_sensor_and_activity_lists(tmp_path):
 
 def test_without_types_no_sensor_is_an_object_and_the_report_says_how_to_map_them(tmp_path):
     f = _files(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT)
-    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home")
+    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home",
+                             allow_numeric_labels=True)
     assert result.objects == () and result.activities == ("17", "4", "idle")
     home = load_household(tmp_path, "home")
     assert home.objects == () and {n.category for n in home.nodes} == {"Home", "Rooms", "InUse"}
@@ -130,7 +131,8 @@ def test_a_mapping_names_van_kasteren_ids(tmp_path):
     f = _files(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT)
     mapping = tmp_path / "map.csv"
     mapping.write_text("sensor,object,room,furniture\n8,fridge,kitchen,\n7,cups,kitchen,cupboard\n", encoding="utf-8")
-    import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home", objects=mapping)
+    import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home", objects=mapping,
+                    allow_numeric_labels=True)
     home = load_household(tmp_path, "home")
     assert home.objects == ("fridge", "cups")
     place = {n.cls: n.start_location for n in home.nodes if n.movable}
@@ -214,3 +216,108 @@ def test_one_object_from_sensors_in_two_places_needs_its_room_in_the_mapping(tmp
     day = load_household(tmp_path, "home").train[0]
     # either sensor marks the use: the cupboard at 06:20, the basin at 07:00
     assert [m for m, row in zip(day.minutes, day.locations) if row[0] == "in_use#2"] == [380, 420]
+
+
+# The files as distributed: their own lists of ids before the records, a Length footer after them.
+DISTRIBUTED_SENSE = """\
+Sensor labels:
+7\t'Cups cupboard'
+8: 'Fridge'
+12,Frontdoor
+[14] "ToiletFlush"
+
+Start time\tEnd time\tID\tVal
+--------------------------------------------------
+""" + KASTEREN_SENSE.split("\n", 1)[1] + "Length: 4\n"
+DISTRIBUTED_ACT = """\
+Activity labels:
+4\t'use toilet'
+17\t'get drink'
+Start time\tEnd time\tID
+""" + KASTEREN_ACT.split("\n", 1)[1] + "  LENGTH : 2 \n"
+
+
+def test_the_files_as_distributed_name_their_own_ids_and_end_with_a_footer(tmp_path):
+    f = _files(tmp_path, sense=DISTRIBUTED_SENSE, act=DISTRIBUTED_ACT)
+    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home")
+    assert result.activities == ("get drink", "idle", "use toilet")
+    report = json.loads((tmp_path / "home" / "import.json").read_text(encoding="utf-8"))
+    names = {s["sensor"] for s in report["sensors_left_out"]}
+    assert names == {"7", "8", "12", "14"} and result.objects == ()  # the lists name, but say no type
+    assert f"{f['sense']}: its own list names 4 sensors (lines 2-5); a list given as an option names the ids it " \
+           "lists instead" in result.notes
+    assert f"{f['sense']}: skipped 3 header lines before the first record" in result.notes
+    assert not any("footer" in n for n in result.notes)  # both footers count their records right
+    assert not report["bad_lines"]
+
+
+def test_an_option_names_the_ids_it_lists_and_the_files_list_the_others(tmp_path):
+    f = _files(tmp_path, sense=DISTRIBUTED_SENSE, act=DISTRIBUTED_ACT, sensors="sensor,name,type,room\n"
+               "7,Cups,reed,kitchen\n8,Fridge,reed,kitchen\n", activities="id,activity\n4,toilet\n")
+    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home",
+                             sensor_list=f["sensors"], activity_list=f["activities"])
+    assert result.objects == ("cups", "fridge") and result.activities == ("get drink", "idle", "toilet")
+    err, f = _error(tmp_path, sense=DISTRIBUTED_SENSE.replace("\t7\t1\n", "\t99\t1\n"), act=DISTRIBUTED_ACT)
+    assert (err.source, err.line, err.field) == (str(f["sense"]), 10, "sensor")
+    assert f"unknown sensor '99' (not in the list at the head of {f['sense']})" in err.message
+
+
+def test_a_footer_that_miscounts_is_noted_and_one_elsewhere_is_a_bad_line(tmp_path):
+    f = _files(tmp_path, sense=DISTRIBUTED_SENSE.replace("Length: 4", "Length: 40"), act=DISTRIBUTED_ACT)
+    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home")
+    assert f"{f['sense']}: its footer says Length: 40, but it holds 4 records (checked, not enforced)" in result.notes
+    lines = DISTRIBUTED_ACT.splitlines()
+    err, f = _error(tmp_path, sense=DISTRIBUTED_SENSE, act="\n".join(lines[:5] + [lines[-1]] + lines[5:]) + "\n")
+    assert (err.source, err.line, err.field) == (str(f["act"]), 6, "start") and "not a record" in err.message
+
+
+@pytest.mark.parametrize("act, line, field, message", [
+    ("Labels:\n4 'use toilet'\n4 'toilet again'\n", 3, "id", "id '4' is listed twice (also line 2)"),
+    ("Labels:\n4 ''\n", 2, "name", "empty"),
+])
+def test_a_bad_line_of_a_files_own_list_names_file_line_and_field(tmp_path, act, line, field, message):
+    err, f = _error(tmp_path, sense=DISTRIBUTED_SENSE, act=act + KASTEREN_ACT)
+    assert (err.source, err.line, err.field) == (str(f["act"]), line, field) and message in err.message
+
+
+def test_numbered_activities_nothing_names_are_refused_unless_allowed(tmp_path):
+    err, f = _error(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT)
+    assert (err.source, err.line, err.field) == (str(f["act"]), 2, "activity")
+    assert "'4' is a number" in err.message and "--activity-list" in err.message
+    assert "--allow-numeric-labels" in err.message
+    result = import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home",
+                             allow_numeric_labels=True)
+    assert result.activities == ("17", "4", "idle")
+    assert json.loads(result.report.read_text())["settings"]["allow_numeric_labels"] is True
+
+
+def test_skip_bad_lines_leaves_out_the_bad_records_of_both_files_and_lists_them(tmp_path):
+    """A corrupt line of every kind in both files: with --skip-bad-lines the household is the one
+    the files without them give, and the report lists each by file and line."""
+    sense = KASTEREN_SENSE.splitlines()
+    act = KASTEREN_ACT.splitlines()
+    at = "25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05"
+    bad_sense = ["25-Fex-2008 06:15:00\t25-Feb-2008 06:15:05\t7\t1", "25-Feb-2008 06:15:00\t25-Feb-2008 06:14:59\t7\t1",
+                 f"{at}\t99\t1", f"{at}\t7\t0", f"{at}\tCups Reed Kitchen", "25-Feb-2008 06:15:00"]
+    bad_act = ["25-Feb-2008 06:20:00\t25-Feb-2008 06:30:00\t5", "25-Feb-2008 06:20:00\t25-Feb-2008 06:10:00\t4"]
+    dirty_sense = sense[:2] + bad_sense + sense[2:]
+    dirty_act = act[:2] + bad_act + act[2:]
+    (tmp_path / "clean").mkdir()
+    (tmp_path / "dirty").mkdir()
+    lists = {"sensors": SENSOR_LIST, "activities": ACTIVITY_LIST}
+    clean = _files(tmp_path / "clean", sense=KASTEREN_SENSE, act=KASTEREN_ACT, **lists)
+    dirty = _files(tmp_path / "dirty", sense="\n".join(dirty_sense) + "\n", act="\n".join(dirty_act) + "\n", **lists)
+    for f, skip in ((clean, False), (dirty, True)):
+        import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=f["sense"].parent / "home",
+                        sensor_list=f["sensors"], activity_list=f["activities"], skip_bad_lines=skip)
+    want, got = (load_household(tmp_path / d, "home") for d in ("clean", "dirty"))
+    assert [(d.activities, d.locations) for d in got.train] == [(d.activities, d.locations) for d in want.train]
+    listed = json.loads((tmp_path / "dirty" / "home" / "import.json").read_text())["bad_lines"]
+    assert [(r["source"], r["line"], r["field"]) for r in listed] == [
+        (str(dirty["sense"]), 3, "start"), (str(dirty["sense"]), 4, "end"), (str(dirty["sense"]), 5, "sensor"),
+        (str(dirty["sense"]), 6, "value"), (str(dirty["sense"]), 7, "sensor"), (str(dirty["sense"]), 8, "start"),
+        (str(dirty["act"]), 3, "activity"), (str(dirty["act"]), 4, "end")]
+    with pytest.raises(DataError) as err:
+        import_kasteren(sensors_file=dirty["sense"], activities_file=dirty["act"], dest=tmp_path / "x",
+                        sensor_list=dirty["sensors"], activity_list=dirty["activities"])
+    assert err.value.line == 3 and not (tmp_path / "x").exists()

@@ -34,8 +34,10 @@ from datetime import datetime, timedelta, tzinfo
 from pathlib import Path
 
 from globe.data.csv_logs import _label
-from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
+from globe.data.importers.grid import ImportResult, write_import
 from globe.data.importers.objects import Choice, ObjectSelection, Sensor, read_mapping
+from globe.data.importers.options import GridOptions
+from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
 from globe.data.importers.text import clocks_went_back, parse_date_time, read_lines, show, time_zone
 from globe.errors import ConfigError, DataError
 
@@ -49,7 +51,6 @@ KINDS = {"M": "motion", "MA": "motion", "D": "door", "T": "temperature", "L": "l
 DEFAULT_RULE = ("CASAS item sensors (I...) are objects, named by their id in lower case; motion (M, MA), door (D), "
                 "temperature (T), light (L, LS), analog (AD) and unknown sensors are not")
 PROGRESS_EVERY = 500_000
-SKIPPED_SHOWN = 20  # lines left out that the report names one by one
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _SENSOR = re.compile(r"[\w.-]+")
 _LETTERS = re.compile(r"[A-Za-z]+")
@@ -88,7 +89,6 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     applied = 0  # annotation lines applied
     opened_at: dict[str, int] = {}  # activity -> ``applied`` after its last line
     previous: tuple[datetime, int] | None = None
-    skipped: list[DataError] = []
     held = 0  # events of a repeated hour held in order
     lost_offs: Counter[str] = Counter()  # object sensor -> ONs that came while it was on
     residents: Counter[str] = Counter()  # annotations named for each resident (with --resident)
@@ -106,9 +106,7 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
                                                          or begun[marker[0]][0].date() != moment.date())
                 _check_annotation(begun, *marker, source, line, lost_ends=lost_end)
         except DataError as err:
-            if not skip_bad_lines:
-                raise
-            skipped.append(err)
+            sensor_log.bad(err)
             continue
         if named is not None:
             residents[named] += begins
@@ -126,15 +124,13 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
             applied += 1
             opened_at[marker[0]] = applied
             if lost is not None:
-                skipped.append(lost)
+                sensor_log.bad(lost)
         if count % PROGRESS_EVERY == 0:
             log.info("%s: %d of %d lines read", source, count, len(lines))
     for activity, (start, line) in list(begun.items()):
         unended = DataError(f"{show(activity)} begins here (at {start}) but never ends (no end of it before the end "
                             "of the file)", source=source, line=line, field="activity")
-        if not skip_bad_lines:
-            raise unended
-        skipped.append(unended)
+        sensor_log.bad(unended)
     for key, start in open_since.items():
         assert sensor_log.last is not None
         sensor_log.activations.setdefault(key, []).append(Activation(start, sensor_log.last))
@@ -155,11 +151,6 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     if held:
         sensor_log.notes.append(f"{held} events logged in the hour repeated when the clocks went back are held at "
                                 "the last time of its first pass")
-    if skipped:
-        shown = "; ".join(str(err) for err in skipped[:SKIPPED_SHOWN])
-        more = f"; and {len(skipped) - SKIPPED_SHOWN} more" if len(skipped) > SKIPPED_SHOWN else ""
-        sensor_log.notes.append(f"{len(skipped)} lines left out (--skip-bad-lines): {shown}{more}")
-        log.warning("%s: %d lines left out (--skip-bad-lines), the first: %s", source, len(skipped), skipped[0])
     log.info("%s: %d events, %d sensors, %d annotations", source, len(lines), len(sensor_log.events),
              len(sensor_log.annotations))
     return sensor_log
@@ -286,4 +277,4 @@ def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = No
         raise ConfigError(f"--resident {resident!r}: name a resident as the log does, e.g. R1")
     sensor_log = read_casas(log_file, selection, skip_bad_lines, zone, resident)
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest,
-                        settings={"timezone": timezone, "resident": resident})
+                        settings={"timezone": timezone, "resident": resident, "skip_bad_lines": skip_bad_lines})

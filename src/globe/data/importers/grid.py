@@ -1,8 +1,9 @@
 """Put a smart home's timestamped record on GLOBE's step grid and write it as a household folder.
 
-Every importer reads its format into one :class:`SensorLog` (annotated activity intervals, and
-when each object sensor fired or was on) and hands it here, so that the rules below hold for
-every format and are written once:
+Every importer reads its format into one :class:`~globe.data.importers.sensor_log.SensorLog`
+(annotated activity intervals, and when each object sensor fired or was on) and hands it here, so
+that the rules below hold for every format and are written once (the options are
+:class:`~globe.data.importers.options.GridOptions`):
 
 - A day of date D has one row at each minute ``day_start + k * step`` up to ``day_end``
   (06:00, 06:10, ..., 24:00 by default, as HOMER+); the row at minute m stands for the step
@@ -13,8 +14,23 @@ every format and are written once:
   the name), so a use can be credited to it (``sequences.alignment = "most"``). Annotations may
   not overlap, unless ``overlaps="latest"``: then the one that began last wins while it lasts
   (ties: the later line).
-- An object is used in a step when one of its sensors fires, or is on, at any time inside the
-  step; its cell is then its room's ``in_use`` place, otherwise its home place.
+- An object's *uses* (:mod:`globe.data.importers.uses`) are its sensors' activations
+  (:class:`~globe.data.importers.sensor_log.Activation`), those that overlap or touch merged into
+  one (the sensor, or another of the object's, never went off between: one use). With
+  ``use="while-on"`` (the default) the object is in use in every step a use reaches (a sensor
+  of it fires, or is on, at any time inside the step); with ``use="start"`` only in the
+  step the use begins in, and home again from the next step on. Either way a use is one move
+  *into* the ``in_use`` place, which is all the evaluation counts (returns home are no uses);
+  ``while-on`` also shows how long the object is busy, which the fetch rule reads (it never
+  fetches an object in use). Uses beginning in consecutive steps read as one stay there: the
+  grid has no step between to go home in. An object's cell is its room's ``in_use`` place in the
+  steps it is in use, its home place in the others.
+- A sensor left on: an activation far longer than its object's usual is cut to a firing (it
+  marks the step it began in only, as with ``use="start"``) and listed in the report
+  (``left_on``). The limit, per object from all of its activations in the log (after the
+  records far outside it are left out), is ``max_use_minutes`` when given, else the rule of
+  :mod:`globe.data.importers.uses` (a multiple of the 99th percentile or the median of the
+  object's activations; never under two steps or an hour: an oven on for a stew is a use).
 - A day with no annotation at all is left out, and so is a day on whose date no annotation
   begins and whose annotations end before its last row (one carried over from the day before is
   all it has: annotating stopped, or the recorder was down; a day one annotation covers whole,
@@ -22,154 +38,49 @@ every format and are written once:
   log's first and last days, usually). All are listed in the report.
 - A kept day whose longest stretch without an event from any sensor is far longer than the
   home's usual (1.5 times the median longest of the days a sensor was heard on, and 6 hours at
-  least) is listed in the report (``silent_stretches``): a recorder outage, or nobody home.
+  least: :mod:`globe.data.importers.report`) is listed in the report (``silent_stretches``): a
+  recorder outage, or nobody home.
+- A line that breaks its format's rules is an error naming its file, line and field, or, with
+  ``skip_bad_lines`` (``--skip-bad-lines``), left out and listed in the report (``bad_lines``):
+  every reader hands such errors to :meth:`~globe.data.importers.sensor_log.SensorLog.bad`.
 - A record far outside the rest of the log (a corrupt timestamp: a year 9999 or 0001, an end
-  dated years late; see :data:`FAR_GAP`) is an error naming its line, or, where the format has
-  ``--skip-bad-lines`` and it is given, left out with the annotations and sensor stretches
-  reaching it and listed in the report (``far_outside``).
-- The last ``test_days`` kept days (default: the last 20 %, at least one when two or more days are
-  kept) are test days; the rest are training days.
+  dated years late; see :data:`~globe.data.importers.sensor_log.FAR_GAP`) is an error naming its
+  line, or, with ``--skip-bad-lines``, left out with the annotations and sensor stretches reaching
+  it and listed in the report (``far_outside``).
+- Days after ``until`` are left out (listed, why: ``after --until``). The kept days from
+  ``test_from`` on are test days; without it, the last ``test_days`` kept days (default: the last
+  20 %, at least one when two or more days are kept); the rest are training days.
 
 The folder is written through :mod:`globe.data.csv_logs` (the writer of the shipped files) into a
-temporary sibling and renamed into place, with ``import.json``: which sensor became which object
-column, which annotation which activity, which days were dropped and why.
+temporary sibling and renamed into place, with ``import.json``
+(:mod:`globe.data.importers.report`): which sensor became which object column, which annotation
+which activity, which days were dropped and why.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import shutil
-from array import array
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import date, datetime, time, timedelta
 from pathlib import Path
-from typing import Any, Literal, Sequence
+from typing import Any, Sequence
 
-import numpy as np
-
-from globe.data.csv_logs import DAY_MINUTES, write_day, write_nodes
-from globe.data.importers.objects import HomeMap, ObjectSelection, ObjectSpec, build_map
+from globe.data.csv_logs import write_day, write_nodes
+from globe.data.importers.objects import HomeMap, ObjectSelection, build_map
+from globe.data.importers.options import GridOptions, Overlaps, clock
+from globe.data.importers.report import REPORT_FILE, LabelStats, build_report, silent_stretches, write_report
+from globe.data.importers.sensor_log import Annotation, SensorLog, keep_to_the_log
 from globe.data.importers.text import show
+from globe.data.importers.uses import ObjectUses, find_uses
 from globe.data.records import Day
 from globe.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
 
-DEFAULT_STEP_MINUTES = 10
-DEFAULT_DAY_START = 360  # 06:00, HOMER+'s first row
-DEFAULT_DAY_END = 1440  # 24:00, HOMER+'s last row
-DEFAULT_TEST_FRACTION = 0.2
 IDLE = "idle"
-REPORT_FILE = "import.json"
-FAR_GAP, STRAY_RECORDS, STRAY_SHARE = timedelta(days=30), 10, 0.01
-"""A log's records split where FAR_GAP passes with none; beside the part holding most of them
-(more than STRAY_RECORDS), a part holding at most STRAY_RECORDS or STRAY_SHARE of them lies far
-outside the log: a corrupt timestamp (a year 9999 or 0001, an end dated years later), refused,
-or left out with --skip-bad-lines. A part holding more is a second stretch of recording: kept."""
-SILENCE_NOTED, SILENCE_FACTOR = timedelta(hours=6), 1.5
-"""A kept day's longest stretch with no event from any sensor is listed in the report (a recorder
-outage, or nobody home; the day is kept) when it lasts this long and this many times the median
-day's longest."""
-_EPOCH = datetime(1970, 1, 1)
-Overlaps = Literal["error", "latest"]
-
-
-@dataclass(frozen=True, slots=True)
-class GridOptions:
-    """How a log is cut into days and steps, and which days are test days."""
-
-    step_minutes: int = DEFAULT_STEP_MINUTES
-    day_start_minute: int = DEFAULT_DAY_START
-    day_end_minute: int = DEFAULT_DAY_END
-    test_days: int | None = None  # None: the last test_fraction of the kept days
-    test_fraction: float = DEFAULT_TEST_FRACTION
-    overlaps: Overlaps = "error"
-
-    def check(self) -> None:
-        """Called where an import starts (not in the constructor, so options stay plain values)."""
-        start, end, step = self.day_start_minute, self.day_end_minute, self.step_minutes
-        if not 0 <= start < end <= DAY_MINUTES:
-            raise ConfigError(f"the day must start before it ends, within 00:00..24:00 (got {_clock(start)} to "
-                              f"{_clock(end)})")
-        if step < 1 or (end - start) % step:
-            raise ConfigError(f"a step of {step} minutes does not divide the day {_clock(start)}..{_clock(end)} "
-                              f"({end - start} minutes); use e.g. 1, 2, 5 or 10")
-        if self.test_days is not None and self.test_days < 0:
-            raise ConfigError(f"test days must be 0 or more (got {self.test_days})")
-        if not 0.0 <= self.test_fraction < 1.0:
-            raise ConfigError(f"the test fraction must be in [0, 1) (got {self.test_fraction})")
-        if self.overlaps not in ("error", "latest"):
-            raise ConfigError(f"overlaps must be 'error' or 'latest' (got {self.overlaps!r})")
-
-    @property
-    def steps(self) -> int:
-        return (self.day_end_minute - self.day_start_minute) // self.step_minutes + 1
-
-
-@dataclass(frozen=True, slots=True)
-class Annotation:
-    """One annotated activity, ``[start, end)``, with the line that began it."""
-
-    activity: str
-    start: datetime
-    end: datetime
-    source: str
-    line: int
-    origin: str  # what the log wrote for it, for the report ('7', 'Sleeping', 'input_select.activity: cooking')
-
-
-@dataclass(frozen=True, slots=True)
-class Activation:
-    """A sensor fired (``start == end``) or was on from ``start`` to ``end``, both included."""
-
-    start: datetime
-    end: datetime
-
-
-@dataclass
-class SensorLog:
-    """What a format's reader found, in local wall-clock time (naive datetimes)."""
-
-    format: str
-    sources: tuple[str, ...]
-    annotations: list[Annotation] = field(default_factory=list)
-    activations: dict[str, list[Activation]] = field(default_factory=dict)  # object sensors only
-    events: Counter[str] = field(default_factory=Counter)  # records per sensor, every sensor
-    first: datetime | None = None  # the log's span: its earliest and latest timestamps
-    last: datetime | None = None
-    notes: list[str] = field(default_factory=list)  # what else the report must say
-    annotation_field: str = "start"  # the field an overlap error names (CASAS: 'activity')
-    moments: array = field(default_factory=lambda: array("d"))  # when a sensor was heard, seconds since 1970
-    skip_bad_lines: bool | None = None  # whether the format leaves bad lines out (None: it offers no such option)
-    stamps: array = field(default_factory=lambda: array("d"))  # every record's time, seconds since 1970 ...
-    stamp_lines: array = field(default_factory=lambda: array("q"))  # ... its line, and its file (sources index)
-    stamp_sources: array = field(default_factory=lambda: array("b"))
-    left_out: list[dict[str, Any]] = field(default_factory=list)  # records left out for lying far outside the log
-
-    def heard(self, start: datetime, end: datetime | None = None, *, line: int = 0, source: int = 0) -> None:
-        """A sensor's record (on ``line`` of the ``source``-th file): an event at ``start``, or on
-        from ``start`` to ``end`` (heard throughout: a stretch it is on is no silence)."""
-        self.saw(start, line=line, source=source)
-        if end is not None and end != start:
-            self.saw(end, line=line, source=source)
-        end = start if end is None else end
-        lo, hi = (start - _EPOCH).total_seconds(), (end - _EPOCH).total_seconds()
-        if hi - lo < FAR_GAP.total_seconds():  # a stretch on for longer lies far outside the log by itself
-            self.moments.extend(np.arange(lo, hi, 3600.0).tolist() if hi - lo > 3600.0 else [lo])
-        self.moments.append(hi)
-
-    def saw(self, moment: datetime, *, line: int = 0, source: int = 0) -> None:
-        """A record at ``moment`` (the log's span)."""
-        if self.first is None or moment < self.first:
-            self.first = moment
-        if self.last is None or moment > self.last:
-            self.last = moment
-        self.stamps.append((moment - _EPOCH).total_seconds())
-        self.stamp_lines.append(line)
-        self.stamp_sources.append(source)
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,10 +95,9 @@ class ImportResult:
     dropped_days: int
     report: Path
     notes: tuple[str, ...]
-
-
-def _clock(minute: int) -> str:
-    return f"{minute // 60:02d}:{minute % 60:02d}"
+    bad_lines: int = 0  # lines left out (--skip-bad-lines), listed in the report
+    left_on: int = 0  # uses cut to a firing (a sensor left on), listed in the report
+    first_bad_line: str = ""  # the first of them, for the command line
 
 
 def _ceil_steps(delta: timedelta, step: timedelta) -> int:
@@ -279,12 +189,14 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
     dropped: list[dict[str, str]] = []
     for day in _day_dates(sensor_log.first, sensor_log.last):
         midnight = datetime.combine(day, time())
-        if sensor_log.first > midnight + offset:
+        if options.until is not None and day > options.until:
+            why = f"after --until {options.until}"
+        elif sensor_log.first > midnight + offset:
             why = (f"partial: the log starts at {sensor_log.first:%Y-%m-%d %H:%M:%S}, after this day's first row "
-                   f"({_clock(options.day_start_minute)})")
+                   f"({clock(options.day_start_minute)})")
         elif sensor_log.last < midnight + last_row:
             why = (f"partial: the log ends at {sensor_log.last:%Y-%m-%d %H:%M:%S}, before this day's last row "
-                   f"({_clock(options.day_end_minute)})")
+                   f"({clock(options.day_end_minute)})")
         elif day not in annotated:
             why = "no annotation"
         elif day not in begun:
@@ -297,20 +209,13 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
     return kept, dropped
 
 
-@dataclass
-class _LabelStats:
-    annotations: int = 0
-    origins: set[str] = field(default_factory=set)
-    on_no_row: int = 0  # annotations inside kept days that cover no step's start
-
-
-def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, _LabelStats]:
+def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, LabelStats]:
     """Each kept row's activity: the annotation covering its start; later starts overwrite
     earlier ones, which is the ``latest`` rule (without overlaps, nothing is overwritten)."""
-    per_label: dict[str, _LabelStats] = {}
+    per_label: dict[str, LabelStats] = {}
     steps = grid.options.steps
     for ann in ordered:
-        stats = per_label.setdefault(ann.activity, _LabelStats())
+        stats = per_label.setdefault(ann.activity, LabelStats())
         stats.annotations += 1
         stats.origins.add(ann.origin)
         touched = placed = False
@@ -335,20 +240,35 @@ def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, 
     return per_label
 
 
-def _place_uses(grid: _Grid, objects: Sequence[ObjectSpec], activations: dict[str, list[Activation]]) -> None:
-    """Mark the steps in which a sensor of each object fired or was on."""
+def _place_uses(grid: _Grid, uses: dict[str, ObjectUses]) -> None:
+    """Mark the steps each object is in use in: those its uses reach (``while-on``), or those
+    they begin in (``start``)."""
     steps = grid.options.steps
-    for spec in objects:
-        marks = grid.used.setdefault(spec.object, {})
-        for key in spec.sensors:
-            for act in activations.get(key, ()):
-                for day in _touched_dates(act.start, act.end, grid.offset, grid.window):
-                    base = grid.bases.get(day)
-                    if base is None or act.start >= base + grid.window or act.end < base:
-                        continue
-                    first = max(0, (act.start - base) // grid.step)
-                    last = min(steps - 1, (act.end - base) // grid.step)
-                    marks.setdefault(day, set()).update(range(first, last + 1))
+    for obj, found in uses.items():
+        marks = grid.used.setdefault(obj, {})
+        for start, end in found.spans:
+            end = start if grid.options.use == "start" else end
+            for day in _touched_dates(start, end, grid.offset, grid.window):
+                base = grid.bases.get(day)
+                if base is None or start >= base + grid.window or end < base:
+                    continue
+                first = max(0, (start - base) // grid.step)
+                last = min(steps - 1, (end - base) // grid.step)
+                marks.setdefault(day, set()).update(range(first, last + 1))
+
+
+def _split(dates: list[date], options: GridOptions) -> dict[str, list[date]]:
+    """The kept days (in order) as training and test days."""
+    if options.test_from is not None:
+        at = sum(d < options.test_from for d in dates)
+        span = f"the kept days run {dates[0]} .. {dates[-1]}"
+        if at == 0:
+            raise ConfigError(f"--test-from {options.test_from} leaves no training day ({span})")
+        if at == len(dates):
+            raise ConfigError(f"--test-from {options.test_from} leaves no test day ({span})")
+        return {"train": dates[:at], "test": dates[at:]}
+    n_test = _test_count(len(dates), options)
+    return {"train": dates[:len(dates) - n_test], "test": dates[len(dates) - n_test:]}
 
 
 def _test_count(kept: int, options: GridOptions) -> int:
@@ -401,53 +321,14 @@ def write_import(*, sensor_log: SensorLog, selection: ObjectSelection, options: 
     if sensor_log.first is None or sensor_log.last is None:
         raise DataError("no records", source=sensor_log.sources[0])
     keep_to_the_log(sensor_log)
+    if sensor_log.bad_lines:
+        log.warning("%s: %d lines left out (--skip-bad-lines), the first: %s", sensor_log.format,
+                    len(sensor_log.bad_lines), sensor_log.bad_lines[0])
     try:
         return _write_import(sensor_log, selection, options, dest, settings)
     except OverflowError:  # the log runs up to the calendar's last days (9999): its days cannot be cut
         raise DataError(f"the log's times run to {sensor_log.last}: too near the calendar's end to cut into days",
                         source=", ".join(sensor_log.sources)) from None
-
-
-def keep_to_the_log(sensor_log: SensorLog) -> None:
-    """Records lying far outside the rest of the log (see :data:`FAR_GAP`) are refused, naming
-    the first of them, or, where the format leaves bad lines out and is asked to, left out with
-    every annotation and sensor stretch reaching them, and listed in the report."""
-    times = np.frombuffer(sensor_log.stamps, dtype=np.float64)
-    if not len(times):
-        return
-    order = np.argsort(times, kind="stable")
-    cuts = np.flatnonzero(np.diff(times[order]) > FAR_GAP.total_seconds()) + 1
-    parts = np.split(order, cuts)
-    main = max(range(len(parts)), key=lambda i: len(parts[i]))
-    stray = [p for i, p in enumerate(parts) if i != main and len(p) <= max(STRAY_RECORDS, STRAY_SHARE * len(times))]
-    if not stray or len(parts[main]) <= STRAY_RECORDS:  # too few records to judge the others by
-        return
-    lo, hi = (_EPOCH + timedelta(seconds=float(times[parts[main]].min())),
-              _EPOCH + timedelta(seconds=float(times[parts[main]].max())))
-    where = sensor_log.stamp_sources, sensor_log.stamp_lines
-    first = min((int(i) for p in stray for i in p), key=lambda i: (where[0][i], where[1][i]))
-    line, source = where[1][first] or None, sensor_log.sources[where[0][first]]
-    when = _EPOCH + timedelta(seconds=float(times[first]))
-    span = f"the rest of the log ({len(parts[main])} of its {len(times)} records) runs {lo} .. {hi}"
-    if not sensor_log.skip_bad_lines:
-        fix = ("fix the line, or pass --skip-bad-lines to leave such records out" if sensor_log.skip_bad_lines is False
-               else "fix the line")
-        raise DataError(f"{when} lies far outside the log ({span}): a corrupt timestamp? {fix}", source=source,
-                        line=line, field="time")
-    inside = (lambda t: lo <= t <= hi)  # noqa: E731
-    sensor_log.annotations = [a for a in sensor_log.annotations if inside(a.start) and inside(a.end)]
-    for key, stretches in sensor_log.activations.items():
-        sensor_log.activations[key] = [a for a in stretches if inside(a.start) and inside(a.end)]
-    sensor_log.first, sensor_log.last = lo, hi
-    moments = np.frombuffer(sensor_log.moments, dtype=np.float64)
-    keep = moments[(moments >= (lo - _EPOCH).total_seconds()) & (moments <= (hi - _EPOCH).total_seconds())]
-    sensor_log.moments = array("d", keep.tolist())
-    sensor_log.left_out = [{"source": sensor_log.sources[where[0][i]], "line": where[1][i],
-                            "time": str(_EPOCH + timedelta(seconds=float(times[i])))}
-                           for p in stray for i in p.tolist()]
-    sensor_log.notes.append(f"{len(sensor_log.left_out)} records far outside the rest of the log ({lo} .. {hi}) left "
-                            "out (--skip-bad-lines), with the annotations and sensor stretches reaching them: see "
-                            "far_outside in the report")
 
 
 def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: GridOptions, dest: Path,
@@ -461,9 +342,9 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
         reasons = Counter(d["why"].split(":")[0] for d in dropped)
         counts = ", ".join(f"{n} {why}" for why, n in reasons.items())
         raise DataError(f"no day to import: none of the {len(dropped)} days is both annotated and covered by the log "
-                        f"from its first row ({_clock(options.day_start_minute)}) to its last "
-                        f"({_clock(options.day_end_minute)}): {counts}", source=", ".join(sensor_log.sources))
-    silent, limit_h = _silent_stretches(sensor_log, kept, options)
+                        f"from its first row ({clock(options.day_start_minute)}) to its last "
+                        f"({clock(options.day_end_minute)}): {counts}", source=", ".join(sensor_log.sources))
+    silent, limit_h = silent_stretches(sensor_log, kept, options)
     if silent:
         n = len(silent)
         sensor_log.notes.append(f"{n} kept {'day has' if n == 1 else 'days have'} a stretch of {limit_h:.1f} hours or "
@@ -471,10 +352,10 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
                                 "outage, or nobody home): see silent_stretches in the report")
     grid = _Grid(options, kept, {day: [IDLE] * options.steps for day in kept}, {})
     per_label = _place_annotations(grid, ordered)
-    _place_uses(grid, objects, sensor_log.activations)
-    n_test = _test_count(len(kept), options)
-    dates = sorted(kept)
-    splits = {"train": dates[:len(dates) - n_test], "test": dates[len(dates) - n_test:]}
+    uses = {spec.object: find_uses(spec, sensor_log.activations, options) for spec in objects}
+    _place_uses(grid, uses)
+    left_on = [row for found in uses.values() for row in found.left_on]
+    splits = _split(sorted(kept), options)
     columns = tuple(spec.object for spec in objects)
     tmp = _prepare_dest(dest)
     try:
@@ -483,9 +364,8 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
             (tmp / split).mkdir()
             for day in days:
                 write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
-        report = _report(sensor_log, selection, objects, home, options, settings or {}, grid, per_label, splits,
-                         dropped) | {"silent_stretches": silent, "far_outside": sensor_log.left_out}
-        (tmp / REPORT_FILE).write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+        write_report(tmp, build_report(sensor_log, selection, objects, home, options, settings or {}, grid.activities,
+                                       grid.used, per_label, splits, dropped, uses, silent, left_on))
         if Path(dest).exists():
             Path(dest).rmdir()
         tmp.rename(dest)
@@ -498,35 +378,10 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
     log.info("%s: wrote %d train and %d test days to %s", sensor_log.format, len(splits["train"]), len(splits["test"]),
              dest)
     labels = tuple(sorted({a for row in grid.activities.values() for a in row}))
+    bad = sensor_log.bad_lines
     return ImportResult(Path(dest), len(splits["train"]), len(splits["test"]), columns, labels, len(dropped),
-                        Path(dest) / REPORT_FILE, tuple(sensor_log.notes))
-
-
-def _silent_stretches(sensor_log: SensorLog, kept: dict[date, datetime], options: GridOptions
-                      ) -> tuple[list[dict[str, str]], float]:
-    """Each kept day's longest stretch of its rows with no event from any sensor, where it is far
-    longer than the home's usual one (:data:`SILENCE_FACTOR` times the median day's longest, and
-    at least :data:`SILENCE_NOTED`); and that limit in hours."""
-    times = np.sort(np.frombuffer(sensor_log.moments, dtype=np.float64))
-    window = options.step_minutes * options.steps * 60.0
-    longest: dict[date, tuple[float, float, float]] = {}  # day -> (seconds, from, to)
-    for day, base in kept.items():
-        lo = (base - _EPOCH).total_seconds()
-        inside = times[np.searchsorted(times, lo, side="right"):np.searchsorted(times, lo + window)]
-        edges = np.concatenate(([lo], inside, [lo + window]))
-        k = int(np.argmax(np.diff(edges)))
-        longest[day] = (float(edges[k + 1] - edges[k]), float(edges[k]), float(edges[k + 1]))
-    busy = [g for g, _, _ in longest.values() if g < window]  # days a sensor was heard on at all
-    usual = float(np.median(busy)) if busy else 0.0
-    limit = max(SILENCE_NOTED.total_seconds(), SILENCE_FACTOR * usual)
-    silent = [{"date": day.isoformat(), "from": _clock_time(lo), "to": _clock_time(hi)}
-              for day, (gap, lo, hi) in sorted(longest.items()) if gap >= limit]
-    return silent, limit / 3600
-
-
-def _clock_time(seconds: float) -> str:
-    """A time of :attr:`SensorLog.moments` as the report writes times."""
-    return f"{_EPOCH + timedelta(seconds=seconds):%Y-%m-%d %H:%M:%S}"
+                        Path(dest) / REPORT_FILE, tuple(sensor_log.notes), bad_lines=len(bad), left_on=len(left_on),
+                        first_bad_line=str(bad[0]) if bad else "")
 
 
 def _day(grid: _Grid, day: date, columns: tuple[str, ...], home: HomeMap, split: str) -> Day:
@@ -550,42 +405,3 @@ def _covering(grid: _Grid, day: date) -> tuple[str, ...]:
         shares[IDLE] = shares.get(IDLE, 0.0) + max(0.0, seconds - sum(shares.values()))
         out.append(max(shares, key=lambda a: (shares[a], a == start_label, a)))
     return tuple(out)
-
-
-def _report(sensor_log: SensorLog, selection: ObjectSelection, objects: Sequence[ObjectSpec], home: HomeMap,
-            options: GridOptions, settings: dict[str, Any], grid: _Grid, per_label: dict[str, _LabelStats],
-            splits: dict[str, list[date]], dropped: list[dict[str, str]]) -> dict[str, Any]:
-    rows = Counter(a for row in grid.activities.values() for a in row)
-    activities = []
-    for label in sorted(set(per_label) | set(rows)):
-        stats = per_label.get(label, _LabelStats())
-        activities.append({"activity": label, "from": sorted(stats.origins) or ["unannotated time"],
-                           "annotations": stats.annotations, "rows": rows.get(label, 0),
-                           "annotations_on_no_row": stats.on_no_row})
-    object_rows = []
-    for spec in objects:
-        used = sum(len(steps) for steps in grid.used.get(spec.object, {}).values())
-        object_rows.append({"object": spec.object, "sensors": list(spec.sensors),
-                            "events": sum(sensor_log.events[k] for k in spec.sensors), "rows_in_use": used,
-                            "home": home.home_of[spec.object], "in_use": home.in_use_of[spec.object], "why": spec.why})
-    left_out = [{"sensor": key, "events": sensor_log.events[key], "why": choice.why}
-                for key, choice in selection.choices.items() if choice.object is None]
-    return {
-        "format": sensor_log.format,
-        "sources": list(sensor_log.sources),
-        "grid": {"step_minutes": options.step_minutes, "day_start": _clock(options.day_start_minute),
-                 "day_end": _clock(options.day_end_minute), "rows_per_day": options.steps,
-                 "activity_rule": "the annotation covering the step's start; idle where none does",
-                 "use_rule": "a sensor of the object fires or is on at any time inside the step",
-                 "overlaps": options.overlaps},
-        "settings": settings,
-        "log_span": [f"{sensor_log.first:%Y-%m-%d %H:%M:%S}", f"{sensor_log.last:%Y-%m-%d %H:%M:%S}"],
-        "objects": object_rows,
-        "sensors_left_out": left_out,
-        "objects_rule": (f"the mapping {selection.mapping.source}" if selection.mapping is not None
-                         else selection.default_help),
-        "activities": activities,
-        "days": {split: [d.isoformat() for d in days] for split, days in splits.items()},
-        "dropped_days": dropped,
-        "notes": list(sensor_log.notes),
-    }

@@ -16,7 +16,9 @@ are no activity (``idle`` on the grid). Objects are only the entities the user m
 (``--objects``): an export says nothing about what an entity is on, so without a mapping there are
 no object columns. A mapped entity is in use while ``on`` or ``open`` and fires whenever its state
 changes; ``off`` and ``closed`` are not in use, ``unavailable`` and ``unknown`` are not either and
-are counted in the report; any other state is an error. Other entities are left out.
+are counted in the report; any other state is an error. Other entities are left out. A row that
+breaks a rule (a bad entity id or timestamp, a row before its entity's previous one) is an error
+naming its line and column, or with ``--skip-bad-lines`` left out and listed in the report.
 
 Timestamps with a UTC offset (HA writes UTC) are put on the home's clock with ``timezone`` (an
 IANA name such as ``Europe/Amsterdam``), which is then required: the day starts at 06:00 where
@@ -34,8 +36,10 @@ from pathlib import Path
 from typing import Callable
 
 from globe.data.csv_logs import _clean, _label, _ragged, csv_table
-from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
+from globe.data.importers.grid import ImportResult, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
+from globe.data.importers.options import GridOptions
+from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
 from globe.data.importers.text import parse_iso_8601, read_text, show, time_zone
 from globe.errors import DataError
 
@@ -54,19 +58,20 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
 
 
 def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_entity: str,
-                        timezone: str | None = None) -> SensorLog:
-    """The activity entity's states as annotations and the mapped entities' on-intervals."""
+                        timezone: str | None = None, skip_bad_lines: bool = False) -> SensorLog:
+    """The activity entity's states as annotations and the mapped entities' on-intervals. A row
+    that breaks a rule is an error, or with ``skip_bad_lines`` left out (see :meth:`SensorLog.bad`)."""
     source = str(path)
     rows, header = csv_table(read_text(Path(path)), source, COLUMNS)
     column = {name: header.index(name) for name in COLUMNS}
-    sensor_log = SensorLog("home-assistant", (source,))
+    sensor_log = SensorLog("home-assistant", (source,), skip_bad_lines=skip_bad_lines)
     extra = [h for h in header if h not in COLUMNS]
     if extra:
         sensor_log.notes.append(f"columns not used: {', '.join(extra)}")
     zone = time_zone(timezone) if timezone is not None else None
     local: Callable[[datetime], datetime] = (lambda t: t) if zone is None else (
         lambda t: t.astimezone(zone).replace(tzinfo=None) if t.tzinfo is not None else t)
-    aware: bool | None = None
+    aware: list[bool] = []  # whether the first good row's timestamp carries an offset
     last_row: dict[str, tuple[datetime, int]] = {}
     states: list[tuple[datetime, str, int]] = []  # the activity entity's rows
     on_since: dict[str, datetime] = {}
@@ -74,27 +79,18 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
     last_local: dict[str, datetime] = {}
     repeated = 0  # rows in the hour a clock change repeats, held at the entity's previous local time
     for line, row in rows[1:]:
-        if len(row) != len(header):
-            raise _ragged(source, line, row, header)
-        entity = _clean(row[column["entity_id"]])
-        state = _clean(row[column["state"]])
-        if not _ENTITY.fullmatch(entity):
-            raise DataError(f"{show(entity)} is not an entity id (domain.name, lower case)", source=source, line=line,
-                            field="entity_id")
-        moment = parse_iso_8601(_clean(row[column["last_changed"]]), source=source, line=line, field="last_changed")
-        if aware is None:
-            aware = moment.tzinfo is not None
-            if aware and zone is None:
+        try:  # every check first: a row left out changes nothing
+            entity, state, moment, choice = _row(row, header, column, line, source, aware, last_row, selection,
+                                                 activity_entity)
+        except DataError as err:
+            sensor_log.bad(err)
+            continue
+        if not aware:
+            aware.append(moment.tzinfo is not None)
+            if aware[0] and zone is None:
                 raise DataError("timestamps carry a UTC offset: give the home's time zone (--timezone, e.g. "
                                 "Europe/Amsterdam) so that its days start at its own 06:00", source=source, line=line,
                                 field="last_changed")
-        elif aware != (moment.tzinfo is not None):
-            raise DataError("a timestamp without a UTC offset among timestamps with one (or the other way round)",
-                            source=source, line=line, field="last_changed")
-        before = last_row.get(entity)
-        if before is not None and moment < before[0]:
-            raise DataError(f"{moment} is before this entity's previous row ({before[0]}, line {before[1]}): an "
-                            "entity's rows must be in time order", source=source, line=line, field="last_changed")
         last_row[entity] = (moment, line)
         moment = local(moment)
         if entity in last_local and moment < last_local[entity]:
@@ -107,13 +103,9 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
             states.append((moment, state, line))
             continue
         sensor_log.heard(moment, line=line)
-        if selection.choose(Sensor(entity, entity.split(".", 1)[1], entity.split(".", 1)[0], ""), source=source,
-                            line=line).object is None:
+        if choice is None:
             continue
         key = state.lower()
-        if key not in ON_STATES and key not in OFF_STATES and key not in NO_DATA:
-            raise DataError(f"{show(state)} is not a state of a mapped binary sensor (on, off, open, closed, "
-                            "unavailable, unknown)", source=source, line=line, field="state")
         if key in NO_DATA:
             no_data[entity] = no_data.get(entity, 0) + 1
         if key in ON_STATES:
@@ -129,6 +121,40 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
         sensor_log.notes.append(f"rows in an hour that a clock change repeats: {repeated}; each is held at its "
                                 "entity's previous local time, so that the home's clock never runs backwards")
     return sensor_log
+
+
+def _row(row: list[str], header: list[str], column: dict[str, int], line: int, source: str, aware: list[bool],
+         last_row: dict[str, tuple[datetime, int]], selection: ObjectSelection,
+         activity_entity: str) -> tuple[str, str, datetime, str | None]:
+    """One row checked: (entity, state, its time as written, the object it is or None). Changes
+    nothing but the selection's record of the entity."""
+    if len(row) != len(header):
+        raise _ragged(source, line, row, header)
+    entity = _clean(row[column["entity_id"]])
+    state = _clean(row[column["state"]])
+    if not _ENTITY.fullmatch(entity):
+        raise DataError(f"{show(entity)} is not an entity id (domain.name, lower case)", source=source, line=line,
+                        field="entity_id")
+    moment = parse_iso_8601(_clean(row[column["last_changed"]]), source=source, line=line, field="last_changed")
+    if aware and aware[0] != (moment.tzinfo is not None):
+        raise DataError("a timestamp without a UTC offset among timestamps with one (or the other way round)",
+                        source=source, line=line, field="last_changed")
+    before = last_row.get(entity)
+    if before is not None and moment < before[0]:
+        raise DataError(f"{moment} is before this entity's previous row ({before[0]}, line {before[1]}): an "
+                        "entity's rows must be in time order", source=source, line=line, field="last_changed")
+    if entity == activity_entity:
+        if state and state.lower() not in NO_DATA:
+            _label(state, source, line, "state", "activity")
+        return entity, state, moment, None
+    sensor = Sensor(entity, entity.split(".", 1)[1], entity.split(".", 1)[0], "")
+    if selection.decide(sensor, source=source, line=line).object is None:
+        selection.choose(sensor, source=source, line=line)
+        return entity, state, moment, None
+    if state.lower() not in ON_STATES | OFF_STATES | NO_DATA:
+        raise DataError(f"{show(state)} is not a state of a mapped binary sensor (on, off, open, closed, "
+                        "unavailable, unknown)", source=source, line=line, field="state")
+    return entity, state, moment, selection.choose(sensor, source=source, line=line).object
 
 
 def _finish(sensor_log: SensorLog, states: list[tuple[datetime, str, int]], on_since: dict[str, datetime],
@@ -157,9 +183,11 @@ def _finish(sensor_log: SensorLog, states: list[tuple[datetime, str, int]], on_s
 
 
 def import_home_assistant(*, history: Path, dest: Path, activity_entity: str, options: GridOptions | None = None,
-                          objects: Path | None = None, timezone: str | None = None) -> ImportResult:
+                          objects: Path | None = None, timezone: str | None = None,
+                          skip_bad_lines: bool = False) -> ImportResult:
     """Import a Home Assistant history CSV into the household folder ``dest``; the activity is
-    ``activity_entity``'s state, the objects the entities ``objects`` maps."""
+    ``activity_entity``'s state, the objects the entities ``objects`` maps. ``skip_bad_lines``
+    leaves out rows that break a rule (listed in the report) instead of stopping."""
     options = options if options is not None else GridOptions()
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
@@ -167,6 +195,7 @@ def import_home_assistant(*, history: Path, dest: Path, activity_entity: str, op
         raise DataError(f"{show(activity_entity)} is the activity entity; it cannot also be an object",
                         source=mapping.source, line=mapping.rows[activity_entity].line, field="sensor")
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
-    sensor_log = read_home_assistant(history, selection, activity_entity=activity_entity, timezone=timezone)
-    settings = {"activity_entity": activity_entity, "timezone": timezone}
+    sensor_log = read_home_assistant(history, selection, activity_entity=activity_entity, timezone=timezone,
+                                     skip_bad_lines=skip_bad_lines)
+    settings = {"activity_entity": activity_entity, "timezone": timezone, "skip_bad_lines": skip_bad_lines}
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest, settings=settings)

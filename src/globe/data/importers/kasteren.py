@@ -10,11 +10,22 @@ sensor was on) and activity intervals (what the person did)::
     2011-11-28 02:27:59    2011-11-28 10:18:11    Bed    Pressure    Bedroom
     2011-11-28 02:27:59    2011-11-28 10:18:11    Sleeping
 
-Times are ``YYYY-MM-DD HH:MM:SS`` or ``DD-Mon-YYYY HH:MM:SS``. Lines before the first record
-that do not begin with a digit are a header (Ordóñez has two); after it, every line is a record.
-A van Kasteren sensor line is ``start end id [1]``; its names come from a sensor list (CSV
-``sensor,name`` and, optionally, ``type`` and ``room``), and every id must be in it when one is
-given. Activity ids become labels through an activity list (CSV ``id,activity``) when given.
+Times are ``YYYY-MM-DD HH:MM:SS`` or ``DD-Mon-YYYY HH:MM:SS``. Before the first record, a line
+``id name`` (also ``id: name``, ``id,name``, ``[id] 'name'``; quotes around the name dropped)
+belongs to the file's own list of ids, as the files are distributed; any other line that does not
+begin with a digit is a header (Ordóñez has two). A record's dates hold a '-', so it is never
+read as a list line. After the first record every line is a record, except a last line
+``Length: N`` (any case), the distributed files' footer: when N differs from the number of
+records, the report says so (a note, not an error).
+
+A van Kasteren sensor line is ``start end id [1]``; its names come from the file's own list and
+from a sensor list (CSV ``sensor,name`` and, optionally, ``type`` and ``room``), which replaces
+the file's entry for each id it names; when either is given every id must be in one of them.
+Activity ids become labels the same way (the file's own list, and an activity list, CSV
+``id,activity``, that wins for the ids it names). Numbered activities that nothing names are
+refused, naming the line (``--activity-list``, or ``--allow-numeric-labels`` to keep the numbers).
+A line that breaks a rule is an error naming file, line and field, or with ``--skip-bad-lines``
+left out and listed in the report.
 
 Without a mapping, a sensor of type Magnetic, Contact, Reed or Electric (a contact on a cupboard
 or the fridge, a switched appliance) is an object, named after its location or name, in its place
@@ -26,13 +37,16 @@ from __future__ import annotations
 
 import logging
 import re
-from dataclasses import dataclass
+from collections import Counter
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
 from globe.data.csv_logs import _label, csv_table
-from globe.data.importers.grid import Activation, Annotation, GridOptions, ImportResult, SensorLog, write_import
+from globe.data.importers.grid import ImportResult, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
+from globe.data.importers.options import GridOptions
+from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
 from globe.data.importers.text import (
     parse_date_time,
     parse_day_month_year,
@@ -50,6 +64,9 @@ DEFAULT_RULE = ("sensors of type Magnetic, Contact, Reed or Electric are objects
                 "other types (PIR, Pressure, Flush, ...) and sensors of unknown type are not")
 _RECORD = re.compile(r"\s*(\S+)\s+(\S+)\s+(\S+)\s+(\S+)(?:\s+(.*?))?\s*")
 _ISO_DAY = re.compile(r"\d{4}-\d{2}-\d{2}")
+_LIST_ENTRY = re.compile(r"\s*\[?\s*(\d+)\s*\]?(?:\s*[:,=]\s*|\s+)(\S.*?)\s*")  # never a record: its dates hold '-'
+_FOOTER = re.compile(r"\s*length\s*:\s*(\d+)?\s*", re.IGNORECASE)
+_NUMBER = re.compile(r"\d+")
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,36 +79,86 @@ class Interval:
     rest: tuple[str, ...]
 
 
+@dataclass
+class IntervalFile:
+    """What an interval file holds: its records, and around them a header, the file's own list of
+    ids (id -> (name, line)) and a ``Length: N`` footer."""
+
+    source: str
+    records: list[Interval] = field(default_factory=list)
+    header: int = 0  # header lines before the first record (the list's lines not counted)
+    names: dict[str, tuple[str, int]] = field(default_factory=dict)
+    record_lines: int = 0  # lines read as records, those left out (--skip-bad-lines) included
+    footer: int | None = None  # the footer's N
+
+
 def _time(date: str, clock: str, source: str, line: int, field: str) -> datetime:
     if _ISO_DAY.fullmatch(date):
         return parse_date_time(date, clock, source=source, line=line, date_field=field, time_field=field)
     return parse_day_month_year(date, clock, source=source, line=line, field=field)
 
 
-def read_intervals(path: Path) -> tuple[list[Interval], int]:
-    """The records of an interval file and how many header lines came before them."""
-    source = str(path)
-    records: list[Interval] = []
-    header = 0
-    for line, text in read_lines(path):
-        if not records and not text.lstrip()[:1].isdigit():
-            header += 1
-            continue
-        match = _RECORD.fullmatch(text)
-        if match is None:
-            raise DataError("not a record (expected 'start date, start time, end date, end time, ...')", source=source,
-                            line=line, field="start")
-        start = _time(match.group(1), match.group(2), source, line, "start")
-        end = _time(match.group(3), match.group(4), source, line, "end")
-        if end < start:
-            raise DataError(f"ends at {end}, before it starts at {start}", source=source, line=line, field="end")
-        rest = tuple((match.group(5) or "").split())
-        if not rest:
-            raise DataError("nothing after the two times", source=source, line=line, field="sensor")
-        records.append(Interval(line, start, end, rest))
-    if not records:
-        raise DataError(f"no records (only {header} header line{'s' if header > 1 else ''})", source=source, line=1)
-    return records, header
+def _record(text: str, source: str, line: int) -> Interval:
+    match = _RECORD.fullmatch(text)
+    if match is None:
+        raise DataError("not a record (expected 'start date, start time, end date, end time, ...')", source=source,
+                        line=line, field="start")
+    start = _time(match.group(1), match.group(2), source, line, "start")
+    end = _time(match.group(3), match.group(4), source, line, "end")
+    if end < start:
+        raise DataError(f"ends at {end}, before it starts at {start}", source=source, line=line, field="end")
+    rest = tuple((match.group(5) or "").split())
+    if not rest:
+        raise DataError("nothing after the two times", source=source, line=line, field="sensor")
+    return Interval(line, start, end, rest)
+
+
+def _list_entry(found: IntervalFile, key: str, name: str, line: int) -> None:
+    """One ``id name`` line of the file's own list (quotes around the name dropped)."""
+    if len(name) > 1 and name[0] == name[-1] and name[0] in "'\"":
+        name = name[1:-1].strip()
+    name = _label(name, found.source, line, "name", "name")
+    if key in found.names:
+        raise DataError(f"id {show(key)} is listed twice (also line {found.names[key][1]})", source=found.source,
+                        line=line, field="id")
+    found.names[key] = (name, line)
+
+
+def read_intervals(path: Path, sensor_log: SensorLog) -> IntervalFile:
+    """The records of an interval file; before the first, header lines (not beginning with a
+    digit) and the file's own list of ids (``id name``, ``id: name``, ``id,name``, ``[id] 'name'``);
+    a last line ``Length: N`` is a footer. A bad line goes to :meth:`SensorLog.bad`."""
+    found = IntervalFile(str(path))
+    lines = read_lines(path)
+    footer = _FOOTER.fullmatch(lines[-1][1]) if lines else None
+    if footer is not None:
+        found.footer = int(footer.group(1)) if footer.group(1) else None
+        lines = lines[:-1]
+    for line, text in lines:
+        try:
+            if not found.record_lines:
+                entry = _LIST_ENTRY.fullmatch(text)
+                if entry is not None:
+                    _list_entry(found, entry.group(1), entry.group(2), line)
+                    continue
+                if not text.lstrip()[:1].isdigit():
+                    found.header += 1
+                    continue
+            found.record_lines += 1
+            found.records.append(_record(text, found.source, line))
+        except DataError as err:
+            sensor_log.bad(err)
+    if not found.records:
+        where = f"only {found.header} header line{'s' if found.header > 1 else ''}"
+        if found.names:
+            where += f" and a list of {len(found.names)} ids"
+        if found.record_lines:
+            where = f"all {found.record_lines} left out as bad lines"
+        raise DataError(f"no records ({where})", source=found.source, line=1)
+    if found.footer is not None and found.footer != found.record_lines:
+        sensor_log.notes.append(f"{found.source}: its footer says Length: {found.footer}, but it holds "
+                                f"{found.record_lines} records (checked, not enforced)")
+    return found
 
 
 def read_sensor_list(path: Path) -> dict[str, Sensor]:
@@ -138,12 +205,10 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
     return True, f"sensor type {sensor.kind!r}: a contact on something opened, or a switched appliance"
 
 
-def _sensor_of(record: Interval, named: dict[str, Sensor] | None, source: str) -> Sensor:
-    """The sensor of a record: 'Location Type Place' (Ordóñez) or 'id [1]' (van Kasteren)."""
+def _sensor_of(record: Interval, named: dict[str, Sensor] | None, source: str, lists: str) -> Sensor:
+    """The sensor of a record: 'Location Type Place' (Ordóñez) or 'id [1]' (van Kasteren), named
+    by ``named`` (from ``lists``) when given."""
     if len(record.rest) == 3:
-        if named is not None:
-            raise DataError("this log names its sensors itself ('Location Type Place'): leave out --sensor-list",
-                            source=source, line=record.line, field="sensor")
         location, kind, place = record.rest
         return Sensor(" ".join(record.rest), location, kind, place)
     if len(record.rest) > 3:
@@ -157,66 +222,117 @@ def _sensor_of(record: Interval, named: dict[str, Sensor] | None, source: str) -
         return Sensor(key, key, "", "")
     sensor = named.get(key)
     if sensor is None:
-        raise DataError(f"unknown sensor {show(key)} (not in the sensor list)", source=source, line=record.line,
+        raise DataError(f"unknown sensor {show(key)} (not in {lists})", source=source, line=record.line,
                         field="sensor")
     return sensor
 
 
-def _header_note(source: str, lines: int) -> str:
-    return f"{source}: skipped {lines} header line{'s' if lines > 1 else ''} before the first record"
+def _own_list(found: IntervalFile, what: str) -> str:
+    """The note that a file named its ids itself."""
+    lines = [line for _, line in found.names.values()]
+    return (f"{found.source}: its own list names {len(found.names)} {what} (lines {min(lines)}-{max(lines)}); "
+            "a list given as an option names the ids it lists instead")
+
+
+def _lists(found: IntervalFile, option: Path | None, what: str) -> str:
+    """Where the names of a file's ids come from, for messages."""
+    where = ([f"the list at the head of {found.source}"] if found.names else []) + \
+        ([f"{what} {option}"] if option is not None else [])
+    return " or ".join(where)
 
 
 def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSelection, *,
-                  sensor_list: Path | None = None, activity_list: Path | None = None) -> SensorLog:
-    """Both files of an interval log, checked line by line, as one :class:`SensorLog`."""
-    named = read_sensor_list(sensor_list) if sensor_list is not None else None
-    labels = read_activity_list(activity_list) if activity_list is not None else None
+                  sensor_list: Path | None = None, activity_list: Path | None = None, skip_bad_lines: bool = False,
+                  allow_numeric_labels: bool = False) -> SensorLog:
+    """Both files of an interval log, checked line by line, as one :class:`SensorLog`. The ids of
+    each file are named by its own list, and by ``sensor_list`` / ``activity_list`` where they
+    name them (the option wins: it is the user's word). Numbered activities that nothing names are
+    refused unless ``allow_numeric_labels``: activities called '1', '10', '13' would import
+    without a word and make every table unreadable."""
     sources = (str(sensors_file), str(activities_file))
-    sensor_log = SensorLog("kasteren", sources)
-    records, header = read_intervals(sensors_file)
-    if header:
-        sensor_log.notes.append(_header_note(sources[0], header))
-    shape = len(records[0].rest) == 3
-    for record in records:
-        if (len(record.rest) == 3) != shape:
-            raise DataError("sensors named differently from the first record's (one log, one form: 'id [1]' or "
-                            "'Location Type Place')", source=sources[0], line=record.line, field="sensor")
-        sensor = _sensor_of(record, named, sources[0])
+    sensor_log = SensorLog("kasteren", sources, skip_bad_lines=skip_bad_lines)
+    sense = read_intervals(sensors_file, sensor_log)
+    named: dict[str, Sensor] | None = None
+    if sense.names or sensor_list is not None:
+        named = {key: Sensor(key, name, "", "") for key, (name, _) in sense.names.items()}
+        named.update(read_sensor_list(sensor_list) if sensor_list is not None else {})
+    _notes(sensor_log, sense, "sensors")
+    forms = Counter(len(r.rest) == 3 for r in sense.records)  # the form most records take (ties: the first's)
+    shape = forms[True] > forms[False] or (forms[True] == forms[False] and len(sense.records[0].rest) == 3)
+    if shape and named is not None:
+        raise DataError("this log names its sensors itself ('Location Type Place'): "
+                        + ("leave out --sensor-list" if sensor_list is not None else "its list of ids does not apply"),
+                        source=sources[0], line=sense.records[0].line, field="sensor")
+    lists = _lists(sense, sensor_list, "the sensor list")
+    for record in sense.records:
+        try:
+            if (len(record.rest) == 3) != shape:
+                raise DataError("sensors named differently from the other records (one log, one form: 'id [1]' or "
+                                "'Location Type Place')", source=sources[0], line=record.line, field="sensor")
+            sensor = _sensor_of(record, named, sources[0], lists)
+        except DataError as err:
+            sensor_log.bad(err)
+            continue
         sensor_log.heard(record.start, record.end, line=record.line)
         sensor_log.events[sensor.key] += 1
         if selection.choose(sensor, source=sources[0], line=record.line).object is not None:
             sensor_log.activations.setdefault(sensor.key, []).append(Activation(record.start, record.end))
-    log.info("%s: %d sensor intervals", sources[0], len(records))
-    records, header = read_intervals(activities_file)
-    if header:
-        sensor_log.notes.append(_header_note(sources[1], header))
-    for record in records:
+    log.info("%s: %d sensor intervals", sources[0], len(sense.records))
+    acts = read_intervals(activities_file, sensor_log)
+    labels: dict[str, str] | None = None
+    if acts.names or activity_list is not None:
+        labels = {key: name for key, (name, _) in acts.names.items()}
+        labels.update(read_activity_list(activity_list) if activity_list is not None else {})
+    _notes(sensor_log, acts, "activities")
+    lists = _lists(acts, activity_list, "the activity list")
+    for record in acts.records:
         text = " ".join(record.rest)
-        if labels is not None:
-            if text not in labels:
-                raise DataError(f"unknown activity id {show(text)} (not in the activity list)", source=sources[1],
+        if labels is None and not allow_numeric_labels and _NUMBER.fullmatch(text):
+            raise DataError(f"activity {show(text)} is a number, and neither the file's own list nor "
+                            "--activity-list names it: give the names with --activity-list (CSV id,activity), or "
+                            "pass --allow-numeric-labels to keep the numbers as activities", source=sources[1],
+                            line=record.line, field="activity")
+        try:
+            if labels is not None and text not in labels:
+                raise DataError(f"unknown activity id {show(text)} (not in {lists})", source=sources[1],
                                 line=record.line, field="activity")
-            activity = labels[text]
-        else:
-            activity = _label(text, sources[1], record.line, "activity", "activity")
+            activity = labels[text] if labels is not None else _label(text, sources[1], record.line, "activity",
+                                                                        "activity")
+        except DataError as err:
+            sensor_log.bad(err)
+            continue
         sensor_log.saw(record.start, line=record.line, source=1)
         sensor_log.saw(record.end, line=record.line, source=1)
         sensor_log.annotations.append(Annotation(activity, record.start, record.end, sources[1], record.line, text))
-    log.info("%s: %d activity intervals", sources[1], len(records))
+    log.info("%s: %d activity intervals", sources[1], len(acts.records))
     return sensor_log
+
+
+def _notes(sensor_log: SensorLog, found: IntervalFile, what: str) -> None:
+    if found.header:
+        lines = found.header
+        sensor_log.notes.append(f"{found.source}: skipped {lines} header line{'s' if lines > 1 else ''} before the "
+                                "first record")
+    if found.names:
+        sensor_log.notes.append(_own_list(found, what))
 
 
 def import_kasteren(*, sensors_file: Path, activities_file: Path, dest: Path, options: GridOptions | None = None,
                     objects: Path | None = None, sensor_list: Path | None = None,
-                    activity_list: Path | None = None) -> ImportResult:
+                    activity_list: Path | None = None, skip_bad_lines: bool = False,
+                    allow_numeric_labels: bool = False) -> ImportResult:
     """Import a van Kasteren or Ordóñez log into the household folder ``dest``. ``objects`` is a
-    mapping file (sensor keys as the report lists them: the id, or 'Location Type Place')."""
+    mapping file (sensor keys as the report lists them: the id, or 'Location Type Place').
+    ``skip_bad_lines`` leaves out lines that break a rule (listed in the report) instead of
+    stopping; ``allow_numeric_labels`` keeps activity ids nothing names as the activities."""
     options = options if options is not None else GridOptions()
     options.check()
     mapping = read_mapping(objects) if objects is not None else None
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
     sensor_log = read_kasteren(sensors_file, activities_file, selection, sensor_list=sensor_list,
-                               activity_list=activity_list)
+                               activity_list=activity_list, skip_bad_lines=skip_bad_lines,
+                               allow_numeric_labels=allow_numeric_labels)
     settings = {"sensor_list": str(sensor_list) if sensor_list else None,
-                "activity_list": str(activity_list) if activity_list else None}
+                "activity_list": str(activity_list) if activity_list else None,
+                "skip_bad_lines": skip_bad_lines, "allow_numeric_labels": allow_numeric_labels}
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest, settings=settings)

@@ -5,7 +5,8 @@ on something a person takes or opens (a cupboard, the fridge, the kettle) become
 column, and only when the user maps it (``--objects FILE``) or the format's documented default
 rule picks it by sensor type; every sensor's fate is written to the import report. An object sits
 at its home place (its room, or a piece of furniture in it) and moves to its room's ``in_use``
-place in the steps its sensor fires, so the object models see a movement there and back.
+place in the steps it is in use (while its sensor is on, or in the step a use begins: see
+:mod:`globe.data.importers.grid`), so the object models see a movement there and back.
 
 The mapping file is CSV with the columns ``sensor`` and ``object`` and, optionally, ``room`` and
 ``furniture``. Several sensors may map to one object (both fridge doors); one sensor may not map
