@@ -33,6 +33,7 @@ NGRAM_MODELS = {
     "object_max_order": ("7", "objects", "max_order", 7),
     "run_start_token": ("true", "objects", "run_start_token", True),
     "object_marginal": ("true", "chooser", "marginal", True),
+    "stay_margin": ("2.5", "activity", "stay_margin", 2.5),
 }
 ROUTINE_MODELS = {
     "activity_estimator": ("routine", "activity", "kind", "RoutineModel"),
@@ -47,6 +48,7 @@ CLOCK_MODELS = {
     "clock_slot_minutes": ("30", "activity", "slot_minutes", 30),
     "clock_shrinkage": ("2.5", "activity", "shrinkage", 2.5),
     "clock_day_types": ("weekend", "activity", "day_types", "weekend"),
+    "clock_floor": ("0.02", "activity", "floor", 0.02),
 }
 
 

@@ -279,7 +279,8 @@ def test_one_home_of_ones_own_is_summed_up_plainly(tmp_path, capsys):
 
 
 def test_the_main_job_tables_are_whole_when_piped(tmp_path):
-    res = globe("evaluate", "--households", "A,B,C", "--methods", "persistence,ngram", "--out", str(tmp_path))
+    res = globe("evaluate", "--households", "A,B,C", "--methods", "persistence,ngram", "--no-objects-ahead",
+                "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr
     assert "Persistence" in res.stdout and "n-gram Markov" in res.stdout and "…" not in res.stdout
 
@@ -303,7 +304,9 @@ def test_docs_tables_writes_stale_tables_and_check_reports_them(tmp_path):
 
 
 def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
-    """A folder of imported homes needs no --households: every folder with a nodes.csv is one."""
+    """A folder of imported homes needs no --households: every folder with a nodes.csv is one; a
+    home with objects gets the lookahead and fetch-policy tables too, its uses counted as
+    departures (its map has a use place)."""
     from globe.data.csv_logs import write_day, write_nodes
     from tests.simulated import clock_home
 
@@ -320,6 +323,10 @@ def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
     assert res.returncode == 0, res.stderr
     rows = list(csv.DictReader((tmp_path / "out" / "table1.csv").open()))
     assert {r["household"] for r in rows} - {"mean"} == {"Mine"}
+    ahead = list(csv.DictReader((tmp_path / "out" / "lookahead.csv").open()))
+    assert {r["method"] for r in ahead} == {"persistence"} and (tmp_path / "out" / "fetch_policy.csv").is_file()
+    assert json.loads((tmp_path / "out" / "data.json").read_text())["uses"].startswith("departures only")
+    assert "uses counted: departures only" in " ".join(res.stdout.split())
     empty = globe("evaluate", "--data", str(tmp_path / "homes" / "notes"), "--out", str(tmp_path / "o2"))
     assert empty.returncode != 0 and "no household folder" in empty.stderr
 

@@ -86,7 +86,7 @@ def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
                             step_minutes=step_minutes)
     if models.activity_estimator == "clock":
         return ClockModel(slot_minutes=models.clock_slot_minutes, shrinkage=models.clock_shrinkage,
-                          step_minutes=step_minutes, day_types=models.clock_day_types)
+                          step_minutes=step_minutes, day_types=models.clock_day_types, floor=models.clock_floor)
     return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
                          time_weight=models.time_weight, time_window=steps(models.time_window_minutes, step_minutes))
 
@@ -211,11 +211,13 @@ def noise_scorer(config: GlobeConfig) -> "Scorer":
     return LLMScorer(embedded_backend(config.llm))
 
 
-def describe(activity: ActivityModelBase, chooser: ObjectChooser) -> dict[str, dict[str, Any]]:
+def describe(activity: ActivityModelBase, chooser: ObjectChooser,
+             stay_margin: float = 1.0) -> dict[str, dict[str, Any]]:
     """The effective settings of built objects, read from the objects themselves (not from the
-    configuration), so results folders and the service show what really ran."""
+    configuration), so results folders and the service show what really ran (``stay_margin``:
+    the decision's, which lives beside the model)."""
     out: dict[str, dict[str, Any]] = {
-        "activity": {"kind": type(activity).__name__, **activity.get_params()},
+        "activity": {"kind": type(activity).__name__, **activity.get_params(), "stay_margin": stay_margin},
         "objects": {"kind": type(chooser.model).__name__, **getattr(chooser.model, "get_params", dict)()},
         "chooser": {"kind": chooser.name, "marginal": chooser.marginal},
     }

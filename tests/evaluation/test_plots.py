@@ -108,7 +108,7 @@ def test_activity_anticipation_tells_equal_lines_apart_and_labels_in_plain_numbe
     fig.canvas.draw()
     texts = _legend_texts(fig)
     assert "chosen (persistence) + time of day (same as chosen (persistence))" in texts
-    assert "chosen (persistence)" in texts and "time_of_day" in texts and len(texts) == 4
+    assert "chosen (persistence)" in texts and "time_of_day" in texts and "hour + activity" in texts and len(texts) == 5
     top, bottom = fig.axes[0], fig.axes[1]
     lines = {line.get_label(): line for line in top.get_lines()}
     chosen = lines["chosen (persistence)"]
@@ -117,7 +117,7 @@ def test_activity_anticipation_tells_equal_lines_apart_and_labels_in_plain_numbe
     assert (chosen.get_linestyle(), chosen.get_marker()) != (mixed.get_linestyle(), mixed.get_marker())
     assert mixed.get_linewidth() > chosen.get_linewidth()  # the one beneath shows around the one on top
     styles = {(line.get_linestyle(), line.get_marker()) for line in top.get_lines()}
-    assert len(styles) == 4
+    assert len(styles) == 5
     assert bottom.get_yscale() == "log"
     for axis in (bottom.yaxis, bottom.xaxis, top.xaxis):
         shown = [t.get_text() for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]

@@ -36,6 +36,7 @@ KEYS = {
     "missing_labels.csv": ("method", "household", "labels_pct"),
     "missing_labels_selection.csv": ("household", "params"),
 }
+BASELINES = ("time_of_day", "hour", "CV")  # the activity ahead's rules beside the models ("hour + activity", ...)
 IGNORED = {"seconds"}  # wall-clock figures
 TOLERANCE = 5e-4 + 1e-9  # the files keep four decimals: equal to the third decimal
 
@@ -49,7 +50,7 @@ def _differences(name: str, fresh: dict, reference: dict, keys: tuple[str, ...])
     out, compared = [], 0
     for key, ref in reference.items():
         method = dict(zip(keys, key)).get("method", METHODS[0]).split(" ")[0]
-        if method not in METHODS and not method.startswith("chosen") and method != "time_of_day":
+        if method not in METHODS and not method.startswith("chosen") and method not in BASELINES:
             continue  # an LLM method's row: not run here
         row = fresh.get(key)
         compared += 1

@@ -59,3 +59,28 @@ def test_memo_keeps_a_result_under_every_input_it_names(households):
     assert calls == ["a", "c", "d", "e"] and len(memo) == 4
     searches = set(memo.entries(lambda k: isinstance(k, SearchKey)))
     assert searches == {SearchKey("m", fold.data, ("p", 1), None, 5, "previous")}
+
+
+def test_a_choice_at_the_edge_of_its_grid_widens_the_grid_until_it_is_inside():
+    """The measure peaks at 100; the grid (10, 20) stops before it: 40, 80 and 160 are tried in
+    turn, 80 wins inside the widened grid, and no setting is left at an edge. With one round the
+    choice still sits at the edge and says so. Each candidate is measured once."""
+    from globe.evaluation.selection import select_widening
+
+    measured = []
+
+    def measure(c):
+        measured.append(c["slot"])
+        return {"f1": -abs(c["slot"] - 100)}
+
+    def twice(edge, upward):
+        return edge * 2 if upward else (edge // 2 if edge >= 20 else None)
+
+    chosen = select_widening([{"slot": 10}, {"slot": 20}], measure, "f1", {"slot": twice})
+    assert chosen.best == {"slot": 80} and chosen.at_edge == ()
+    assert sorted(measured) == [10, 20, 40, 80, 160]
+    short = select_widening([{"slot": 10}, {"slot": 20}], measure, "f1", {"slot": twice}, rounds=1)
+    assert short.best == {"slot": 40} and short.at_edge == ("slot",)
+    other = select_widening([{"kind": "a"}, {"kind": "b", "slot": 10}], lambda c: {"f1": c["kind"] == "a"}, "f1",
+                            {"slot": twice})
+    assert other.best == {"kind": "a"} and other.at_edge == ()  # a winner without the setting is not widened

@@ -152,3 +152,21 @@ def test_a_whole_path_with_a_day_type_is_the_walk_and_the_weekdays_are_saved_wit
     for wrong in ([0, 1], [0, 1, 7], [0, True, None]):
         with pytest.raises(ValueError, match="3 days but weekdays"):
             ClockModel().fit(DAYS, wrong)
+
+
+def test_the_floor_keeps_every_transition_above_its_share_of_the_unigram():
+    """After an activity seen hundreds of times, a transition never seen gets k P(b) / n from
+    shrinkage alone; the floor puts it at no less than floor x the add-one unigram, the rows
+    still sum to one, and floor 0 is the model as it was."""
+    days = [["sleep"] * 60 + ["eat"] * 3 + ["work"] * 40 for _ in range(20)] + [["sleep"] * 50 + ["walk"] * 53]
+    plain = ClockModel(shrinkage=2.0).fit(days)
+    floored = plain.with_prediction_params(floor=0.01)
+    history = ["sleep"] * 61 + ["eat"]  # eat -> walk was never seen
+    p, q = plain.predict_proba(history), floored.predict_proba(history)
+    counts = {a: sum(d.count(a) for d in days) for a in plain.classes_}
+    unigram = (counts["walk"] + 1) / (sum(counts.values()) + len(counts))
+    assert p["walk"] < 1e-3 and q["walk"] >= 0.01 * unigram - 1e-12
+    assert abs(sum(q.values()) - 1) < 1e-9
+    assert ClockModel(shrinkage=2.0, floor=0.0).fit(days).predict_proba(history) == p
+    with pytest.raises(Exception, match="floor"):
+        ClockModel(floor=1.0).fit(days)

@@ -27,6 +27,7 @@ NGRAM = {  # the n-gram activity model's fields (activity_estimator != routine)
     "object_max_order": ("5", ("models", "objects", "max_order"), 5),
     "run_start_token": ("true", ("models", "objects", "run_start_token"), True),
     "object_marginal": ("true", ("chooser", "marginal"), True),
+    "stay_margin": ("2.5", ("models", "activity", "stay_margin"), 2.5),
 }
 ROUTINE = {  # the routine model's fields
     "activity_estimator": ("routine", ("models", "activity", "kind"), "RoutineModel"),
@@ -41,6 +42,7 @@ CLOCK = {  # the clock model's fields
     "clock_slot_minutes": ("30", ("models", "activity", "slot_minutes"), 30),
     "clock_shrinkage": ("2.5", ("models", "activity", "shrinkage"), 2.5),
     "clock_day_types": ("weekend", ("models", "activity", "day_types"), "weekend"),
+    "clock_floor": ("0.02", ("models", "activity", "floor"), 0.02),
 }
 
 

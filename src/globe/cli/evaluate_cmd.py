@@ -119,8 +119,12 @@ def evaluate(
     config: ConfigOption = None,
     threshold: Annotated[float | None, typer.Option("--threshold", help="gate threshold d")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
+    objects_ahead: Annotated[bool, typer.Option(
+        "--objects-ahead/--no-objects-ahead", help="also the lookahead and fetch-policy tables, for the homes with "
+        "objects (forecast with the listed methods among persistence, ngram and routine)")] = True,
 ) -> None:
-    """Evaluate chosen methods on the test days and write a results folder."""
+    """Evaluate chosen methods on the test days and write a results folder: Table I, the activity
+    ahead, and for homes with objects the objects ahead and the fetch policy."""
     from globe.evaluation import main_job
 
     cfg = resolve(config, gate__threshold=threshold, llm__backend=backend)
@@ -130,9 +134,12 @@ def evaluate(
     stages = main_job.Stages(out_dir)
     with stage_display() as show:
         stages.progress = show
-        results = main_job.evaluate(cfg, hs, names, out_dir, main_job.backend_for(cfg, names), stages)
+        results = main_job.evaluate(cfg, hs, names, out_dir, main_job.backend_for(cfg, names), stages,
+                                    objects_ahead=objects_ahead)
     print_table1(results)
     print_activity_anticipation(out_dir)
+    if (out_dir / "lookahead.csv").is_file() and any(s["stage"].startswith("anticipation") for s in stages.times):
+        print_anticipation(out_dir)
     console.print(f"results in {out_dir} ({sum(s['seconds'] for s in stages.times):.1f} s)", markup=False)
 
 
@@ -244,7 +251,8 @@ def print_anticipation(out_dir: Path) -> None:
     one = scope is not None and len(scope.households) == 1 and not scope.homer_plus  # the title names it
     over = "" if one else _over(scope.households if scope else ())
     notes = f" ({over}{published})" if over or published else ""
-    table = Table(title=f"Lookahead{where}: relocation F1{notes}")
+    counted = f"; uses counted: {scope.uses}" if scope else ""
+    table = Table(title=f"Lookahead{where}: relocation F1{notes}{counted}")
     table.add_column("method")
     for h in horizons:
         table.add_column(f"{h} min", justify="right")
@@ -257,6 +265,8 @@ def print_anticipation(out_dir: Path) -> None:
         out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, "
                   f"recall {float(r['recall']):.3f}, median lead {r['median_lead_min']} min, {r['fetches']} fetches",
                   markup=False)
+    if not (out_dir / "missing_labels.csv").is_file():
+        return
     missing = rows("missing_labels.csv")
     table = Table(title=f"Missing activity labels ({_over(scope.households if scope else ())})")
     for col in ("labels %", "activity F1", "object F1", "lookahead F1 (mean)"):

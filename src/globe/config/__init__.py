@@ -84,12 +84,19 @@ class ModelConfig(_Section):
     clock_shrinkage: float = Field(
         5.0, gt=0.0, le=1000.0, description="clock model: pseudo-count pulling a slot toward the time-free bigram"
     )
+    clock_floor: float = Field(
+        0.0, ge=0.0, lt=1.0, description="clock model: share of the add-one unigram mixed into every row, so no "
+        "transition gets less than that share of its back-off")
     clock_day_types: DayTypes = Field(
         "none", description="clock model: which days of the week it tells apart ('weekend': Monday to Friday and the "
         "weekend; 'weekday': each day; days named by their date only), each shrunk toward every day's slot")
     object_marginal: bool = Field(
         False, description="mix object predictions over the activity distribution instead of its argmax"
     )
+    stay_margin: float = Field(
+        1.0, ge=1.0, le=1e6, description="the next activity is said to change only when the likeliest other activity "
+        "is at least this many times as probable as staying (1: the plain argmax); the probabilities are the model's "
+        "either way (chosen by cross-validation on weighted F1: selection.stay_margins)")
 
 
 class SelectionConfig(_Section):
@@ -111,7 +118,14 @@ class SelectionConfig(_Section):
     activity_orders: tuple[int, ...] = Field((2, 3, 4, 6), description="n-gram orders tried (witten_bell)")
     routine_orders: tuple[int, ...] = Field((2, 3, 4), description="run n-gram orders tried (routine)")
     time_weights: tuple[float, ...] = Field((0.0, 1.0, 2.0), description="time-of-day weights tried")
-    clock_slots: tuple[int, ...] = Field((30, 60, 120), description="clock model: slot widths tried (minutes)")
+    stay_margins: tuple[float, ...] = Field(
+        (1.0, 1.25, 1.5, 2.0, 3.0, 5.0, 1e6), description="routine family: stay margins (models.stay_margin) tried "
+        "after the models, on weighted F1 of the next activity (the first wins ties; 1e6: never predict a change)")
+    clock_slots: tuple[int, ...] = Field((30, 60, 120), description="clock model: slot widths tried (minutes; a "
+                                         "choice at an edge widens the grid)")
+    clock_floors: tuple[float, ...] = Field(
+        (0.0, 0.001, 0.003, 0.01, 0.03), description="clock model: back-off floors (models.clock_floor) tried on the "
+        "chosen clock model, by log loss (the first wins ties)")
     clock_shrinkages: tuple[float, ...] = Field((2.0, 10.0), description="clock model: shrinkage pseudo-counts tried")
     clock_day_types: tuple[DayTypes, ...] = Field(
         ("none", "weekend", "weekday"), description="clock model: day types tried where at least day_types_min_days "

@@ -11,6 +11,14 @@ Split = Literal["train", "test"]
 IN_USE_CLASS = "in_use"
 """The class of a place where an object is while a person uses it (the importers put a sensor's
 object there while the sensor is on): no robot fetches an object from it."""
+
+
+def is_use_place(label: str) -> bool:
+    """Whether the place ``label`` ("class#id") is of class ``in_use``. An object moving *into* such
+    a place is taken by the person (a use); moving *out of* it is put back, which is no use: it is
+    foreseen by anyone who sees the object in use, so it is neither learnt nor scored as one."""
+    return label.startswith(_USE_PREFIX) or label == IN_USE_CLASS
+_USE_PREFIX = IN_USE_CLASS + "#"
 _ISO_DATE = re.compile(r"[0-9]{4}-[0-9]{2}-[0-9]{2}")
 
 

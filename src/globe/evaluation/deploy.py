@@ -78,4 +78,7 @@ def _scores(selections: dict[str, Selection]) -> dict[str, float]:
     out = {f"activity_{k}": v for k, v in chosen.items()}
     out |= {f"persistence_{k}": v for k, v in persistence.items()}
     out |= {f"object_{k}": v for k, v in _metrics(obj, obj.best).items()}
+    decision = selections.get("decision")  # the activity said, with the chosen stay margin
+    if decision is not None:
+        out["decision_f1"] = _metrics(decision, decision.best).get("f1", 0.0)
     return {k: round(float(v), 4) for k, v in out.items()}

@@ -60,10 +60,13 @@ def run_methods(
         for h in households:
             prepared = method.prepare(h, config, backend, memo)
             alignment = prepared.alignment or config.sequences.alignment
-            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment)
-            oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment, oracle=True)
+            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment,
+                               stay_margin=prepared.stay_margin)
+            oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment, oracle=True,
+                                   stay_margin=prepared.stay_margin)
             runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection,
-                                  assembly.describe(prepared.activity, prepared.chooser)))
+                                  assembly.describe(prepared.activity, prepared.chooser,
+                                                    prepared.stay_margin)))
     return runs
 
 
@@ -149,7 +152,8 @@ def selection_rows(runs: Sequence[MethodRun]) -> list[dict]:
                              "params": ";".join(f"{k}={v}" for k, v in params.items()),
                              "criterion": "log_loss" if sel.criterion == "log_loss" else "weighted_f1",
                              "cv_log_loss": rounded(metrics.get("log_loss")),
-                             "cv_weighted_f1": rounded(metrics.get("f1")), "chosen": params == sel.best})
+                             "cv_weighted_f1": rounded(metrics.get("f1")), "chosen": params == sel.best,
+                             "at_edge": ";".join(sel.at_edge) if params == sel.best else ""})
     return rows
 
 

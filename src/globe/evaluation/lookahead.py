@@ -7,7 +7,9 @@ step x object) pair is *correct* when a change is predicted, a change happens an
 first new location is the true one; precision = correct / predicted changes, recall = correct /
 true changes (micro-averaged over pairs pooled over the test days), F1 from those. An object
 that moves twice within the horizon counts by its first new place; one that moves away and back
-still changed (its first new place is where it went).
+still changed (its first new place is where it went). An object in use at r (at a place of class
+``in_use``, :mod:`globe.sequences.movements`) is left out of that step's pairs: its next move is
+being put back, which no one needs foreseen.
 
 A change is predicted when the forecaster's P(first new place = its best guess) reaches a
 threshold (one per horizon); the thresholds and whether movement hazards know that an activity
@@ -25,7 +27,7 @@ import numpy as np
 
 from globe import assembly
 from globe.config import GlobeConfig, LookaheadConfig, ModelConfig
-from globe.data.records import Day, Household
+from globe.data.records import Day, Household, is_use_place
 from globe.evaluation.selection import DataKey, FitKey, Fold, Memo, SearchKey, Selection, best_of
 from globe.evaluation.tuning import data_folds, fold_days
 from globe.inference.forecast import Forecaster, Forecasts
@@ -60,12 +62,12 @@ class RelocationCounts:
 
 def true_first_locations(locations: Sequence[Sequence[str]], r: int, s: int) -> list[str | None]:
     """Per object, its first location other than the one at step r within steps r+1..r+1+s
-    (None: it stays put throughout)."""
+    (None: it stays put throughout, or it is in use at r and can only be put back first)."""
     here = locations[r]
     out: list[str | None] = []
     for j, loc in enumerate(here):
-        out.append(next((locations[u][j] for u in range(r + 1, min(r + 2 + s, len(locations)))
-                         if locations[u][j] != loc), None))
+        out.append(None if is_use_place(loc) else next(
+            (locations[u][j] for u in range(r + 1, min(r + 2 + s, len(locations))) if locations[u][j] != loc), None))
     return out
 
 
@@ -149,14 +151,17 @@ def score_arrays(run: LookaheadRun, refs: Sequence[tuple[Day, int]], best: np.nd
     future = np.stack([ids[r + 1: r + 1 + horizons] for (_, r), (ids, _) in zip(refs, coded)])
     here = np.stack([ids[r] for (_, r), (ids, _) in zip(refs, coded)])
     window = future != here[:, None, :]  # (refs, horizons, objects): somewhere else than at r
-    moved_any = window.any(axis=1)
+    # an object in use at r can only be put back first: no use to foresee (sequences.movements)
+    in_use = {id(day): _in_use(day) for day, _ in refs}
+    free = ~np.stack([in_use[id(day)][r] for day, r in refs])
+    moved_any = window.any(axis=1) & free
     first_step = window.argmax(axis=1)
     later = np.stack([index[r + 1: r + 1 + horizons] for (_, r), (_, index) in zip(refs, coded)])
     true_loc = np.take_along_axis(later, first_step[:, None, :], axis=1)[:, 0, :]
     for s in range(horizons):
         true = moved_any & (first_step <= s)
         pairs = run.pairs[s]
-        pairs.probability.append(prob[:, s].ravel())
+        pairs.probability.append(np.where(free, prob[:, s], 0.0).ravel())
         pairs.hit.append((true & (best[:, s] == true_loc)).ravel())
         pairs.true.append(true.ravel())
         run.activity_total[s] += len(refs)
@@ -180,6 +185,12 @@ def _coded(day: Day) -> tuple[np.ndarray, list[str]]:
                     for row in day.locations], dtype=int).reshape(len(day), -1)
     _CODED[id(day)] = (day, ids, list(names))
     return ids, list(names)
+
+
+def _in_use(day: Day) -> np.ndarray:
+    """(steps x objects): whether each object is at a use place (:func:`is_use_place`)."""
+    ids, names = _coded(day)
+    return np.array([is_use_place(x) for x in names], dtype=bool)[ids]
 
 
 def _locations_of(cache: dict, locations: tuple[str, ...], day: Day) -> tuple[np.ndarray, np.ndarray]:

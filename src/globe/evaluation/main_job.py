@@ -87,9 +87,11 @@ def backend_for(config: GlobeConfig, methods: Sequence[str] = ()) -> LLMBackend 
 
 def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequence[str], out_dir: Path,
              backend: LLMBackend | None = None, stages: Stages | None = None,
-             memo: Memo | None = None) -> Table1Results:
-    """Table I rows for ``methods`` on each household's test days, written to ``out_dir``.
-    ``memo`` (cross-validation results and fits) is filled and reused."""
+             memo: Memo | None = None, objects_ahead: bool = False) -> Table1Results:
+    """Table I rows for ``methods`` on each household's test days and the activity ahead, written
+    to ``out_dir``; with ``objects_ahead``, also the lookahead and fetch-policy tables of the
+    households with objects (:func:`object_anticipation`, forecasting with those of ``methods``
+    it can). ``memo`` (cross-validation results and fits) is filled and reused."""
     methods = check_methods(methods)
     stages = stages or Stages(out_dir)
     memo = Memo() if memo is None else memo
@@ -108,7 +110,17 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
         scope = DataScope.of(households)
         write_activity_anticipation(out_dir, scores, f"{scope.title} test days: the activity ahead")
     with stages.stage("table1: write results"):
-        return write_table1_results(out_dir, runs, config, scope)
+        written = write_table1_results(out_dir, runs, config, scope)
+    with_objects = [h for h in households if h.objects and h.test]
+    ahead = lookahead_config(config, methods) if objects_ahead and with_objects else None
+    if ahead is not None:
+        steps = {h.name: assembly.step_minutes(h, config) for h in with_objects}
+        if len(set(steps.values())) > 1:  # tabled by minutes ahead: one step per table
+            log.warning("no lookahead or fetch-policy tables: the homes with objects have different steps (%s); "
+                        "evaluate them separately", ", ".join(f"{name} {step} min" for name, step in steps.items()))
+        else:
+            object_anticipation(ahead, with_objects, out_dir, stages, memo)
+    return written
 
 
 def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: Path, out_dir: Path,
@@ -143,18 +155,42 @@ def _same_noise(summary: dict | None, config: GlobeConfig) -> bool:
             and summary.get("scorer", "").startswith("uniform") == (config.llm.backend == "none"))
 
 
+LOOKAHEAD_METHODS = ("persistence", "ngram", "routine")
+"""The Table I methods the lookahead forecasts with (their activity models)."""
+
+
+def object_anticipation(config: GlobeConfig, households: Sequence[Household], out_dir: Path,
+                        stages: Stages | None = None, memo: Memo | None = None) -> "AnticipationResult":
+    """Lookahead (SLaTe-PRO's relocation metric) and the fetch policy on the households' test
+    days, written to ``out_dir``, for the methods of ``config.lookahead.methods``. ``memo``
+    shares the cross-validations already run."""
+    from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
+
+    stages = stages or Stages(out_dir)
+    with stages.stage("anticipation: lookahead and fetch policy"):
+        ahead = run_anticipation(config, households, progress=stages.note, memo=memo)
+        write_anticipation_results(out_dir, ahead, DataScope.of(households))
+    return ahead
+
+
+def lookahead_config(config: GlobeConfig, methods: Sequence[str]) -> GlobeConfig | None:
+    """``config`` with the lookahead forecasting with those of ``methods`` it can (persistence
+    always, as the baseline row), or None when none can."""
+    chosen = [m for m in LOOKAHEAD_METHODS if m in methods or m == "persistence"]
+    if chosen == ["persistence"] and "persistence" not in methods:
+        return None
+    return config.with_overrides({"lookahead.methods": chosen})
+
+
 def anticipation(config: GlobeConfig, households: Sequence[Household], out_dir: Path, stages: Stages | None = None,
                  memo: Memo | None = None) -> tuple["AnticipationResult", "MissingLabelResults"]:
-    """Lookahead (SLaTe-PRO's relocation metric), the fetch policy, and prediction with missing
+    """Lookahead, the fetch policy (:func:`object_anticipation`), and prediction with missing
     activity labels, written to ``out_dir``. ``memo`` shares the main job's cross-validations."""
-    from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
     from globe.evaluation.missing_labels import run_missing_labels, write_missing_label_results
 
     stages = stages or Stages(out_dir)
     memo = Memo() if memo is None else memo
-    with stages.stage("anticipation: lookahead and fetch policy"):
-        ahead = run_anticipation(config, households, progress=stages.note, memo=memo)
-        write_anticipation_results(out_dir, ahead, DataScope.of(households))
+    ahead = object_anticipation(config, households, out_dir, stages, memo)
     with stages.stage("anticipation: missing activity labels"):
         missing = run_missing_labels(config, households, progress=stages.note, memo=memo)
         write_missing_label_results(out_dir, missing.rows, missing.selection_rows)

@@ -34,6 +34,7 @@ class Prepared:
     train_s: float
     selection: dict[str, Selection] = field(default_factory=dict)
     alignment: Alignment | None = None  # chosen by cross-validation; None: ``sequences.alignment``
+    stay_margin: float = 1.0  # the next activity said (models.stay_margin), chosen by cross-validation in a family
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,7 +65,7 @@ def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, mem
 def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
     fitted = _fit(h, cfg, memo)
     chooser = assembly.object_chooser(fitted.objects, cfg.gate, backend, marginal=cfg.models.object_marginal)
-    return Prepared(fitted.activity, chooser, fitted.train_s)
+    return Prepared(fitted.activity, chooser, fitted.train_s, stay_margin=cfg.models.stay_margin)
 
 
 def _ngram(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
@@ -110,7 +111,7 @@ def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LL
             selection = selection | {"gate": gate_sel}
         chooser = assembly.object_chooser(fitted.objects, gate_cfg, backend if with_gate else None,
                                           marginal=models.object_marginal)
-        return Prepared(fitted.activity, chooser, fitted.train_s, selection, alignment)
+        return Prepared(fitted.activity, chooser, fitted.train_s, selection, alignment, models.stay_margin)
 
     return prepare
 

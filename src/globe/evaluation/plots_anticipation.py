@@ -96,7 +96,7 @@ def lead_time_figure(rows: Sequence[dict]) -> Figure:
     return fig
 
 
-LINE_STYLES = (("o", "-"), ("s", "--"), ("^", ":"), ("D", "-."), ("v", (0, (5, 1, 1, 1))))
+LINE_STYLES = (("o", "-"), ("s", "--"), ("^", ":"), ("D", "-."), ("v", (0, (5, 1, 1, 1))), ("P", (0, (1, 1))))
 """(marker, line style) of the methods of :func:`activity_horizon_figure`, in their order."""
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Callable, Protocol, Sequence
 
 from globe.data.records import Day, Household
+from globe.models.base import stay_or_change
 from globe.reasoning.backends.base import LLMBackend, QuestionRecorder
 from globe.reasoning.choice import ContextFor, ObjectChoice, ObjectChooser, Ranking, run_context
 from globe.sequences.movements import Alignment
@@ -98,8 +99,9 @@ class Evaluation:
     prefetch_s: float = 0.0  # the LLM's batched scoring of every question asked (then read from the cache)
 
 
-def _top(model: ActivityPredictor, distribution: dict[str, float]) -> str:
-    best = model.top(distribution)
+def _top(model: ActivityPredictor, distribution: dict[str, float], current: str | None = None,
+         stay_margin: float = 1.0) -> str:
+    best = stay_or_change(model.top(distribution), distribution, current, stay_margin)
     return NO_PREDICTION if best is None else best
 
 
@@ -128,8 +130,11 @@ def evaluate_days(
     injected: Callable[[str, int, str], bool] | None = None,
     progress: Callable[[int], None] | None = None,
     rankings: dict | None = None,
+    stay_margin: float = 1.0,
 ) -> Evaluation:
-    """Run the protocol over ``days``; ``injected(day, step, obj)`` marks noise movements.
+    """Run the protocol over ``days``; ``injected(day, step, obj)`` marks noise movements; the
+    next activity said is the model's, kept at the current one by ``stay_margin``
+    (:func:`~globe.models.base.stay_or_change`).
 
     The object questions do not depend on each other's answers, so when the chooser asks a
     cached LLM they are first collected and answered in the backend's preferred order
@@ -140,7 +145,7 @@ def evaluate_days(
     for day in days:
         acts = day.activities
         dists = activity_model.scan_proba(acts, day.weekday)
-        predicted = [_top(activity_model, d) for d in dists]
+        predicted = [_top(activity_model, d, acts[t - 1] if t else None, stay_margin) for t, d in enumerate(dists)]
         for t in range(1, len(acts)):
             act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1],
                                               true=acts[t], predicted=predicted[t],

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
-from globe.data.records import Household
+from globe.data.records import Household, is_use_place
 from globe.evaluation.selection import fingerprint
 
 # method -> (activity F1, object F1, mean F1), weighted F1 averaged over households A, B, C
@@ -29,6 +29,10 @@ HOMER_PLUS_DAYS = {
 }
 
 
+RELOCATIONS = "every relocation"
+DEPARTURES = "departures only (a return from a use place is no use)"
+
+
 @dataclass(frozen=True, slots=True)
 class DataScope:
     """What a results folder is about: the title its tables and plots carry, and whether the
@@ -37,6 +41,7 @@ class DataScope:
     title: str
     households: tuple[str, ...]
     homer_plus: bool
+    uses: str = RELOCATIONS  # which object movements are scored as uses (:func:`uses_rule`)
 
     @classmethod
     def of(cls, households: Sequence[Household]) -> "DataScope":
@@ -45,13 +50,29 @@ class DataScope:
         names = tuple(h.name for h in households)
         homer = bool(households) and all(
             (fingerprint(h.train), fingerprint(h.test)) in HOMER_PLUS_DAYS for h in households)
+        uses = uses_rule(households)
         if homer:
-            return cls("HOMER+", names, True)
-        return cls(("household " if len(names) == 1 else "households ") + ", ".join(names), names, False)
+            return cls("HOMER+", names, True, uses)
+        return cls(("household " if len(names) == 1 else "households ") + ", ".join(names), names, False, uses)
 
     def as_dict(self) -> dict:
-        return {"title": self.title, "households": list(self.households), "homer_plus": self.homer_plus}
+        return {"title": self.title, "households": list(self.households), "homer_plus": self.homer_plus,
+                "uses": self.uses}
 
     @classmethod
     def from_dict(cls, payload: dict) -> "DataScope":
-        return cls(str(payload["title"]), tuple(payload["households"]), bool(payload["homer_plus"]))
+        return cls(str(payload["title"]), tuple(payload["households"]), bool(payload["homer_plus"]),
+                   str(payload.get("uses", RELOCATIONS)))
+
+
+def uses_rule(households: Sequence[Household]) -> str:
+    """Which rule the object scores of ``households`` follow (:mod:`globe.sequences.movements`):
+    every relocation (HOMER+'s protocol) where the map has no use place, departures only where it
+    has; per household when they differ."""
+    def rule(h: Household) -> str:
+        return DEPARTURES if any(is_use_place(n.node) for n in h.nodes) else RELOCATIONS
+
+    found = {h.name: rule(h) for h in households}
+    if len(set(found.values())) <= 1:
+        return next(iter(found.values()), RELOCATIONS)
+    return "; ".join(f"{name}: {r}" for name, r in found.items())

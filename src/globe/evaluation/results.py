@@ -41,7 +41,8 @@ def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: Globe
     timing = experiments.timing_rows(runs)
     report.write_csv(out_dir / "timing.csv", timing)
     report.write_csv(out_dir / "selection.csv", experiments.selection_rows(runs),
-                     ["method", "household", "part", "params", "criterion", "cv_log_loss", "cv_weighted_f1", "chosen"])
+                     ["method", "household", "part", "params", "criterion", "cv_log_loss", "cv_weighted_f1", "chosen",
+                      "at_edge"])
     calib, curves = experiments.calibration_rows(runs, config.evaluation.calibration_bins)
     report.write_csv(out_dir / "calibration.csv", calib)
     for part, per_method in curves.items():

@@ -47,7 +47,7 @@ def evaluate_dataset(cfg: GlobeConfig, data: Dataset, method: str, backend: LLMB
 
         alignment = prepared.alignment or run.sequences.alignment
         out.append(evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment,
-                                 injected=injected))
+                                 injected=injected, stay_margin=prepared.stay_margin))
     return out
 
 

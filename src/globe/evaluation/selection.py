@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import math
+import statistics
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Iterable, Mapping, Sequence, TypeVar
@@ -53,6 +55,7 @@ class Selection:
     seconds: float = 0.0
     criterion: str = "f1"
     metrics: list[dict[str, float]] = field(default_factory=list)
+    at_edge: tuple[str, ...] = ()  # settings whose chosen value is the last tried in its direction (see widening)
 
 
 def best_of(scored: Sequence[tuple[T, float]]) -> T:
@@ -81,6 +84,95 @@ def select_by(candidates: Sequence[dict[str, Any]], measure: Callable[[dict[str,
     scored = [(c, sign * m[criterion]) for c, m in measured]
     return Selection(dict(best_of(scored)) if scored else {}, scored, time.perf_counter() - started, criterion,
                      [m for _, m in measured])
+
+
+BEYOND_NOISE = 1.0
+"""Standard errors by which a candidate must beat the first (the default) to replace it, in the
+searches that choose a *decision* (:func:`best_beyond_noise`): the one-standard-error rule."""
+
+
+def best_beyond_noise(per_fold: Sequence[tuple[T, Sequence[float]]], k: float = BEYOND_NOISE) -> T:
+    """The first candidate (the default: the plain argmax, never asking the LLM) unless others beat
+    it fold by fold: of those whose mean paired gain over it exceeds ``k`` standard errors of that
+    gain, the one with the highest mean (ties: the first). A decision rule picked by a gain of a
+    few thousandths, smaller than the folds disagree by, is noise that test days do not repeat."""
+    if not per_fold:
+        raise ValueError("no candidate to choose from")
+    first, base = per_fold[0]
+    best, best_gain = first, 0.0
+    for candidate, scores in per_fold[1:]:
+        gains = [a - b for a, b in zip(scores, base)]
+        if len(gains) < 2:
+            continue
+        mean = statistics.fmean(gains)
+        se = statistics.stdev(gains) / math.sqrt(len(gains))
+        if mean > k * se and round(mean, SCORE_DECIMALS) > round(best_gain, SCORE_DECIMALS):
+            best, best_gain = candidate, mean
+    return best
+
+
+def select_beyond_noise(candidates: Sequence[dict[str, Any]],
+                        measure: Callable[[dict[str, Any]], Sequence[dict[str, float]]], criterion: str) -> Selection:
+    """:func:`select_by` where ``measure`` gives one metric dict per fold and the first candidate
+    keeps its place unless another beats it beyond noise (:func:`best_beyond_noise`; ``criterion``
+    higher is better). The scores kept are the means over the folds."""
+    started = time.perf_counter()
+    measured = [(dict(c), list(measure(c))) for c in candidates]
+    per_fold = [(c, [m[criterion] for m in folds]) for c, folds in measured]
+    means = [{name: statistics.fmean(m[name] for m in folds) for name in folds[0]} if folds else {}
+             for _, folds in measured]
+    best = best_beyond_noise(per_fold) if per_fold else {}
+    return Selection(dict(best), [(c, m.get(criterion, 0.0)) for (c, _), m in zip(measured, means)],
+                     time.perf_counter() - started, criterion, means)
+
+
+Beyond = Callable[[Any, bool], Any]
+"""``beyond(edge, upward)``: the next value past ``edge`` of a setting's grid (None: none)."""
+
+
+def _edges(candidates: Sequence[dict[str, Any]], best: dict[str, Any], key: str) -> tuple[Any, Any] | None:
+    """The lowest and highest ``key`` tried among candidates equal to ``best`` but for it."""
+    tried = [c[key] for c in candidates if key in c and all(c.get(k) == v for k, v in best.items() if k != key)]
+    return (min(tried), max(tried)) if tried else None
+
+
+def select_widening(candidates: Sequence[dict[str, Any]], measure: Callable[[dict[str, Any]], dict[str, float]],
+                    criterion: str, beyond: Mapping[str, Beyond], rounds: int = 3) -> Selection:
+    """:func:`select_by`, then, while the best sits at an edge of a setting of ``beyond`` (its
+    highest or lowest value tried), the value past that edge is tried too (up to ``rounds``
+    times): a grid that stops before the optimum says so by choosing its edge. What still sits at
+    an edge afterwards is named in :attr:`Selection.at_edge`. Each candidate is measured once."""
+    measured: dict[tuple, dict[str, float]] = {}
+
+    def once(c: dict[str, Any]) -> dict[str, float]:
+        key = tuple(sorted(c.items()))
+        if key not in measured:
+            measured[key] = measure(c)
+        return measured[key]
+
+    started, tried = time.perf_counter(), [dict(c) for c in candidates]
+    chosen = select_by(tried, once, criterion)
+    for _ in range(rounds):
+        more: list[dict[str, Any]] = []
+        for key, step in beyond.items():
+            edges = _edges(tried, chosen.best, key) if key in chosen.best else None
+            if edges is None:
+                continue
+            for edge, upward in ((edges[1], True), (edges[0], False)):
+                value = step(edge, upward) if chosen.best[key] == edge else None
+                if value is not None and chosen.best | {key: value} not in tried + more:
+                    more.append(chosen.best | {key: value})
+        if not more:
+            break
+        tried += more
+        chosen = select_by(tried, once, criterion)
+    at_edge = []
+    for key in beyond:
+        edges = _edges(tried, chosen.best, key) if key in chosen.best else None
+        if edges is not None and edges[0] != edges[1] and chosen.best[key] in edges:
+            at_edge.append(key)
+    return Selection(chosen.best, chosen.scores, time.perf_counter() - started, criterion, chosen.metrics,
+                     tuple(at_edge))
 
 
 # -- what results depend on ------------------------------------------------------------------

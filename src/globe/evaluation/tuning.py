@@ -19,19 +19,22 @@ from globe.data.records import Day, Household
 from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.protocol import ActivityPredictor, evaluate_days
 from globe.evaluation.selection import (
+    Beyond,
     DataKey,
     FitKey,
     Fold,
     Memo,
     SearchKey,
     Selection,
-    best_of,
+    best_beyond_noise,
     folds,
     frozen_params,
     grid,
+    select_beyond_noise,
     select_by,
+    select_widening,
 )
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, stay_or_change
 from globe.models.objects import ObjectModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
@@ -101,40 +104,47 @@ class ScanMemo:
         return self.model.top(distribution)
 
 
-def activity_scores(model: ScanMemo, days: Sequence[Day]) -> dict[str, float]:
+def activity_scores(model: ScanMemo, days: Sequence[Day], stay_margin: float = 1.0) -> dict[str, float]:
     """Log loss and weighted F1 of the next activity at steps 1..T-1 of held-out days (a fold
-    with nothing to score: F1 0, log loss that of a probability of 0)."""
+    with nothing to score: F1 0, log loss that of a probability of 0); the activity said is kept
+    at the current one by ``stay_margin`` (:func:`~globe.models.base.stay_or_change`)."""
     true, pred, p_true = [], [], []
     for day in days:
         acts = day.activities
         for t, dist in enumerate(model.scan_proba(acts, day.weekday)):
             if t:
                 true.append(acts[t])
-                pred.append(model.top(dist) or "<none>")
+                pred.append(stay_or_change(model.top(dist), dist, acts[t - 1], stay_margin) or "<none>")
                 p_true.append(dist.get(acts[t], 0.0))
     loss = log_loss(p_true if p_true else [0.0])
     return {"log_loss": 0.0 if loss is None else loss, "f1": f1(true, pred) or 0.0}
 
 
 def object_scores(household: Household, days: Sequence[Day], activity: ActivityPredictor, chooser: ObjectChooser,
-                  alignment: str, rankings: dict) -> dict[str, float]:
+                  alignment: str, rankings: dict, stay_margin: float = 1.0) -> dict[str, float]:
     """Log loss (of the object model's probability of the object that moved) and weighted F1 of
     the object at every movement of held-out days, under the full protocol."""
-    ev = evaluate_days(household, days, activity, chooser, alignment=alignment, rankings=rankings)  # type: ignore[arg-type]
+    ev = evaluate_days(household, days, activity, chooser, alignment=alignment,  # type: ignore[arg-type]
+                       rankings=rankings, stay_margin=stay_margin)
     p_true = [r.p_true for r in ev.objects if r.p_true is not None]
     return {"log_loss": log_loss(p_true) or 0.0, "f1": records_f1(ev.objects) or 0.0}
 
 
 def object_f1(household: Household, days: Sequence[Day], activity: ActivityPredictor, chooser: ObjectChooser,
-              alignment: str, rankings: dict) -> float:
+              alignment: str, rankings: dict, stay_margin: float = 1.0) -> float:
     """Weighted F1 of the object at every movement of held-out days, under the full protocol."""
-    return object_scores(household, days, activity, chooser, alignment, rankings)["f1"]
+    return object_scores(household, days, activity, chooser, alignment, rankings, stay_margin)["f1"]
+
+
+def per_fold(household: Household, k: int, score_fold: Any) -> list[Any]:
+    """``score_fold(fold, held-out days)`` on each of the ``k`` folds."""
+    return [score_fold(fold, fold_days(household, fold)[1]) for fold in data_folds(household, k)]
 
 
 def mean_over_folds(household: Household, k: int, score_fold: Any) -> Any:
     """The mean of ``score_fold(fold, held-out days)`` over the ``k`` folds (a number, or each
     metric of a dict of them)."""
-    scores = [score_fold(fold, fold_days(household, fold)[1]) for fold in data_folds(household, k)]
+    scores = per_fold(household, k, score_fold)
     if isinstance(scores[0], dict):
         return {name: sum(s[name] for s in scores) / len(scores) for name in scores[0]}
     return sum(scores) / len(scores)
@@ -154,6 +164,21 @@ def model_search_key(h: Household, cfg: GlobeConfig, family: str) -> SearchKey:
     base models, the folds and the alignment."""
     return SearchKey(f"models:{family}", DataKey.of(h), cfg.selection, cfg.models, cfg.selection.folds,
                      cfg.sequences.alignment)
+
+
+def _clock_beyond(step_minutes: int) -> dict[str, Beyond]:
+    """Past the edges of the clock model's grid: slots twice as wide (to 12 hours) or half as
+    wide (to one step, at least 10 minutes), shrinkage five times stronger (to 1000) or weaker
+    (to 0.1)."""
+    def slot(edge: int, upward: bool) -> int | None:
+        value = edge * 2 if upward else edge // 2
+        return value if max(step_minutes, 10) <= value <= 720 and value != edge else None
+
+    def shrinkage(edge: float, upward: bool) -> float | None:
+        value = round(edge * 5 if upward else edge / 5, 6)
+        return value if 0.1 <= value <= 1000 else None
+
+    return {"clock_slot_minutes": slot, "clock_shrinkage": shrinkage}
 
 
 def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tuple[ModelConfig, dict[str, Selection]]:
@@ -188,8 +213,26 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
         return mean_over_folds(h, sel.folds, lambda fold, days: activity_scores(
             fitted_activity(h, fold, models, memo, step), days))
 
-    act = select_by(simpler + space, activity_measure, sel.criterion if family == "routine" else sel.ngram_criterion)
+    criterion = sel.criterion if family == "routine" else sel.ngram_criterion
+    beyond = _clock_beyond(step) if family == "routine" else {}
+    act = select_widening(simpler + space, activity_measure, criterion, beyond)
     models = cfg.models.model_copy(update=base | act.best)
+    selections = {"activity": act}
+    if models.activity_estimator == "clock" and len(sel.clock_floors) > 1:
+        selections["floor"] = floor = select_by([{"clock_floor": f} for f in sel.clock_floors],
+                                                lambda params: activity_measure(act.best | params), "log_loss")
+        models = models.model_copy(update=floor.best)
+    if family == "routine" and len(sel.stay_margins) > 1:
+        # the decision apart from the distribution: the same folds' scans, scored by the F1 they are reported by
+        chosen = models
+
+        def decision_measure(params: dict[str, Any]) -> list[dict[str, float]]:
+            return per_fold(h, sel.folds, lambda fold, days: activity_scores(
+                fitted_activity(h, fold, chosen, memo, step), days, params["stay_margin"]))
+
+        selections["decision"] = decision = select_beyond_noise([{"stay_margin": m} for m in sel.stay_margins],
+                                                                decision_measure, "f1")
+        models = models.model_copy(update=decision.best)
 
     def object_measure(params: dict[str, Any]) -> dict[str, float]:
         return object_cv_scores(h, cfg, models.model_copy(update=params), alignment, memo, step)
@@ -197,7 +240,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     obj = select_by(grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token}),
                     object_measure, sel.object_criterion)
     models = models.model_copy(update=obj.best)
-    selections = {"activity": act, "objects": obj}
+    selections["objects"] = obj
     offered = [a for a in sel.alignments if a != "most" or all(d.covering is not None for d in h.train)]
     if family == "routine" and set(offered) - {alignment}:
         # Which activity a use is credited to depends on how the log was made (HOMER+'s rows: the
@@ -225,7 +268,8 @@ def object_cv_scores(h: Household, cfg: GlobeConfig, models: ModelConfig, alignm
         activity = fitted_activity(h, fold, models, memo, step)
         objects = fitted_objects(h, fold, models, alignment, memo)
         chooser = assembly.object_chooser(objects, cfg.gate, None, marginal=models.object_marginal)
-        return object_scores(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment))
+        return object_scores(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment),
+                             models.stay_margin)
 
     return mean_over_folds(h, cfg.selection.folds, score_fold)
 
@@ -244,9 +288,11 @@ def _rankings(memo: Memo, fold: Fold, models: ModelConfig, alignment: str) -> di
 
 def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLMBackend, memo: Memo,
                examples: int = 0) -> tuple[GateConfig, Selection]:
-    """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is a candidate
-    and wins ties, so the LLM must earn its place on held-out days. ``examples`` recent runs of
-    the activity personalise the prompt (fixed, not searched)."""
+    """Gate settings chosen by k-fold CV on training days; "never ask" (d = 0) is the default and
+    keeps its place unless a setting beats it fold by fold beyond noise
+    (:func:`~globe.evaluation.selection.best_beyond_noise`): the LLM must earn its place on
+    held-out days. ``examples`` recent runs of the activity personalise the prompt (fixed, not
+    searched)."""
     sel, g, alignment, step = cfg.selection, cfg.gate, cfg.sequences.alignment, assembly.step_minutes(h, cfg)
     key = SearchKey("gate", DataKey.of(h), (sel, g), (models, examples, backend.name, backend.model_name), sel.folds,
                     alignment)
@@ -257,23 +303,25 @@ def tuned_gate(h: Household, cfg: GlobeConfig, models: ModelConfig, backend: LLM
     space: list[dict[str, Any]] = [{"threshold": 0.0, "mode": "replace", "combine_weight": g.combine_weight}] + [
         {"threshold": d, **style} for d in sel.gate_thresholds for style in styles]
 
-    def score(params: dict[str, Any]) -> float:
+    def score(params: dict[str, Any]) -> list[float]:
         gate = g.model_copy(update=params | {"examples": examples})
 
         def score_fold(fold: Fold, days: Sequence[Day]) -> float:
             activity = fitted_activity(h, fold, models, memo, step)
             objects = fitted_objects(h, fold, models, alignment, memo)
             chooser = assembly.object_chooser(objects, gate, backend, marginal=models.object_marginal)
-            return object_f1(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment))
+            return object_f1(h, days, activity, chooser, alignment, _rankings(memo, fold, models, alignment),
+                             models.stay_margin)
 
-        return mean_over_folds(h, sel.folds, score_fold)
+        return per_fold(h, sel.folds, score_fold)
 
     # The highest threshold asks every question a lower one asks: scoring it first answers each
     # fold's questions in one batch, and the rest come from the answer cache.
     started = time.perf_counter()
     scores = {i: score(space[i]) for i in sorted(range(len(space)), key=lambda i: -float(space[i]["threshold"]))}
-    scored = [(space[i], scores[i]) for i in range(len(space))]
-    chosen = Selection(dict(best_of(scored)), scored, time.perf_counter() - started)
+    scored = [(space[i], sum(scores[i]) / len(scores[i])) for i in range(len(space))]
+    best = best_beyond_noise([(space[i], scores[i]) for i in range(len(space))])  # the LLM must earn its place
+    chosen = Selection(dict(best), scored, time.perf_counter() - started)
     out = (g.model_copy(update=chosen.best | {"examples": examples}), chosen)
     memo.put(key, out)
     return out

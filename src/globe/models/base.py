@@ -116,6 +116,17 @@ def top(distribution: Mapping[str, float], frequency: Mapping[str, int]) -> str 
     return tied[0] if len(tied) == 1 else min(tied, key=lambda w: (-frequency.get(w, 0), str(w)))
 
 
+def stay_or_change(best: str | None, distribution: Mapping[str, float], current: str | None,
+                   stay_margin: float) -> str | None:
+    """The next activity said: ``best`` (the likeliest), unless it is a change and not at least
+    ``stay_margin`` times as probable as ``current`` staying. A probability model is chosen by log
+    loss; this point decision by what it is scored on (weighted F1), so a home where changes are
+    hard to time is told "it stays" rather than a change that is right a third of the time."""
+    if best is None or current is None or best == current or stay_margin <= 1.0:
+        return best
+    return current if distribution.get(best, 0.0) < stay_margin * distribution.get(current, 0.0) else best
+
+
 class ActivityModelBase(CountingModel):
     """What every next-activity model shares: fit = reset + partial_fit, ranking, argmax,
     confidence, and ``predict_proba`` / ``scan_proba`` written once over the model's integer state

@@ -19,7 +19,12 @@ Saturday and Sunday) or ``"weekday"`` (each day of the week),
 
     P(b | a, slot, type) = (n(a -> b, slot, type) + k P(b | a, slot)) / (n(a -> ., slot, type) + k)
 
-and the first step likewise; a day of no known type (no date) gets the level below. The type is
+and the first step likewise; a day of no known type (no date) gets the level below.
+
+Shrinkage vanishes where counts are large: a transition never seen after an activity seen a
+thousand times gets k P(b) / 1000. ``floor`` interpolates every row with the add-one unigram,
+``(1 - floor) P + floor P(b)``, so nothing gets less than ``floor`` times its back-off; it is read
+only when predicting, and chosen by cross-validation on log loss (``selection.clock_floors``). The type is
 part of the state (:meth:`ClockStates.root_of`), so the filter and the forecaster carry it along
 a day with no other code.
 """
@@ -56,22 +61,26 @@ def day_type(weekday: int | None, day_types: DayTypes) -> int:
 class ClockModel(ActivityModelBase):
     """P(a_t | a_{t-1}, time slot of t), shrunk to the time-free bigram (see module doc)."""
 
-    _parameter_constraints = {"slot_minutes": int, "shrinkage": float, "step_minutes": int, "day_types": DAY_TYPES}
-    _prediction_params = frozenset({"shrinkage"})
+    _parameter_constraints = {"slot_minutes": int, "shrinkage": float, "step_minutes": int, "day_types": DAY_TYPES,
+                              "floor": float}
+    _prediction_params = frozenset({"shrinkage", "floor"})
     kind = "clock"
 
     def __init__(self, *, slot_minutes: int = 60, shrinkage: float = 5.0, step_minutes: int = 10,
-                 day_types: DayTypes = "none") -> None:
+                 day_types: DayTypes = "none", floor: float = 0.0) -> None:
         self.slot_minutes = slot_minutes
         self.shrinkage = shrinkage
         self.step_minutes = step_minutes
         self.day_types = day_types
+        self.floor = floor
 
     def _validate_params(self) -> None:
         super()._validate_params()
         for name in ("slot_minutes", "shrinkage", "step_minutes"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"ClockModel: {name}={getattr(self, name)!r}; expected a positive number")
+        if not 0.0 <= self.floor < 1.0:
+            raise ConfigError(f"ClockModel: floor={self.floor!r}; expected 0 <= floor < 1")
 
     def partial_fit(self, days: Sequence[Sequence[str]], weekdays: Weekdays = None) -> "ClockModel":
         if not hasattr(self, "training_data_"):
@@ -196,4 +205,8 @@ class ClockStates(StateSpace):
         for key in np.unique(keys).tolist():
             mine = keys == key
             out[mine] = self._typed_table(key >> 32, key & 0xFFFFFFFF)[previous[mine]]
+        floor = self._model.floor
+        if floor > 0:
+            counts = np.array([self._model.frequency_[a] for a in self.labels], dtype=float)
+            out = (1 - floor) * out + floor * (counts + 1.0) / (counts.sum() + len(counts))
         return out

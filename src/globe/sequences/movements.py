@@ -1,4 +1,9 @@
-"""Object movement events: an object moves at step t when its location differs from t-1."""
+"""Object movement events: an object is used at step t when its location differs from t-1.
+
+Every relocation counts (HOMER+'s protocol, as SLaTe-PRO), except one out of a place of class
+``in_use`` (:func:`~globe.data.records.is_use_place`): the importers and Home Assistant put an
+object there while its sensor is on, and its return home is no use a person would name. A home
+with no such place (HOMER+) is scored as published."""
 
 from __future__ import annotations
 
@@ -7,7 +12,7 @@ from itertools import compress
 from operator import ne
 from typing import Literal, Sequence
 
-from globe.data.records import Day
+from globe.data.records import Day, is_use_place
 
 Alignment = Literal["previous", "current", "hybrid", "most"]
 ALIGNMENTS: tuple[Alignment, ...] = ("previous", "current", "hybrid", "most")
@@ -51,11 +56,20 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
     raise ValueError(f"unknown alignment {alignment!r}; expected one of {', '.join(ALIGNMENTS)}")
 
 
+def used_between(objects: Sequence[str], before: Sequence[str], after: Sequence[str]) -> tuple[str, ...]:
+    """The objects (in column order) whose place in row ``after`` differs from row ``before``,
+    less those put back from a use place (module doc): what was used between two steps."""
+    moved = tuple(compress(objects, map(ne, before, after)))
+    if moved and any(map(is_use_place, before)):
+        return tuple(o for o, b, a in zip(objects, before, after) if b != a and not is_use_place(b))
+    return moved
+
+
 def moved_steps(day: Day, objects: Sequence[str],
                 memo: dict[tuple[int, int], tuple] | None = None) -> list[tuple[int, tuple[str, ...]]]:
-    """(t, the objects whose location at t differs from t-1, in column order) for every step t at
-    which something moved. Most steps move nothing, and the rows of such steps are often the
-    same tuple (the parser shares them), so those cost one identity check. ``memo``, shared by
+    """(t, :func:`used_between` rows t-1 and t) for every step t at which something was used.
+    Most steps move nothing, and the rows of such steps are often the same tuple (the parser
+    shares them), so those cost one identity check. ``memo``, shared by
     calls over the days of one household, keeps the answer per pair of row objects (routines
     repeat the same changes day after day); it holds the rows, so their ids stay theirs."""
     rows = day.locations
@@ -68,13 +82,15 @@ def moved_steps(day: Day, objects: Sequence[str],
         key = (id(before), id(after))
         hit = memo.get(key)
         if hit is None:
-            hit = memo[key] = (before, after, tuple(compress(objects, map(ne, before, after))))
-        out.append((t, hit[2]))
+            hit = memo[key] = (before, after, used_between(objects, before, after))
+        if hit[2]:
+            out.append((t, hit[2]))
     return out
 
 
 def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment = "previous") -> list[MovementEvent]:
-    """Every movement of the day, by step, then by column order (deterministic)."""
+    """Every movement of the day (returns from a use place left out, see the module doc), by step,
+    then by column order (deterministic)."""
     events: list[MovementEvent] = []
     rows = day.locations
     for t in range(1, len(day)):
@@ -84,7 +100,7 @@ def extract_movements(day: Day, objects: tuple[str, ...], alignment: Alignment =
         s = activity_step_for(day.activities, t, alignment, day.covering)
         name, minute, activity = day.name, day.minutes[t], day.activities[s]
         events.extend(MovementEvent(name, t, minute, obj, b, a, s, activity)
-                      for obj, b, a in zip(objects, before, after) if b != a)
+                      for obj, b, a in zip(objects, before, after) if b != a and not is_use_place(b))
     return events
 
 

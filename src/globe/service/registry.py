@@ -510,7 +510,7 @@ class Registry:
         with self._held(name) as held:
             session = held.session
             assert session is not None
-            built = assembly.describe(session.activity_model, session.chooser)
+            built = assembly.describe(session.activity_model, session.chooser, session.deployment.models.stay_margin)
             scores = scoring.online_scores(self.store, name, session)
             return StatsOut(**session.stats(), **held.counts(), timezone=held.row.timezone,
                             created_at=held.row.created_at.isoformat(), chooser=built["chooser"],

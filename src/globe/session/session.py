@@ -12,7 +12,8 @@ evaluation scored at that step.
   nobody observed stay unknown (no label, objects not looked at).
 - **The activity estimate.** The activity filter (:mod:`globe.inference.activity_filter`) is
   updated step by step with each step's label, when there is one, and the objects seen moving
-  (an object moved at t when its place differs from the observed step t-1); a step nobody
+  (an object is used at t when its place differs from the observed step t-1 and it was not put
+  back from a use place, :mod:`globe.sequences.movements`); a step nobody
   observed is propagated by the activity model alone. With every label seen it is exactly the
   activity model's own prediction.
 - **The decision**, once per state of the day (asking again before the next observation gives
@@ -50,9 +51,9 @@ from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
 from globe.inference.emission import MovementEmission
 from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches, left_alone
 from globe.inference.forecast import Forecast, mixture
-from globe.models.base import ActivityModelBase
+from globe.models.base import ActivityModelBase, stay_or_change
 from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
-from globe.sequences.movements import Alignment
+from globe.sequences.movements import Alignment, used_between
 from globe.sequences.runs import activity_runs
 from globe.session.grid import DayGrid
 
@@ -250,9 +251,11 @@ class HouseholdSession:
         return self._beliefs[-1]
 
     def moved(self, step: int) -> frozenset[str]:
-        """The objects whose place at ``step`` differs from the step before."""
-        before, now = self._states[step - 1], self._states[step]
-        return frozenset(o for o, x, y in zip(self.household.objects, before, now) if x != y) if step else frozenset()
+        """The objects used at ``step``: its place differs from the step before's, and it was not
+        put back from a use place (:func:`~globe.sequences.movements.used_between`)."""
+        if not step:
+            return frozenset()
+        return frozenset(used_between(self.household.objects, self._states[step - 1], self._states[step]))
 
     # -- what is known of today ---------------------------------------------------------------
     @property
@@ -375,12 +378,15 @@ class HouseholdSession:
         return self._belief_dist[1]
 
     def next_activity(self) -> tuple[str, float] | None:
-        """The top next activity and its probability (what :meth:`decide` says), or None."""
+        """The next activity said and its probability (what :meth:`decide` says), or None: the
+        likeliest, kept at the activity under way by the deployment's stay margin
+        (:func:`~globe.models.base.stay_or_change`, as the evaluation scores it)."""
         if self.days_learned == 0 or not self._labels:
             return None
         belief = self.belief()
-        ranked = self.activity_model.ranked(belief)
-        return (ranked[0], float(belief[ranked[0]])) if ranked else None
+        said = stay_or_change(self.activity_model.top(belief), belief, self._labels[-1],
+                              self.deployment.models.stay_margin)
+        return (said, float(belief.get(said, 0.0))) if said is not None else None
 
     def decide(self) -> Decision:
         """Next activity, the object likely needed and what to fetch: decided once per state of

@@ -232,7 +232,7 @@ def settings(registry: Registry, name: str) -> dict[str, Any]:
     """The "settings" page: what the household runs (its models and how they were chosen, its
     clock) and the fetch rule, in words with units."""
     with registry.locked(name) as a:
-        built = assembly.describe(a.activity_model, a.chooser)
+        built = assembly.describe(a.activity_model, a.chooser, a.deployment.models.stay_margin)
         p, policy = registry.config.policy, a.policy
         step = a.grid.step_minutes
         decision: dict[str, Any] = {
