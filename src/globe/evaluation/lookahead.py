@@ -152,7 +152,7 @@ def score_arrays(run: LookaheadRun, refs: Sequence[tuple[Day, int]], best: np.nd
     here = np.stack([ids[r] for (_, r), (ids, _) in zip(refs, coded)])
     window = future != here[:, None, :]  # (refs, horizons, objects): somewhere else than at r
     # an object in use at r can only be put back first: no use to foresee (sequences.movements)
-    in_use = {id(day): _in_use(day) for day, _ in refs}
+    in_use = {id(day): _in_use(day) for day in {id(day): day for day, _ in refs}.values()}
     free = ~np.stack([in_use[id(day)][r] for day, r in refs])
     moved_any = window.any(axis=1) & free
     first_step = window.argmax(axis=1)
@@ -187,10 +187,21 @@ def _coded(day: Day) -> tuple[np.ndarray, list[str]]:
     return ids, list(names)
 
 
+_IN_USE: dict[int, tuple[Day, np.ndarray]] = {}
+
+
 def _in_use(day: Day) -> np.ndarray:
-    """(steps x objects): whether each object is at a use place (:func:`is_use_place`)."""
+    """(steps x objects): whether each object is at a use place (:func:`is_use_place`; memoised
+    as :func:`_coded` is: every threshold and fold of a search scores the same days)."""
+    hit = _IN_USE.get(id(day))
+    if hit is not None and hit[0] is day:
+        return hit[1]
+    if len(_IN_USE) > 4096:
+        _IN_USE.clear()
     ids, names = _coded(day)
-    return np.array([is_use_place(x) for x in names], dtype=bool)[ids]
+    mask = np.array([is_use_place(x) for x in names], dtype=bool)[ids]
+    _IN_USE[id(day)] = (day, mask)
+    return mask
 
 
 def _locations_of(cache: dict, locations: tuple[str, ...], day: Day) -> tuple[np.ndarray, np.ndarray]:

@@ -130,6 +130,7 @@ class ClockStates(StateSpace):
         self._model = model
         self._tables: dict[int, np.ndarray] = {}
         self._typed: dict[tuple[int, int], np.ndarray] = {}
+        self._unigram: np.ndarray | None = None  # floor x the add-one unigram, once
         self.root = 0
 
     def root_of(self, weekday: int | None) -> int:
@@ -138,6 +139,7 @@ class ClockStates(StateSpace):
     def _grow_labels(self) -> None:
         self._tables = {}
         self._typed = {}
+        self._unigram = None
 
     def _typed_table(self, kind: int, slot: int) -> np.ndarray:
         """:meth:`_table` on a day of type ``kind``: its own counts shrunk to the table of every day."""
@@ -207,6 +209,9 @@ class ClockStates(StateSpace):
             out[mine] = self._typed_table(key >> 32, key & 0xFFFFFFFF)[previous[mine]]
         floor = self._model.floor
         if floor > 0:
-            counts = np.array([self._model.frequency_[a] for a in self.labels], dtype=float)
-            out = (1 - floor) * out + floor * (counts + 1.0) / (counts.sum() + len(counts))
+            if self._unigram is None or len(self._unigram) != len(self.labels):
+                counts = np.array([self._model.frequency_[a] for a in self.labels], dtype=float)
+                self._unigram = floor * (counts + 1.0) / (counts.sum() + len(counts))
+            out *= 1 - floor
+            out += self._unigram
         return out

@@ -59,9 +59,10 @@ def activity_step_for(activities: tuple[str, ...], step: int, alignment: Alignme
 def used_between(objects: Sequence[str], before: Sequence[str], after: Sequence[str]) -> tuple[str, ...]:
     """The objects (in column order) whose place in row ``after`` differs from row ``before``,
     less those put back from a use place (module doc): what was used between two steps."""
-    moved = tuple(compress(objects, map(ne, before, after)))
-    if moved and any(map(is_use_place, before)):
-        return tuple(o for o, b, a in zip(objects, before, after) if b != a and not is_use_place(b))
+    changed = list(map(ne, before, after))
+    moved = tuple(compress(objects, changed))
+    if moved and any(map(is_use_place, compress(before, changed))):  # only what moved is looked at
+        return tuple(o for o, b, c in zip(objects, before, changed) if c and not is_use_place(b))
     return moved
 
 
