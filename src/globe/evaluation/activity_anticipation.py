@@ -151,11 +151,12 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
                 dists[f"{method} + time of day"] = mixed = _mix(mine, tod, w)
             if choices is not None:
                 c = choices[j - 1]
-                dists[PER_HORIZON] = _per_horizon(c, mixed, dists)
+                dists[PER_HORIZON] = dists[HOUR_ACTIVITY] if c.distribution == HOUR_ACTIVITY else mixed
+                said = _top(mixed if c.decision == "model" else dists[c.decision])
             for m in methods:
                 dist = dists[m]
                 p_true[m].append(dist.get(truth, 0.0))
-                pred[m].append(_top(dist) if m != PER_HORIZON else _decided(choices[j - 1], dists))  # type: ignore[index]
+                pred[m].append(said if m == PER_HORIZON else _top(dist))
         for m in methods:
             horizons.append(HorizonScores(m, j, len(refs), f1(true, pred[m]) or 0.0,
                                           sum(a == b for a, b in zip(true, pred[m])) / max(len(true), 1),
@@ -167,19 +168,6 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
 def _mix(model: dict[str, float], tod: dict[str, float], w: float) -> dict[str, float]:
     """``(1 - w) P_model + w P_time``."""
     return {a: (1 - w) * model.get(a, 0.0) + w * tod.get(a, 0.0) for a in {*model, *tod}}
-
-
-def _per_horizon(choice: HorizonChoice, mixed: dict[str, float], dists: dict[str, dict[str, float]]
-                 ) -> dict[str, float]:
-    """The distribution cross-validation chose: the model's mix or the direct estimate."""
-    return dists[HOUR_ACTIVITY] if choice.distribution == HOUR_ACTIVITY else mixed
-
-
-def _decided(choice: HorizonChoice, dists: dict[str, dict[str, float]]) -> str:
-    """The point prediction cross-validation chose: the mode of the model's mix, or a baseline's."""
-    if choice.decision == "model":
-        return _top(next(d for m, d in dists.items() if m.endswith(" + time of day")))
-    return _top(dists[choice.decision])
 
 
 NEXT_CANDIDATES = ("model", TIME_OF_DAY, HOUR_ACTIVITY, PERSISTENCE)
