@@ -25,6 +25,7 @@ from globe.data.csv_logs import household_step
 from globe.data.importers import GridOptions, ImportResult, import_casas, import_home_assistant, import_kasteren
 from globe.data.importers.options import DEFAULT_STEP_MINUTES, DEFAULT_TEST_FRACTION, USE_MODES
 from globe.data.importers.text import parse_clock
+from globe.data.sensors import check_sensor_data
 from globe.sequences.runs import activity_runs
 
 app = typer.Typer(help="Validate and import household observation logs.", no_args_is_help=True)
@@ -36,18 +37,21 @@ app.add_typer(import_app, name="import")
 
 @app.command("validate")
 def validate(data: DataOption = None, households: HouseholdsOption = None, config: ConfigOption = None) -> None:
-    """Load every day file, check it, and summarise each household."""
+    """Load every day file (and the sensors' files, where a household has them), check it, and summarise each
+    household."""
     cfg = resolve(config)
     table = Table(title="Households")
-    for col in ("household", "train days", "test days", "step (min)", "objects", "activities", "movements"):
+    for col in ("household", "train days", "test days", "step (min)", "objects", "activities", "movements",
+                "sensors"):
         table.add_column(col)
     for h in households_from(cfg, data, households):
         days = h.train + h.test
         moves = sum(len(r.events) for d in days for r in activity_runs(d, h.objects, cfg.sequences.alignment))
         acts = {a for d in days for a in d.activities}
         step = cfg.data.step_minutes or household_step(days)
+        sensors = check_sensor_data(h, step)
         table.add_row(plain(h.name), str(len(h.train)), str(len(h.test)), str(step or "-"), str(len(h.objects)),
-                      str(len(acts)), str(moves))
+                      str(len(acts)), str(moves), "-" if sensors is None else str(len(sensors.sensors)))
     print_table(table)
     out.print("all files valid", style="green", markup=False)
 

@@ -19,11 +19,14 @@ from collections import Counter
 from itertools import chain, compress
 from operator import sub
 from pathlib import Path
-from typing import Iterable, Literal, Sequence
+from typing import TYPE_CHECKING, Iterable, Literal, Sequence
 
 from globe.data.locate import household_dir
 from globe.data.records import Day, Household, Node, Split
 from globe.errors import DataError
+
+if TYPE_CHECKING:
+    from globe.data.sensors import SensorData
 
 NODE_COLUMNS = ("node", "class", "category", "movable", "start_location")
 FIXED_COLUMNS = ("minute", "activity")
@@ -482,6 +485,14 @@ def load_household(root: Path, name: str, *, step_minutes: int | None = None, re
     return Household(name, nodes, objects, splits["train"], splits["test"], str(folder))
 
 
+def load_sensor_data(root: Path, name: str) -> SensorData | None:
+    """The sensors of household ``name`` under ``root`` and each day's activations
+    (``sensors.csv``, ``events/``), or None when it has none: see :mod:`globe.data.sensors`."""
+    from globe.data.sensors import load_sensor_data as load  # it reads through this module
+
+    return load(root, name)
+
+
 def format_day(day: Day, objects: tuple[str, ...]) -> str:
     """Serialise a day exactly as the shipped files are written (LF line ends, no quoting): what
     ``csv.writer`` writes row by row. A day repeats a few rows of places many times, so each
@@ -538,5 +549,6 @@ def write_nodes(path: Path, nodes: Iterable[Node]) -> None:
 __all__: list[str] = [
     "NODE_COLUMNS", "FIXED_COLUMNS", "RESERVED_COLUMNS", "DAY_MINUTES", "csv_table", "activity_label", "check_map",
     "parse_nodes_text", "read_nodes", "parse_day_text", "read_day", "household_step", "check_step", "day_files",
-    "read_household_map", "load_household", "format_day", "write_day", "format_nodes", "write_nodes",
+    "read_household_map", "load_household", "load_sensor_data", "format_day", "write_day", "format_nodes",
+    "write_nodes",
 ]

@@ -412,3 +412,63 @@ def test_something_that_is_no_file_is_refused_at_once(tmp_path, kind):
     with pytest.raises(DataError, match="is not a regular file"):
         import_casas(log_file=source, dest=tmp_path / "home")
     assert not (tmp_path / "home").exists()
+
+
+def _events(folder, stem):
+    """An events file's rows as (sensor, start, end) with the times as numbers."""
+    lines = (folder / "events" / f"{stem}.csv").read_text(encoding="utf-8").splitlines()
+    assert lines[0] == "sensor,start,end"
+    return [(s, float(a), float(b)) for s, a, b in (line.split(",") for line in lines[1:])]
+
+
+def test_every_sensor_is_kept_with_its_type_and_activations_in_seconds(tmp_path):
+    result, home = _import(tmp_path)
+    folder = tmp_path / "home"
+    assert (folder / "sensors.csv").read_text(encoding="utf-8").splitlines() == [
+        "sensor,type,room,object", "M001,motion,,", "I001,contact,,i001", "I002,contact,,i002", "T001,temperature,,",
+        "D001,door,,", "M002,motion,,"]
+    # 11-04's rows cover 06:00 (21600 s) to the 24:00 row's end (00:10 next day, 87000 s). M001 ON
+    # 05:50 .. OFF 06:25 is cut to the span; I002's ON at 07:19:59.999999 is written to the ms; the
+    # door D001 opens at 23:58 and never closes: on for two days, longer than a day (its limit with
+    # one activation), so cut to a firing, as an object's sensor left on; I001 at 00:05 next day.
+    assert _events(folder, "2010-11-04") == [
+        ("M001", 21600, 23100), ("I001", 25320, 25530), ("I002", 26400, 27060), ("D001", 86280, 86280),
+        ("I001", 86700, 86760)]
+    # 11-06: I002 fires at 08:00; M001 on from 09:00 to 00:30 next day, cut to the span's end
+    assert _events(folder, "2010-11-06") == [("I002", 28800, 28800), ("M001", 32400, 87000)]
+    assert sorted(p.name for p in (folder / "events").iterdir()) == ["2010-11-04.csv", "2010-11-06.csv"]  # kept days
+    report = json.loads((folder / "import.json").read_text(encoding="utf-8"))["sensors"]
+    assert report["count"] == 6 and report["types"] == {"contact": 2, "door": 1, "motion": 2, "temperature": 1}
+    assert report["activations"] == 7 and report["days"] == 2
+    assert [(r["sensor"], r["start"], r["limit_minutes"]) for r in report["left_on"]] == [
+        ("D001", "2010-11-04 23:58:00", 1440.0), ("M002", "2010-11-05 03:00:00", 1440.0)]
+    assert any("sensors of no object still on at the end of the log" in n and "M002" in n for n in result.notes)
+
+
+def test_a_sensors_room_comes_from_the_mapping(tmp_path):
+    mapping = tmp_path / "objects.csv"
+    mapping.write_text("sensor,object,room\nI001,pot,kitchen\nD001,front_door,hall\n", encoding="utf-8")
+    _import(tmp_path, objects=mapping)
+    rows = (tmp_path / "home" / "sensors.csv").read_text(encoding="utf-8").splitlines()
+    assert rows[1:4] == ["M001,motion,,", "I001,contact,kitchen,pot", "I002,contact,,"]
+    assert "D001,door,hall,front_door" in rows
+
+
+@pytest.mark.parametrize(("key", "kind"), [("M012", "motion"), ("MA003", "motion"), ("D001", "door"),
+                                           ("I006", "contact"), ("T102", "temperature"), ("LS005", "light"),
+                                           ("AD1-A", "appliance"), ("P001", "power"), ("E002", "other"),
+                                           ("123", "other")])
+def test_a_casas_sensors_type_comes_from_its_letters(key, kind):
+    from globe.data.importers.casas import sensor_type
+
+    assert sensor_type(key) == kind
+
+
+def test_a_sensor_that_goes_on_while_on_counts_the_earlier_on_as_a_firing(tmp_path):
+    log = LOG.replace("2010-11-04 12:00:00.000000 T001 21.5\n",
+                      "2010-11-04 12:00:00.000000 M003 ON\n2010-11-04 12:01:00.000000 M003 ON\n"
+                      "2010-11-04 12:02:00.000000 M003 OFF\n")
+    result, _ = _import(tmp_path, log)
+    assert [e for e in _events(tmp_path / "home", "2010-11-04") if e[0] == "M003"] == [
+        ("M003", 43200, 43200), ("M003", 43260, 43320)]
+    assert any("a sensor of no object went on while on" in n and "M003 1x" in n for n in result.notes)

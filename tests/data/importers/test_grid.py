@@ -8,7 +8,7 @@ import pytest
 from globe.data.csv_logs import load_household
 from globe.data.importers import grid
 from globe.data.importers.grid import write_import
-from globe.data.importers.objects import ObjectSelection, Sensor
+from globe.data.importers.objects import Choice, ObjectSelection, Sensor
 from globe.data.importers.options import GridOptions
 from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
 from globe.data.importers.uses import USE_RULES, use_limit
@@ -306,3 +306,36 @@ def test_test_from_makes_the_days_from_a_date_on_test_days_and_until_drops_later
     assert (result.train_days, result.test_days) == (4, 2)
     with pytest.raises(DataError, match="no day to import.*: 6 after --until 2023-12-31"):
         _write(tmp_path / "d", 5, until=date(2023, 12, 31))
+
+
+def test_a_log_without_sensors_writes_no_sensor_files(tmp_path):
+    _write(tmp_path, 2)
+    folder = tmp_path / "home"
+    assert not (folder / "sensors.csv").exists() and not (folder / "events").exists()
+    report = json.loads((folder / "import.json").read_text(encoding="utf-8"))
+    assert report["sensors"]["count"] == 0 and report["sensors"]["activations"] == 0
+
+
+def test_every_sensor_is_written_per_kept_day_and_cut_by_the_left_on_rule(tmp_path):
+    sensor_log, selection = _log(3)
+    selection.choices["m1"] = Choice(None, "", "", "a motion sensor: no object")
+    sensor_log.sensor("c1", "contact", "kitchen")
+    sensor_log.sensor("m1", "motion", "hall")
+    for i in range(3):
+        opened = START + timedelta(days=i, hours=7, minutes=5)
+        sensor_log.sensor_on("c1", opened, opened + timedelta(minutes=90))  # longer than --max-use-minutes 60
+        sensor_log.sensor_on("m1", opened, opened + timedelta(seconds=30.5))
+    sensor_log.sensor_on("m1", START + timedelta(days=1, hours=23), START + timedelta(days=2, hours=1))  # over 60
+    write_import(sensor_log=sensor_log, selection=selection, options=GridOptions(max_use_minutes=60, test_days=1),
+                 dest=tmp_path / "home")
+    folder = tmp_path / "home"
+    assert (folder / "sensors.csv").read_text(encoding="utf-8") == (
+        "sensor,type,room,object\nc1,contact,kitchen,cupboard\nm1,motion,hall,\n")
+    assert sorted(p.name for p in (folder / "events").iterdir()) == ["2024-01-01.csv", "2024-01-02.csv",
+                                                                     "2024-01-03.csv"]
+    # the object's 90 minutes are cut to a firing (as its use is); m1's two hours from 23:00 too
+    assert (folder / "events" / "2024-01-02.csv").read_text(encoding="utf-8") == (
+        "sensor,start,end\nc1,25500,25500\nm1,25500,25530.5\nm1,82800,82800\n")
+    report = json.loads((folder / "import.json").read_text(encoding="utf-8"))["sensors"]
+    assert report["types"] == {"contact": 1, "motion": 1} and report["rooms"] == {"hall": 1, "kitchen": 1}
+    assert [(r["sensor"], r["minutes"]) for r in report["left_on"]] == [("m1", 120.0)]

@@ -214,3 +214,73 @@ def test_a_row_years_after_the_others_is_refused_naming_its_line(tmp_path):
                                    objects=mapping, timezone="Europe/Amsterdam", skip_bad_lines=True)
     far = json.loads(result.report.read_text())["far_outside"]
     assert [r["line"] for r in far] == [HISTORY.count("\n") + 1] and result.train_days == 1
+
+
+def _events(folder, stem):
+    lines = (folder / "events" / f"{stem}.csv").read_text(encoding="utf-8").splitlines()
+    return [(s, float(a), float(b)) for s, a, b in (line.split(",") for line in lines[1:])]
+
+
+def test_every_on_off_entity_is_kept_as_a_sensor_on_the_homes_clock(tmp_path):
+    result, _ = _import(tmp_path)
+    folder = tmp_path / "home"
+    # binary sensors, switches and lights (and mapped entities), not the thermometer or the activity;
+    # rooms from the mapping; types from the names (door, motion) and the domain (a switch: appliance)
+    assert (folder / "sensors.csv").read_text(encoding="utf-8").splitlines() == [
+        "sensor,type,room,object", "binary_sensor.fridge_door,door,kitchen,fridge",
+        "binary_sensor.hallway_motion,motion,,", "switch.kettle,appliance,kitchen,kettle"]
+    # local times: fridge on 06:40:03.120 .. 06:40:30.5; kettle 22:55 .. 00:05 next day. The hallway
+    # motion is on from 05:10 until the export ends (05:59 next day): longer than a day, its limit
+    # with one activation, so it is cut to a firing at 05:10, before the day's first row.
+    assert _events(folder, "2024-03-01") == [("binary_sensor.fridge_door", 24003.12, 24030.5),
+                                             ("switch.kettle", 82500, 86700)]
+    report = json.loads((folder / "import.json").read_text(encoding="utf-8"))["sensors"]
+    assert report["count"] == 3 and report["types"] == {"appliance": 1, "door": 1, "motion": 1}
+    assert [(r["sensor"], r["start"]) for r in report["left_on"]] == [("binary_sensor.hallway_motion",
+                                                                       "2024-03-01 05:10:00")]
+    assert any("sensors of no object still on at the end of the export" in n and "hallway_motion" in n
+               for n in result.notes)
+
+
+EXTRA_COLUMNS = """\
+entity_id,state,last_changed,device_class,area
+input_select.activity,cooking,2024-03-01T05:00:00,,
+input_select.activity,cooking,2024-03-02T08:00:00,,
+binary_sensor.pir_1,on,2024-03-01T07:00:00,occupancy,Living Room
+binary_sensor.pir_1,off,2024-03-01T07:00:30,occupancy,Living Room
+binary_sensor.window_x,open,2024-03-01T08:00:00,,
+binary_sensor.window_x,closed,2024-03-01T08:10:00,,
+binary_sensor.bathroom_leak,on,2024-03-01T09:00:00,,Bathroom
+binary_sensor.bathroom_leak,unavailable,2024-03-01T09:00:10,,Bathroom
+light.hall,on,2024-03-01T20:00:00,,
+light.hall,off,2024-03-01T20:00:00.250,,
+device_tracker.phone,home,2024-03-01T07:00:00,,
+"""
+
+
+def test_device_class_and_area_columns_give_type_and_room(tmp_path):
+    path, _ = _files(tmp_path, EXTRA_COLUMNS)
+    result = import_home_assistant(history=path, dest=tmp_path / "home", activity_entity="input_select.activity")
+    folder = tmp_path / "home"
+    assert (folder / "sensors.csv").read_text(encoding="utf-8").splitlines()[1:] == [
+        "binary_sensor.pir_1,motion,living_room,", "binary_sensor.window_x,window,,",
+        "binary_sensor.bathroom_leak,moisture,bathroom,", "light.hall,light,,"]
+    assert _events(folder, "2024-03-01") == [("binary_sensor.pir_1", 25200, 25230),
+                                             ("binary_sensor.window_x", 28800, 29400),
+                                             ("binary_sensor.bathroom_leak", 32400, 32410),
+                                             ("light.hall", 72000, 72000.25)]
+    assert not any("columns not used" in n for n in result.notes)
+
+
+@pytest.mark.parametrize(("entity", "device_class", "kind"), [
+    ("binary_sensor.hallway_motion", "", "motion"), ("binary_sensor.bed_occupancy", "", "motion"),
+    ("binary_sensor.front_door", "", "door"), ("binary_sensor.kitchen_window", "", "window"),
+    ("binary_sensor.cupboard_opening", "", "contact"), ("binary_sensor.sink_moisture", "", "moisture"),
+    ("binary_sensor.thing", "", "other"), ("switch.tv", "", "appliance"), ("light.hall", "", "light"),
+    ("binary_sensor.thing", "garage_door", "door"), ("binary_sensor.thing", "Presence", "motion"),
+    ("binary_sensor.thing", "sound", "sound"), ("binary_sensor.front_door", "opening", "contact"),
+])
+def test_the_type_rule(entity, device_class, kind):
+    from globe.data.importers.home_assistant import sensor_type
+
+    assert sensor_type(entity, device_class) == kind

@@ -321,3 +321,90 @@ def test_skip_bad_lines_leaves_out_the_bad_records_of_both_files_and_lists_them(
         import_kasteren(sensors_file=dirty["sense"], activities_file=dirty["act"], dest=tmp_path / "x",
                         sensor_list=dirty["sensors"], activity_list=dirty["activities"])
     assert err.value.line == 3 and not (tmp_path / "x").exists()
+
+
+def _sensor_rows(folder):
+    return (folder / "sensors.csv").read_text(encoding="utf-8").splitlines()[1:]
+
+
+def _events(folder, stem):
+    lines = (folder / "events" / f"{stem}.csv").read_text(encoding="utf-8").splitlines()
+    return [(s, float(a), float(b)) for s, a, b in (line.rsplit(",", 2) for line in lines[1:])]
+
+
+def test_every_sensor_of_a_van_kasteren_log_is_kept_with_its_listed_type_and_room(tmp_path):
+    f = _files(tmp_path, sense=KASTEREN_SENSE, act=KASTEREN_ACT, sensors=SENSOR_LIST, activities=ACTIVITY_LIST)
+    import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home",
+                    sensor_list=f["sensors"], activity_list=f["activities"])
+    folder = tmp_path / "home"
+    # types from the list: flush flush, reed contact (door: the name says so); rooms from the list
+    assert _sensor_rows(folder) == ["14,flush,toilet,", "7,contact,kitchen,cups_cupboard", "8,contact,kitchen,fridge",
+                                    "12,door,hall,"]
+    # the day's span is 06:00 (21600 s) .. 00:10 next day (87000 s): the flush 05:59-06:01 is cut
+    # to it; the front door at 00:10:00 next day begins as the span ends, so it is the next day's
+    assert _events(folder, "2008-02-25") == [("14", 21600, 21660), ("7", 22500, 22505), ("8", 22560, 23580)]
+    report = json.loads((folder / "import.json").read_text(encoding="utf-8"))["sensors"]
+    assert report["types"] == {"contact": 2, "door": 1, "flush": 1} and report["activations"] == 3
+
+
+def test_ordonez_sensors_take_their_type_and_place(tmp_path):
+    f = _files(tmp_path, sensors=ORDONEZ_SENSORS, adls=ORDONEZ_ADLS)
+    import_kasteren(sensors_file=f["sensors"], activities_file=f["adls"], dest=tmp_path / "home")
+    folder = tmp_path / "home"
+    assert _sensor_rows(folder) == [
+        "Bed Pressure Bedroom,pressure,bedroom,", "Cupboard Magnetic Kitchen,contact,kitchen,cupboard",
+        "Toaster Electric Kitchen,appliance,kitchen,toaster", "Maindoor Magnetic Entrance,door,entrance,",
+        "Basin PIR Bathroom,motion,bathroom,", "Fridge Magnetic Kitchen,contact,kitchen,fridge"]
+    assert _events(folder, "2011-11-28")[0] == ("Bed Pressure Bedroom", 21600, 22691)  # 05:40 .. 06:18:11, cut
+
+
+# The file's own list names the sensors, with no type or room: both come from the names.
+NAMED_SENSE = """\
+1 Hall-Toilet door
+2 Pressure mat
+3 Microwave
+4 ToiletFlush
+5 Washingmachine
+6 Thing
+Start time\tEnd time\tID\tVal
+25-Feb-2008 05:59:00\t25-Feb-2008 06:00:30\t1\t1
+25-Feb-2008 06:15:00\t25-Feb-2008 06:15:05\t3\t1
+25-Feb-2008 06:16:00\t25-Feb-2008 06:16:00\t4\t1
+25-Feb-2008 07:00:00\t25-Feb-2008 07:30:00\t2\t1
+25-Feb-2008 08:00:00\t25-Feb-2008 08:00:01\t5\t1
+25-Feb-2008 09:00:00\t25-Feb-2008 09:00:01\t6\t1
+26-Feb-2008 00:10:00\t26-Feb-2008 00:10:01\t6\t1
+"""
+
+
+def test_without_a_type_the_name_gives_type_and_room(tmp_path):
+    f = _files(tmp_path, sense=NAMED_SENSE, act=KASTEREN_ACT, activities=ACTIVITY_LIST)
+    import_kasteren(sensors_file=f["sense"], activities_file=f["act"], dest=tmp_path / "home",
+                    activity_list=f["activities"])
+    folder = tmp_path / "home"
+    assert _sensor_rows(folder) == ["1,door,toilet,", "3,contact,kitchen,", "4,flush,toilet,", "2,pressure,,",
+                                    "5,contact,,", "6,other,,"]
+    assert _events(folder, "2008-02-25") == [("1", 21600, 21630), ("3", 22500, 22505), ("4", 22560, 22560),
+                                             ("2", 25200, 27000), ("5", 28800, 28801), ("6", 32400, 32401)]
+
+
+@pytest.mark.parametrize(("name", "kind", "listed", "room", "expected"), [
+    ("Hall-Bedroom door", "", "", "bedroom", "door"),
+    ("Frontdoor", "reed", "", "", "door"),
+    ("Cups cupboard", "reed", "", "kitchen", "contact"),
+    ("Fridge", "", "Kitchen", "kitchen", "contact"),
+    ("Seat", "Pressure", "Living", "living", "pressure"),
+    ("Toilet", "Flush", "Bathroom", "bathroom", "flush"),
+    ("Cooktop", "PIR", "", "kitchen", "motion"),
+    ("Lamp", "Dimmer", "", "", "dimmer"),
+    ("Lamp", "Weird Type!", "", "", "weird_type"),
+    ("Kettle", "", "", "kitchen", "appliance"),
+    ("Shelf", "", "", "", "other"),
+])
+def test_the_type_and_room_rules(name, kind, listed, room, expected):
+    from globe.data.importers.kasteren import sensor_room, sensor_type
+    from globe.data.importers.objects import Sensor
+
+    sensor = Sensor("k", name, kind, listed)
+    assert sensor_type(sensor) == expected and sensor_room(sensor) == room
+    assert sensor_room(sensor, "garage") == "garage"  # the mapping's room wins

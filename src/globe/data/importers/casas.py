@@ -22,6 +22,14 @@ their id in lower case, in one room; motion (M, MA), door (D), temperature (T), 
 analog (AD) and unknown sensors stay out. An object sensor is *on* from ON/OPEN/ABSENT to the
 next OFF/CLOSE/PRESENT (an ON while on means the OFF was lost: the earlier ON is one firing) and
 fires at every event; a numeric sensor cannot be an object.
+
+Every sensor is kept (the household's ``sensors.csv`` and ``events/``, :mod:`globe.data.sensors`),
+its type by the same letters (:data:`SENSOR_TYPES`: M, MA motion; D door; I contact; T
+temperature; L, LS light; AD appliance; P power; anything else other) and its room from the
+``--objects`` mapping when it gives one, else none (a CASAS id says nothing of its room). Any
+sensor's ON/OPEN/ABSENT .. OFF/CLOSE/PRESENT is an activation, by the rule objects follow (a motion
+sensor is on from its ON to its OFF); numeric readings (temperatures, light levels) are no
+activations: such a sensor is listed with its type and has no events.
 """
 
 from __future__ import annotations
@@ -48,6 +56,12 @@ ACTIVE = frozenset({"ON", "OPEN", "ABSENT"})  # an item sensor reads ABSENT whil
 INACTIVE = frozenset({"OFF", "CLOSE", "CLOSED", "PRESENT"})
 KINDS = {"M": "motion", "MA": "motion", "D": "door", "T": "temperature", "L": "light switch",
          "LS": "light level", "I": "item", "AD": "analog"}
+SENSOR_TYPES = {"M": "motion", "MA": "motion", "D": "door", "I": "contact", "T": "temperature", "L": "light",
+                "LS": "light", "AD": "appliance", "P": "power"}
+"""A kept sensor's type (:mod:`globe.data.sensors`) by the letters its id begins with; others: 'other'."""
+SENSOR_RULE = ("type by the id's letters: M, MA motion; D door; I contact; T temperature; L, LS light; AD appliance; "
+               "P power; else other. Room: the --objects mapping's, else none. Activations: ON/OPEN/ABSENT to the next "
+               "OFF/CLOSE/PRESENT (a firing at each lone event); numeric readings are none")
 DEFAULT_RULE = ("CASAS item sensors (I...) are objects, named by their id in lower case; motion (M, MA), door (D), "
                 "temperature (T), light (L, LS), analog (AD) and unknown sensors are not")
 PROGRESS_EVERY = 500_000
@@ -62,6 +76,12 @@ def sensor_kind(key: str) -> str:
     """A CASAS sensor's type from the letters its id begins with ('' when unknown)."""
     match = _LETTERS.match(key)
     return KINDS.get(match.group(0).upper(), "") if match else ""
+
+
+def sensor_type(key: str) -> str:
+    """A CASAS sensor's type as ``sensors.csv`` writes it (see :data:`SENSOR_TYPES`)."""
+    match = _LETTERS.match(key)
+    return SENSOR_TYPES.get(match.group(0).upper(), "other") if match else "other"
 
 
 def default_rule(sensor: Sensor) -> tuple[bool, str]:
@@ -84,13 +104,15 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     (``R2_Sleep``) are left out, and the resident's own lose the prefix."""
     source = str(path)
     sensor_log = SensorLog("casas", (source,), annotation_field="activity", skip_bad_lines=skip_bad_lines)
-    open_since: dict[str, datetime] = {}  # object sensor -> when it went on
+    sensor_log.sensor_rule = SENSOR_RULE
+    open_since: dict[str, datetime] = {}  # sensor -> when it went on
     begun: dict[str, tuple[datetime, int]] = {}  # activity -> (begin time, line)
     applied = 0  # annotation lines applied
     opened_at: dict[str, int] = {}  # activity -> ``applied`` after its last line
     previous: tuple[datetime, int] | None = None
     held = 0  # events of a repeated hour held in order
     lost_offs: Counter[str] = Counter()  # object sensor -> ONs that came while it was on
+    lost_others: Counter[str] = Counter()  # the same for the other sensors
     residents: Counter[str] = Counter()  # annotations named for each resident (with --resident)
     lines = read_lines(path)
     for count, (line, text) in enumerate(lines, start=1):
@@ -115,10 +137,13 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
             moment = previous[0]
         previous = (moment, line)
         selection.choose(Sensor(key, key, sensor_kind(key), ""), source=source, line=line)
+        if key not in sensor_log.sensors:
+            sensor_log.sensor(key, sensor_type(key), selection.mapped_room(key))
         sensor_log.heard(moment, line=line)
         sensor_log.events[key] += 1
-        if choice.object is not None and _activation(sensor_log, open_since, key, moment, value in ACTIVE):
-            lost_offs[key] += 1
+        binary = value in ACTIVE or value in INACTIVE
+        if binary and _activation(sensor_log, open_since, key, moment, value in ACTIVE, choice.object is not None):
+            (lost_offs if choice.object is not None else lost_others)[key] += 1
         if marker is not None:
             lost = _annotation(sensor_log, begun, *marker, moment, source, line)
             applied += 1
@@ -131,15 +156,27 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
         unended = DataError(f"{show(activity)} begins here (at {start}) but never ends (no end of it before the end "
                             "of the file)", source=source, line=line, field="activity")
         sensor_log.bad(unended)
+    still_on = []  # sensors of no object still on at the end
     for key, start in open_since.items():
         assert sensor_log.last is not None
+        sensor_log.sensor_on(key, start, sensor_log.last)
+        if selection.choices[key].object is None:
+            still_on.append(f"{key} (since {start})")
+            continue
         sensor_log.activations.setdefault(key, []).append(Activation(start, sensor_log.last))
         sensor_log.notes.append(f"sensor {key} is still on at the end of the log (since {start}): counted as on until "
                                 "the log ends")
+    if still_on:
+        sensor_log.notes.append(f"sensors of no object still on at the end of the log, counted as on until it ends "
+                                f"(events/): {', '.join(still_on)}")
     if lost_offs:
         counts = ", ".join(f"{key} {n}x" for key, n in lost_offs.items())
         sensor_log.notes.append("an object sensor went on while on (its OFF, CLOSE or PRESENT was lost), so the "
                                 f"earlier event counts as one firing: {counts}")
+    if lost_others:
+        counts = ", ".join(f"{key} {n}x" for key, n in lost_others.items())
+        sensor_log.notes.append("a sensor of no object went on while on (its OFF, CLOSE or PRESENT was lost), so the "
+                                f"earlier event counts as one firing in events/: {counts}")
     if resident is not None:
         if resident.upper() not in residents:
             named = ", ".join(sorted(residents)) or "none: not a multi-resident log"
@@ -205,21 +242,28 @@ def _of_resident(marker: tuple[str, str], resident: str) -> tuple[tuple[str, str
 
 
 def _activation(sensor_log: SensorLog, open_since: dict[str, datetime], key: str, moment: datetime,
-                active: bool) -> bool:
-    """An event of an object sensor: it fires now, and is on from an ON until the next OFF. An ON
+                active: bool, is_object: bool) -> bool:
+    """An on/off event of a sensor: it fires now, and is on from an ON until the next OFF. An ON
     while on means the OFF between was lost: the earlier ON then counts as one firing, not as a
-    use lasting until now (a lost PRESENT would hold an item in use for hours). Returns whether an
-    OFF was lost."""
+    use lasting until now (a lost PRESENT would hold an item in use for hours). Every sensor's
+    activations go to ``events/``; an object sensor's also make its object's uses. Returns
+    whether an OFF was lost."""
     if active:
         earlier = open_since.setdefault(key, moment)
         if earlier == moment:
             return False
-        sensor_log.activations.setdefault(key, []).append(Activation(earlier, earlier))
+        _on(sensor_log, key, earlier, earlier, is_object)
         open_since[key] = moment
         return True
     start = open_since.pop(key, moment)
-    sensor_log.activations.setdefault(key, []).append(Activation(start, moment))
+    _on(sensor_log, key, start, moment, is_object)
     return False
+
+
+def _on(sensor_log: SensorLog, key: str, start: datetime, end: datetime, is_object: bool) -> None:
+    sensor_log.sensor_on(key, start, end)
+    if is_object:
+        sensor_log.activations.setdefault(key, []).append(Activation(start, end))
 
 
 def _check_annotation(begun: dict[str, tuple[datetime, int]], activity: str, marker: str, source: str,

@@ -54,7 +54,10 @@ that the rules below hold for every format and are written once (the options are
 The folder is written through :mod:`globe.data.csv_logs` (the writer of the shipped files) into a
 temporary sibling and renamed into place, with ``import.json``
 (:mod:`globe.data.importers.report`): which sensor became which object column, which annotation
-which activity, which days were dropped and why.
+which activity, which days were dropped and why. Every sensor the log kept, objects or not, is
+written beside the days too: ``sensors.csv`` and one ``events/<day>.csv`` per kept day, named as
+its day file (:mod:`globe.data.importers.events`, :mod:`globe.data.sensors`), counted by type in
+the report's ``sensors`` section.
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from globe.data.csv_logs import write_day, write_nodes
+from globe.data.importers.events import sensor_data
 from globe.data.importers.objects import HomeMap, ObjectSelection, build_map
 from globe.data.importers.options import GridOptions, Overlaps, clock
 from globe.data.importers.report import REPORT_FILE, LabelStats, build_report, silent_stretches, write_report
@@ -76,6 +80,7 @@ from globe.data.importers.sensor_log import Annotation, SensorLog, keep_to_the_l
 from globe.data.importers.text import show
 from globe.data.importers.uses import ObjectUses, find_uses
 from globe.data.records import Day
+from globe.data.sensors import write_sensor_data
 from globe.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
@@ -355,6 +360,7 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
     uses = {spec.object: find_uses(spec, sensor_log.activations, options) for spec in objects}
     _place_uses(grid, uses)
     left_on = [row for found in uses.values() for row in found.left_on]
+    sensors, sensors_report = sensor_data(sensor_log, selection, uses, kept, options)
     splits = _split(sorted(kept), options)
     columns = tuple(spec.object for spec in objects)
     tmp = _prepare_dest(dest)
@@ -364,8 +370,12 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
             (tmp / split).mkdir()
             for day in days:
                 write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
-        write_report(tmp, build_report(sensor_log, selection, objects, home, options, settings or {}, grid.activities,
-                                       grid.used, per_label, splits, dropped, uses, silent, left_on))
+        if sensors is not None:
+            write_sensor_data(tmp, sensors)
+        report = build_report(sensor_log, selection, objects, home, options, settings or {}, grid.activities,
+                              grid.used, per_label, splits, dropped, uses, silent, left_on)
+        report["sensors"] = sensors_report
+        write_report(tmp, report)
         if Path(dest).exists():
             Path(dest).rmdir()
         tmp.rename(dest)

@@ -25,6 +25,15 @@ IANA name such as ``Europe/Amsterdam``), which is then required: the day starts 
 the person lives. When the clocks go back, an hour happens twice on the home's clock; a row in
 its second pass is held at its entity's previous local time (and counted in the report), so that
 intervals never end before they begin. Timestamps without an offset are the home's clock already.
+
+Every on/off entity is kept as a sensor (the household's ``sensors.csv`` and ``events/``,
+:mod:`globe.data.sensors`): each ``binary_sensor``, ``switch`` and ``light``, and each mapped
+entity; numeric sensors, trackers and the activity entity are not. An activation is a stretch
+from ``on`` or ``open`` to the entity's next other state. Its type is the export's
+``device_class`` column where it has one, else inferred from the entity's name
+(:data:`NAME_TYPES`: motion, occupancy, presence, door, window, opening, moisture, ...), else by
+its domain (a switch is an appliance, a light a light, a binary sensor other); its room is the
+mapping's (the user's word wins, as for objects), else the export's ``area`` column, else none.
 """
 
 from __future__ import annotations
@@ -40,7 +49,7 @@ from globe.data.importers.grid import ImportResult, write_import
 from globe.data.importers.objects import ObjectSelection, Sensor, read_mapping
 from globe.data.importers.options import GridOptions
 from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
-from globe.data.importers.text import parse_iso_8601, read_text, show, time_zone
+from globe.data.importers.text import parse_iso_8601, read_text, show, slug, time_zone
 from globe.errors import DataError
 
 log = logging.getLogger(__name__)
@@ -50,11 +59,44 @@ ON_STATES = frozenset({"on", "open"})
 OFF_STATES = frozenset({"off", "closed"})
 NO_DATA = frozenset({"unknown", "unavailable"})
 DEFAULT_RULE = "no objects without a mapping: a Home Assistant export does not say what an entity is on"
+SENSOR_DOMAINS = frozenset({"binary_sensor", "switch", "light"})
+"""Entities kept as sensors (besides the mapped ones): those that are on or off."""
+OPTIONAL_COLUMNS = ("device_class", "area")
+NAME_TYPES = (("motion", "motion"), ("occupancy", "motion"), ("presence", "motion"), ("pir", "motion"),
+              ("door", "door"), ("window", "window"), ("opening", "contact"), ("contact", "contact"),
+              ("moisture", "moisture"), ("leak", "moisture"), ("pressure", "pressure"), ("bed", "pressure"),
+              ("flush", "flush"), ("smoke", "smoke"), ("vibration", "vibration"), ("power", "power"),
+              ("plug", "power"))
+"""A sensor's type by a word of its entity name (``binary_sensor.hallway_motion``: motion), first
+match first, where the export has no ``device_class``."""
+DOMAIN_TYPES = {"switch": "appliance", "light": "light"}
+DEVICE_CLASSES = {"occupancy": "motion", "presence": "motion", "garage_door": "door", "opening": "contact",
+                  "plug": "power"}
+"""Home Assistant device classes in the household's words; other classes are kept as they are."""
+SENSOR_RULE = ("every binary_sensor, switch and light, and every mapped entity; type: the device_class column "
+               "(occupancy, presence motion; garage_door door; opening contact; plug power; others as they are), else "
+               "a word of the entity's name (motion, occupancy, presence, door, window, opening, moisture, leak, bed, "
+               "flush, ...), else switch appliance, light light, other. Room: the mapping's, else the area column, "
+               "else none. Activations: on/open to the next other state")
 _ENTITY = re.compile(r"[a-z0-9_]+\.[a-z0-9_]+")
 
 
 def default_rule(sensor: Sensor) -> tuple[bool, str]:
     return False, "not mapped (map binary sensors on cupboards, the fridge or appliances with --objects)"
+
+
+def sensor_type(entity: str, device_class: str = "") -> str:
+    """The type ``sensors.csv`` gives an entity (see the module doc)."""
+    if device_class:
+        word = re.sub(r"[^a-z0-9_]+", "_", device_class.lower()).strip("_")
+        if re.fullmatch(r"[a-z][a-z0-9_]*", word):
+            return DEVICE_CLASSES.get(word, word)
+    domain, name = entity.split(".", 1)
+    words = name.split("_")
+    for needle, kind in NAME_TYPES:
+        if needle in words:
+            return kind
+    return DOMAIN_TYPES.get(domain, "other")
 
 
 def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_entity: str,
@@ -64,8 +106,9 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
     source = str(path)
     rows, header = csv_table(read_text(Path(path)), source, COLUMNS)
     column = {name: header.index(name) for name in COLUMNS}
-    sensor_log = SensorLog("home-assistant", (source,), skip_bad_lines=skip_bad_lines)
-    extra = [h for h in header if h not in COLUMNS]
+    sensor_log = SensorLog("home-assistant", (source,), skip_bad_lines=skip_bad_lines, sensor_rule=SENSOR_RULE)
+    optional = {name: header.index(name) for name in OPTIONAL_COLUMNS if name in header}
+    extra = [h for h in header if h not in COLUMNS and h not in OPTIONAL_COLUMNS]
     if extra:
         sensor_log.notes.append(f"columns not used: {', '.join(extra)}")
     zone = time_zone(timezone) if timezone is not None else None
@@ -75,6 +118,7 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
     last_row: dict[str, tuple[datetime, int]] = {}
     states: list[tuple[datetime, str, int]] = []  # the activity entity's rows
     on_since: dict[str, datetime] = {}
+    sensor_since: dict[str, datetime] = {}  # every kept sensor -> when it went on
     no_data: dict[str, int] = {}
     last_local: dict[str, datetime] = {}
     repeated = 0  # rows in the hour a clock change repeats, held at the entity's previous local time
@@ -103,6 +147,15 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
             states.append((moment, state, line))
             continue
         sensor_log.heard(moment, line=line)
+        if choice is not None or entity.split(".", 1)[0] in SENSOR_DOMAINS:
+            if entity not in sensor_log.sensors:
+                cell = {name: _clean(row[i]) for name, i in optional.items()}
+                sensor_log.sensor(entity, sensor_type(entity, cell.get("device_class", "")),
+                                  selection.mapped_room(entity) or slug(cell.get("area", "")))
+            if state.lower() in ON_STATES:
+                sensor_since.setdefault(entity, moment)
+            elif entity in sensor_since:
+                sensor_log.sensor_on(entity, sensor_since.pop(entity), moment)
         if choice is None:
             continue
         key = state.lower()
@@ -117,6 +170,15 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
         raise DataError(f"the activity entity {show(activity_entity)} is not in the export"
                         + (f" (entities such as {shown})" if shown else ""), source=source)
     _finish(sensor_log, states, on_since, no_data, activity_entity, source)
+    assert sensor_log.last is not None
+    still_on = []
+    for entity, start in sensor_since.items():  # objects among them are noted by _finish
+        sensor_log.sensor_on(entity, start, sensor_log.last)
+        if selection.choices[entity].object is None:
+            still_on.append(f"{entity} (since {start})")
+    if still_on:
+        sensor_log.notes.append("sensors of no object still on at the end of the export, counted as on until it ends "
+                                f"(events/): {', '.join(still_on)}")
     if repeated:
         sensor_log.notes.append(f"rows in an hour that a clock change repeats: {repeated}; each is held at its "
                                 "entity's previous local time, so that the home's clock never runs backwards")

@@ -31,6 +31,17 @@ Without a mapping, a sensor of type Magnetic, Contact, Reed or Electric (a conta
 or the fridge, a switched appliance) is an object, named after its location or name, in its place
 (room), unless its name says it is a door; PIR (motion), Pressure, Flush and sensors of unknown
 type stay out.
+
+Every sensor is kept (the household's ``sensors.csv`` and ``events/``, :mod:`globe.data.sensors`)
+with each of its intervals as an activation. Its type (:func:`sensor_type`): the listed type
+(Ordóñez's *Type*, a sensor list's ``type``) in the household's words, PIR motion, Magnetic,
+Contact and Reed contact (door when the name says door), Pressure pressure, Flush and Float flush,
+Electric appliance, another word kept as it is; without one, by the name: door, PIR or motion,
+pressure or mat, flush, a cupboard or an appliance with a door (fridge, microwave, ...: contact),
+a toaster or kettle (appliance); else other. Its room (:func:`sensor_room`): the ``--objects``
+mapping's, else the listed one (Ordóñez's *Place*, a sensor list's ``room``), else the last room
+word of its name (``Hall-Toilet door``: the door into the toilet), else kitchen for kitchen
+things (cupboards, fridge, microwave, ...) and toilet for a flush; else none.
 """
 
 from __future__ import annotations
@@ -53,12 +64,34 @@ from globe.data.importers.text import (
     read_lines,
     read_text,
     show,
+    slug,
     table_cells,
 )
 from globe.errors import DataError
 
 log = logging.getLogger(__name__)
 
+LISTED_TYPES = {"pir": "motion", "motion": "motion", "magnetic": "contact", "contact": "contact", "reed": "contact",
+                "pressure": "pressure", "flush": "flush", "float": "flush", "electric": "appliance",
+                "power": "power"}
+"""A listed sensor type in the household's words (:mod:`globe.data.sensors`); other words are kept."""
+NAME_TYPES = (("door", "door"), ("pir", "motion"), ("motion", "motion"), ("pressure", "pressure"), ("mat", "pressure"),
+              ("flush", "flush"), ("cupboard", "contact"), ("cabinet", "contact"), ("drawer", "contact"),
+              ("fridge", "contact"), ("freezer", "contact"), ("microwave", "contact"), ("dishwasher", "contact"),
+              ("washingmachine", "contact"), ("oven", "contact"), ("toaster", "appliance"),
+              ("kettle", "appliance"))
+"""A sensor's type by a word of its name when nothing lists it, first match first."""
+ROOM_WORDS = {"hall": "hall", "toilet": "toilet", "bathroom": "bathroom", "bedroom": "bedroom", "kitchen": "kitchen",
+              "living": "living_room", "livingroom": "living_room", "lounge": "living_room", "entrance": "entrance",
+              "garage": "garage", "office": "office", "study": "office"}
+"""Rooms a sensor's name may say (the last one said wins: ``Hall-Toilet door`` opens the toilet)."""
+KITCHEN_THINGS = frozenset({"cupboard", "cabinet", "fridge", "freezer", "microwave", "dishwasher", "oven", "stove",
+                            "toaster", "kettle", "cups", "plates", "pans", "groceries", "cooktop"})
+SENSOR_RULE = ("type: the listed type (PIR motion; Magnetic, Contact, Reed contact, or door when the name says door; "
+               "Pressure pressure; Flush, Float flush; Electric appliance; another word kept), else by the name "
+               "(door, PIR/motion, pressure/mat, flush, cupboards and appliances with a door contact, toaster/kettle "
+               "appliance), else other. Room: the --objects mapping's, else the listed room, else the last room word "
+               "of the name, else kitchen for kitchen things and toilet for a flush, else none")
 OBJECT_TYPES = frozenset({"magnetic", "contact", "reed", "electric"})
 DEFAULT_RULE = ("sensors of type Magnetic, Contact, Reed or Electric are objects unless their name says 'door'; "
                 "other types (PIR, Pressure, Flush, ...) and sensors of unknown type are not")
@@ -205,6 +238,38 @@ def default_rule(sensor: Sensor) -> tuple[bool, str]:
     return True, f"sensor type {sensor.kind!r}: a contact on something opened, or a switched appliance"
 
 
+def _words(name: str) -> list[str]:
+    """A sensor's name in lower-case words (``ToiletFlush`` -> toilet, flush; ``Hall-Toilet door``
+    -> hall, toilet, door)."""
+    return [w.lower() for w in re.findall(r"[A-Z]?[a-z]+|[A-Z]+(?![a-z])|\d+", name)]
+
+
+def sensor_type(sensor: Sensor) -> str:
+    """The type ``sensors.csv`` gives a sensor (see the module doc)."""
+    words = _words(sensor.name)
+    kind = slug(sensor.kind)
+    if kind:
+        listed = LISTED_TYPES.get(kind, kind if re.fullmatch(r"[a-z][a-z0-9_]*", kind) else "other")
+        return "door" if listed == "contact" and any("door" in w for w in words) else listed
+    for needle, kind in NAME_TYPES:
+        if any(w == needle or (len(needle) > 3 and needle in w) for w in words):
+            return kind
+    return "other"
+
+
+def sensor_room(sensor: Sensor, mapped: str = "") -> str:
+    """The room ``sensors.csv`` gives a sensor (see the module doc); ``mapped``: the mapping's."""
+    if mapped or sensor.room:
+        return mapped or slug(sensor.room)
+    words = _words(sensor.name)
+    rooms = [ROOM_WORDS[w] for w in words if w in ROOM_WORDS]
+    if rooms:
+        return rooms[-1]
+    if any(w in KITCHEN_THINGS for w in words):
+        return "kitchen"
+    return "toilet" if "flush" in words else ""
+
+
 def _sensor_of(record: Interval, named: dict[str, Sensor] | None, source: str, lists: str) -> Sensor:
     """The sensor of a record: 'Location Type Place' (Ordóñez) or 'id [1]' (van Kasteren), named
     by ``named`` (from ``lists``) when given."""
@@ -250,7 +315,7 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
     refused unless ``allow_numeric_labels``: activities called '1', '10', '13' would import
     without a word and make every table unreadable."""
     sources = (str(sensors_file), str(activities_file))
-    sensor_log = SensorLog("kasteren", sources, skip_bad_lines=skip_bad_lines)
+    sensor_log = SensorLog("kasteren", sources, skip_bad_lines=skip_bad_lines, sensor_rule=SENSOR_RULE)
     sense = read_intervals(sensors_file, sensor_log)
     named: dict[str, Sensor] | None = None
     if sense.names or sensor_list is not None:
@@ -275,7 +340,11 @@ def read_kasteren(sensors_file: Path, activities_file: Path, selection: ObjectSe
             continue
         sensor_log.heard(record.start, record.end, line=record.line)
         sensor_log.events[sensor.key] += 1
-        if selection.choose(sensor, source=sources[0], line=record.line).object is not None:
+        is_object = selection.choose(sensor, source=sources[0], line=record.line).object is not None
+        if sensor.key not in sensor_log.sensors:
+            sensor_log.sensor(sensor.key, sensor_type(sensor), sensor_room(sensor, selection.mapped_room(sensor.key)))
+        sensor_log.sensor_on(sensor.key, record.start, record.end)
+        if is_object:
             sensor_log.activations.setdefault(sensor.key, []).append(Activation(record.start, record.end))
     log.info("%s: %d sensor intervals", sources[0], len(sense.records))
     acts = read_intervals(activities_file, sensor_log)

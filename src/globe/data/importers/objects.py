@@ -167,6 +167,12 @@ class ObjectSelection:
             choice = Choice(name if is_object else None, room_of_log or DEFAULT_ROOM, "", why)
         return choice
 
+    def mapped_room(self, key: str) -> str:
+        """The room the user's mapping gives the sensor ``key`` ('' when it gives none): the room a
+        kept sensor is listed in, before what the log says (the user's word wins, as for objects)."""
+        row = self.mapping.rows.get(key) if self.mapping is not None else None
+        return row.room if row is not None else ""
+
     def objects(self) -> tuple[ObjectSpec, ...]:
         """The object columns, once every sensor was seen: in mapping order, else by name. A
         mapped sensor the log never mentions is an error (a typo would leave an object unused)."""

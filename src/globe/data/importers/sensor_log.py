@@ -2,8 +2,11 @@
 lying far outside the rest of it.
 
 Each reader fills one :class:`SensorLog` (annotated activity intervals, when each object sensor
-fired or was on, when any sensor was heard, and the file and line of every record) and hands it
-to :func:`globe.data.importers.grid.write_import`, so no rule of the grid is written per format.
+fired or was on, every sensor with its type and room and when each fired or was on, when any
+sensor was heard, and the file and line of every record) and hands it to
+:func:`globe.data.importers.grid.write_import`, so no rule of the grid is written per format.
+Every sensor's activations are kept in compact arrays (a year of a busy home is a million of
+them): they become the household's ``sensors.csv`` and ``events/`` (:mod:`globe.data.sensors`).
 """
 
 from __future__ import annotations
@@ -54,7 +57,7 @@ class SensorLog:
     format: str
     sources: tuple[str, ...]
     annotations: list[Annotation] = field(default_factory=list)
-    activations: dict[str, list[Activation]] = field(default_factory=dict)  # object sensors only
+    activations: dict[str, list[Activation]] = field(default_factory=dict)  # object sensors only (their uses)
     events: Counter[str] = field(default_factory=Counter)  # records per sensor, every sensor
     first: datetime | None = None  # the log's span: its earliest and latest timestamps
     last: datetime | None = None
@@ -67,6 +70,25 @@ class SensorLog:
     stamp_sources: array = field(default_factory=lambda: array("b"))
     left_out: list[dict[str, Any]] = field(default_factory=list)  # records left out for lying far outside the log
     bad_lines: list[DataError] = field(default_factory=list)  # lines left out (skip_bad_lines)
+    sensors: dict[str, tuple[str, str]] = field(default_factory=dict)  # every kept sensor -> (type, room), first seen
+    on_sensor: array = field(default_factory=lambda: array("q"))  # every sensor's activations: its index in
+    on_start: array = field(default_factory=lambda: array("d"))  # ``sensors`` and [start, end], seconds since 1970
+    on_end: array = field(default_factory=lambda: array("d"))
+    sensor_rule: str = ""  # how the format gives a sensor its type and room, for the report
+    _sensor_index: dict[str, int] = field(default_factory=dict, repr=False)
+
+    def sensor(self, key: str, kind: str, room: str = "") -> None:
+        """A sensor the household keeps (``sensors.csv``): its type and room as first met."""
+        if key not in self._sensor_index:
+            self._sensor_index[key] = len(self.sensors)
+            self.sensors[key] = (kind, room)
+
+    def sensor_on(self, key: str, start: datetime, end: datetime) -> None:
+        """A kept sensor fired (``start == end``) or was on from ``start`` to ``end`` (any sensor:
+        objects' too, so that ``events/`` holds every activation)."""
+        self.on_sensor.append(self._sensor_index[key])
+        self.on_start.append((start - EPOCH).total_seconds())
+        self.on_end.append((end - EPOCH).total_seconds())
 
     def bad(self, err: DataError) -> None:
         """A line that breaks a rule of the format: the error, or with ``skip_bad_lines`` left
@@ -129,6 +151,14 @@ def keep_to_the_log(sensor_log: SensorLog) -> None:
     sensor_log.annotations = [a for a in sensor_log.annotations if inside(a.start) and inside(a.end)]
     for key, stretches in sensor_log.activations.items():
         sensor_log.activations[key] = [a for a in stretches if inside(a.start) and inside(a.end)]
+    lo_s, hi_s = (lo - EPOCH).total_seconds(), (hi - EPOCH).total_seconds()
+    starts = np.frombuffer(sensor_log.on_start, dtype=np.float64)
+    ends = np.frombuffer(sensor_log.on_end, dtype=np.float64)
+    within = (starts >= lo_s) & (starts <= hi_s) & (ends >= lo_s) & (ends <= hi_s)
+    if not within.all():
+        codes = np.frombuffer(sensor_log.on_sensor, dtype=np.int64)
+        sensor_log.on_sensor = array("q", codes[within].tolist())
+        sensor_log.on_start, sensor_log.on_end = array("d", starts[within].tolist()), array("d", ends[within].tolist())
     sensor_log.first, sensor_log.last = lo, hi
     moments = np.frombuffer(sensor_log.moments, dtype=np.float64)
     keep = moments[(moments >= (lo - EPOCH).total_seconds()) & (moments <= (hi - EPOCH).total_seconds())]
