@@ -11,8 +11,8 @@ import pytest
 
 import globe
 
-LAYERS = ("config", "errors", "data", "sequences", "models", "inference", "reasoning", "noise", "assembly", "session",
-          "evaluation", "service", "cli")
+LAYERS = ("config", "errors", "data", "sequences", "models", "inference", "recognition", "reasoning", "noise",
+          "assembly", "session", "evaluation", "service", "cli")
 """From the bottom up: a module may import its own layer and those below (config and errors from anywhere)."""
 
 

@@ -109,15 +109,19 @@ class ActivityFilter:
                       None if emissions is None else tuple(emissions))
 
     def update(self, belief: Belief, step: int, labels: Sequence[str | None] | None = None,
-               moved: Sequence[Moved] | None = None) -> Belief:
-        """``belief`` conditioned on what was seen at ``step`` in each day (see the class doc)."""
+               moved: Sequence[Moved] | None = None, likelihood: np.ndarray | None = None) -> Belief:
+        """``belief`` conditioned on what was seen at ``step`` in each day (see the class doc);
+        ``likelihood`` (days x :attr:`labels`, at most 1): other evidence of the activity at
+        ``step`` in each day, such as what the home's sensors showed
+        (:class:`~globe.recognition.emission.SensorEmission`)."""
         if step <= belief.step:
             raise ValueError(f"step {step} is not after the last updated step {belief.step}")
         while belief.step + 1 < step:
             belief = self._advance(belief, None, None)
-        return self._advance(belief, labels, moved)
+        return self._advance(belief, labels, moved, likelihood)
 
-    def _advance(self, belief: Belief, labels: Sequence[str | None] | None, moved: Sequence[Moved] | None) -> Belief:
+    def _advance(self, belief: Belief, labels: Sequence[str | None] | None, moved: Sequence[Moved] | None,
+                 likelihood: np.ndarray | None = None) -> Belief:
         space, beam = self.space, belief.beam
         pinned = None
         if labels is not None:
@@ -126,6 +130,9 @@ class ActivityFilter:
             pinned = np.array([-1 if a is None else space.code(a) for a in labels], dtype=np.int64)
         rows = space.rows(beam.state)  # first: a model may name a label it never saw
         evidence = self._evidence(belief, moved) if moved is not None and belief.step >= 0 else None
+        if likelihood is not None:
+            evidence = _with_likelihood(evidence, np.asarray(likelihood, dtype=np.float64), belief.queries,
+                                        len(space.labels))
         nxt = advance(beam, space, merge=True, floor=self.min_weight, keep=self.max_hypotheses, rows=rows,
                       evidence=evidence, labels=pinned)
         same = nxt.act == beam.act[nxt.parent]
@@ -212,6 +219,36 @@ class ActivityFilter:
         names = self.space.labels
         history = tuple(names[c] for c in reversed(codes))
         return history if steps is None else history[:steps]
+
+
+def _with_likelihood(evidence: Evidence | None, likelihood: np.ndarray, queries: int, width: int) -> Evidence:
+    """``evidence`` times each day's likelihood of the current activity (the same whatever came before)."""
+    if likelihood.shape != (queries, width):
+        if likelihood.ndim == 2 and likelihood.shape[0] == queries and likelihood.shape[1] < width:
+            likelihood = np.pad(likelihood, ((0, 0), (0, width - likelihood.shape[1])), constant_values=1.0)
+        else:
+            raise ValueError(f"likelihoods of shape {likelihood.shape} for {queries} days and {width} activities")
+    rows = np.broadcast_to(likelihood[:, None, :], (queries, width + 1, width))
+    if evidence is None:
+        return Evidence(np.concatenate([np.ones((1, width + 1, width)), rows]), np.arange(1, queries + 1))
+    return Evidence(evidence.tables[evidence.table_of] * rows, np.arange(queries))
+
+
+def smoothed(flt: "ActivityFilter", belief: Belief) -> np.ndarray:
+    """(days x steps x :attr:`ActivityFilter.labels`): P(a_t | everything seen up to the last
+    step) for every step t, from the histories the filter kept at the end (a label past days
+    read with hindsight). Exact without pruning or merging; with them, histories merged into a
+    heavier one lend it their weight (as a Viterbi path keeps the best way to a state)."""
+    steps = len(belief.beams) - 1
+    out = np.zeros((belief.queries, steps, len(flt.labels)))
+    beam = belief.beam
+    entries = np.arange(len(beam), dtype=np.int64)
+    weight, query = beam.weight, beam.query
+    for t in range(steps - 1, -1, -1):
+        level = belief.beams[t + 1]
+        np.add.at(out, (query, np.full(len(query), t), np.maximum(level.act[entries], 0)), weight)
+        entries = level.parent[entries]
+    return out
 
 
 def as_dicts(rows: np.ndarray, labels: Sequence[str]) -> list[dict[str, float]]:

@@ -1,0 +1,72 @@
+"""Activity recognition on the simulated sensor home (tests/simulated_sensors.py): its speed
+against the issue's targets, and the figures the closing note reports.
+
+- online: one household's step (sensor features in, the filter updated, the posterior read),
+  per step, against the 1 ms target;
+- offline: a year of 1-minute steps recognised (filtered) at once, against the one-minute target;
+- accuracy: the learning curve (1, 3, 7, 14 and all labelled days, settings chosen on them), the
+  asking curve (questions a day spent where worth most vs at random), the CRF row
+  (sklearn-crfsuite, when installed) and GLOBE's activity model fed recognised activities.
+
+New code: there is no previous version to compare with; ratios are to the targets.
+Usage: python benchmarks/bench_recognition.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from globe.evaluation import recognition as R  # noqa: E402
+from globe.models.clock import ClockModel  # noqa: E402
+from globe.recognition.recogniser import RecognitionSettings, Recogniser  # noqa: E402
+from tests.simulated_sensors import sensor_home  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="speed only, and a 60-day year")
+    args = parser.parse_args()
+    home, sensors = sensor_home(days=28, test=7, step=1, seed=0)
+    settings = RecognitionSettings(features=("raw", "change", "last"), weight=0.5)
+    rec = Recogniser(settings).fit(home.train, sensors, 1)
+    day = home.test[0]
+    start = time.perf_counter()
+    rec.filter_asking(day, lambda t, p: False, lambda t: None)
+    online = (time.perf_counter() - start) / len(day)
+    print(f"online: {online * 1e3:.3f} ms per step per household (target 1 ms: {online * 1e3:.2f}x)")
+
+    days = 60 if args.quick else 365
+    year, year_sensors = sensor_home(days=days + 1, test=1, step=1, seed=2)
+    rec_year = Recogniser(settings).fit(year.train[:14], year_sensors, 1)
+    start = time.perf_counter()
+    rec_year.filter(year.train)
+    offline = time.perf_counter() - start
+    steps = sum(len(d) for d in year.train)
+    per_year = offline * 365 * 1440 / steps
+    print(f"offline: {steps} steps in {offline:.1f} s; a year of 1-minute steps (525600) in {per_year:.1f} s "
+          f"(target 60 s: {per_year / 60:.2f}x)")
+    if args.quick:
+        return
+    print("learning curve (test days, online / smoothed):")
+    for row in R.learning_curve(home, sensors, 1):
+        print(f"  {row['labelled_days']:>2} labelled days: time-slice {row['time_slice_accuracy']:.3f}, "
+              f"class {row['class_accuracy']:.3f} / smoothed {row['smoothed_time_slice_accuracy']:.3f}, "
+              f"{row['smoothed_class_accuracy']:.3f}  {row['settings']}")
+    print("asking curve (3 labelled days; class accuracy, where worth most vs at random):")
+    for row in R.asking_curve(home, sensors, 1, labelled_days=3):
+        print(f"  {row['questions_per_day']} a day: {row['worth_class_accuracy']:.3f} ({row['worth_questions']} asked)"
+              f" vs {row['random_class_accuracy']:.3f} ({row['random_questions']} asked)")
+    crf = R.crf_scores(home, sensors, 1)
+    print("CRF (sklearn-crfsuite):", "not installed" if crf is None else crf.row())
+    chosen = R.fit_recogniser(list(home.train), sensors, 1)
+    model = ClockModel(step_minutes=1).fit([d.activities for d in home.train], [d.weekday for d in home.train])
+    print("end to end (clock model, all labelled days):", R.end_to_end(model, home.test, chosen.predict(home.test)))
+
+
+if __name__ == "__main__":
+    main()

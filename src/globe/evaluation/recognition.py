@@ -1,0 +1,253 @@
+"""How well activities are recognised from a home's sensors, as the literature reports it, and what
+that costs GLOBE's predictions.
+
+- **Scores** (:func:`recognition_scores`): time-slice accuracy (the share of steps right) and class
+  accuracy (the mean over activities of the share of each one's steps right), as van Kasteren et
+  al. report them: time-slice accuracy alone is flattered by the longest activity. Per-class F1
+  and the confusion matrix beside them.
+- **Choice on training days** (:func:`choose_settings`): the feature set, the emission's weight
+  and self-training, by class accuracy of online recognition on held-out blocks of the labelled
+  training days (:func:`~globe.evaluation.selection.folds`); the default unless a candidate
+  wins beyond noise (:func:`~globe.evaluation.selection.best_beyond_noise`). Test days are
+  never looked at.
+- **Learning curve** (:func:`learning_curve`): trained on the last k labelled training days (the
+  ones a person most recently labelled), the other training days unlabelled, scored on the test days.
+- **Asking curve** (:func:`asking_curve`): from k labelled days (settings chosen on them), the
+  other training days are lived through once, online, with a budget of questions a day answered
+  from the annotation, and learnt from at each day's end; scored on the test days, beside the
+  same budget spent at random times.
+- **End to end** (:func:`end_to_end`): GLOBE's activity model fed recognised (online) activities
+  instead of the annotated ones: one-step weighted F1 and next-different-activity accuracy, both
+  against the annotation.
+- **A row from a library** (:func:`crf_scores`): a linear-chain CRF (sklearn-crfsuite) over the
+  same features and the hour, when installed (``pip install globe[recognition]``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from globe.data.records import Day, Household
+from globe.data.sensors import SensorData
+from globe.evaluation.metrics import f1
+from globe.evaluation.selection import best_beyond_noise, folds
+from globe.models.base import ActivityModelBase
+from globe.recognition.asking import DayAsker, QuestionPolicy, random_steps, worth
+from globe.recognition.features import REPRESENTATIONS
+from globe.recognition.recogniser import Recogniser, RecognitionSettings
+
+LEARNING_DAYS = (1, 3, 7, 14, None)
+"""Labelled training days of the learning curve (None: all)."""
+BUDGETS = (0, 1, 2, 5)
+"""Questions a day of the asking curve."""
+WEIGHTS = (1.0, 0.5, 0.3)
+CV_FOLDS = 4
+
+
+@dataclass(frozen=True, slots=True)
+class Scores:
+    """Recognition against the annotation over some steps."""
+
+    time_slice: float
+    class_accuracy: float
+    f1: dict[str, float]
+    labels: tuple[str, ...]
+    confusion: np.ndarray  # (true x predicted) step counts over ``labels``
+
+    def row(self) -> dict[str, float]:
+        return {"time_slice_accuracy": round(self.time_slice, 4), "class_accuracy": round(self.class_accuracy, 4)}
+
+
+def recognition_scores(true: Sequence[str], predicted: Sequence[str]) -> Scores:
+    """Time-slice and class accuracy, per-class F1 and the confusion matrix (see module doc)."""
+    if len(true) != len(predicted):
+        raise ValueError(f"{len(true)} true and {len(predicted)} predicted steps")
+    if not true:
+        raise ValueError("no step to score")
+    labels = tuple(sorted(set(true) | set(predicted)))
+    index = {a: i for i, a in enumerate(labels)}
+    confusion = np.zeros((len(labels), len(labels)), dtype=np.int64)
+    np.add.at(confusion, ([index[a] for a in true], [index[a] for a in predicted]), 1)
+    right = np.diag(confusion)
+    support = confusion.sum(axis=1)
+    seen = support > 0
+    per_class = {}
+    for i, label in enumerate(labels):
+        guessed = confusion[:, i].sum()
+        precision = right[i] / guessed if guessed else 0.0
+        recall = right[i] / support[i] if support[i] else 0.0
+        if support[i]:
+            per_class[label] = 0.0 if precision + recall == 0 else float(2 * precision * recall / (precision + recall))
+    return Scores(float(right.sum() / confusion.sum()), float((right[seen] / support[seen]).mean()), per_class, labels,
+                  confusion)
+
+
+def _flat(days: Sequence[Day]) -> list[str]:
+    return [a for d in days for a in d.activities]
+
+
+def _score(recogniser: Recogniser, days: Sequence[Day], smooth: bool = False) -> Scores:
+    predicted = recogniser.predict(days, smooth=smooth)
+    return recognition_scores(_flat(days), [a for p in predicted for a in p])
+
+
+def candidates() -> list[RecognitionSettings]:
+    """The representations and weights cross-validation chooses among, the default first
+    (self-training is decided after them, for the one chosen)."""
+    out = [RecognitionSettings()]
+    for features in REPRESENTATIONS:
+        for weight in WEIGHTS:
+            s = RecognitionSettings(features=features, weight=weight)
+            if s not in out:
+                out.append(s)
+    return out
+
+
+def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: int,
+                    unlabelled: Sequence[Day] = (), options: Sequence[RecognitionSettings] | None = None
+                    ) -> RecognitionSettings:
+    """The recogniser's settings by class accuracy on held-out blocks of ``labelled`` days (see
+    module doc): the representation and weight first, then whether self-training on the
+    ``unlabelled`` days helps it; with fewer than two labelled days, nothing to hold out: the default."""
+    options = list(options or candidates())
+    if len(labelled) < 2:
+        return options[0]
+    split = folds(len(labelled), min(CV_FOLDS, len(labelled)))
+
+    def per_fold(settings: RecognitionSettings) -> list[float]:
+        scores = []
+        for train, held in split:
+            fitted = Recogniser(settings).fit([labelled[i] for i in train], sensors, step_minutes, unlabelled)
+            scores.append(_score(fitted, [labelled[i] for i in held]).class_accuracy)
+        return scores
+    first = [(settings, per_fold(settings)) for settings in options]
+    chosen = best_beyond_noise(first)
+    if not unlabelled or chosen.self_training:
+        return chosen
+    trained = replace(chosen, self_training=True)
+    return best_beyond_noise([next(f for f in first if f[0] == chosen), (trained, per_fold(trained))])
+
+def fit_recogniser(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
+                   options: Sequence[RecognitionSettings] | None = None) -> Recogniser:
+    """A home's recogniser with the settings chosen on its labelled days."""
+    settings = choose_settings(labelled, sensors, step_minutes, unlabelled, options)
+    return Recogniser(settings).fit(labelled, sensors, step_minutes, unlabelled)
+
+
+def learning_curve(household: Household, sensors: SensorData, step_minutes: int,
+                   counts: Sequence[int | None] = LEARNING_DAYS,
+                   options: Sequence[RecognitionSettings] | None = None) -> list[dict[str, Any]]:
+    """One row per number of labelled days (see module doc): online and smoothed accuracies."""
+    rows = []
+    train = list(household.train)
+    for k in counts:
+        n = len(train) if k is None else min(k, len(train))
+        if k is not None and k > len(train):
+            continue
+        labelled, unlabelled = train[len(train) - n:], train[: len(train) - n]
+        recogniser = fit_recogniser(labelled, sensors, step_minutes, unlabelled, options)
+        online, hindsight = _score(recogniser, household.test), _score(recogniser, household.test, smooth=True)
+        rows.append({"labelled_days": n, **online.row(),
+                     "smoothed_time_slice_accuracy": round(hindsight.time_slice, 4),
+                     "smoothed_class_accuracy": round(hindsight.class_accuracy, 4),
+                     "settings": recogniser.describe()})
+    return rows
+
+
+def asking_curve(household: Household, sensors: SensorData, step_minutes: int, labelled_days: int = 3,
+                 budgets: Sequence[int] = BUDGETS, seed: int = 0,
+                 options: Sequence[RecognitionSettings] | None = None) -> list[dict[str, Any]]:
+    """Per budget of questions a day: class and time-slice accuracy on the test days after living
+    through the unlabelled training days asking where it is worth most, and asking at random
+    (see module doc)."""
+    train = list(household.train)
+    labelled, unlabelled = train[len(train) - labelled_days:], train[: len(train) - labelled_days]
+    settings = replace(choose_settings(labelled, sensors, step_minutes, options=options), self_training=False)
+    rows = []
+    for budget in budgets:
+        row: dict[str, Any] = {"questions_per_day": budget}
+        for how in ("worth", "random"):
+            recogniser = Recogniser(settings).fit(labelled, sensors, step_minutes)
+            reference = np.concatenate([worth(p) for p in recogniser.filter(labelled)])
+            answered: list[list[str | None]] = []
+            asked_total = 0
+            for i, day in enumerate(unlabelled):
+                truth = day.activities
+                answer = truth.__getitem__
+                if how == "worth":
+                    posts, said = recogniser.filter_asking(day, DayAsker(QuestionPolicy(budget, reference), len(day)),
+                                                           answer)
+                    reference = np.concatenate([reference, worth(posts)])
+                else:
+                    chosen = frozenset(random_steps(len(day), budget, (seed, i, budget)))
+                    _, said = recogniser.filter_asking(day, lambda t, _p, _c=chosen: t in _c, answer)  # type: ignore[misc]
+                asked_total += sum(a is not None for a in said)
+                answered.append(said)
+                recogniser = Recogniser(settings).fit(labelled, sensors, step_minutes, unlabelled[: i + 1], answered)
+            scores = _score(recogniser, household.test)
+            row[f"{how}_class_accuracy"] = round(scores.class_accuracy, 4)
+            row[f"{how}_time_slice_accuracy"] = round(scores.time_slice, 4)
+            row[f"{how}_questions"] = asked_total
+        rows.append(row)
+    return rows
+
+
+def end_to_end(model: ActivityModelBase, days: Sequence[Day], recognised: Sequence[Sequence[str]]) -> dict[str, Any]:
+    """``model`` (fitted on training days) predicting each next activity of ``days`` from their
+    annotated and from their ``recognised`` histories, both scored against the annotation:
+    one-step weighted F1 and next-different-activity accuracy (at each change of the annotated
+    activity, the model's most probable activity other than the current one against the
+    next one that differs)."""
+    out: dict[str, Any] = {}
+    for name, histories in (("annotated", [d.activities for d in days]), ("recognised", recognised)):
+        true, predicted, hits, events = [], [], 0, 0
+        for day, history in zip(days, histories):
+            acts = day.activities
+            for t in range(1, len(acts)):
+                dist = model.predict_proba(tuple(history[:t]), day.weekday)
+                best = model.top(dist)
+                true.append(acts[t])
+                predicted.append(best if best is not None else history[t - 1])
+                if acts[t] != acts[t - 1]:
+                    later = acts[t]
+                    other = {a: p for a, p in dist.items() if a != history[t - 1]}
+                    guess = model.top(other) if other else None
+                    events += 1
+                    hits += int(guess == later)
+        out[f"{name}_one_step_f1"] = round(f1(true, predicted) or 0.0, 4)
+        out[f"{name}_next_different_accuracy"] = round(hits / events, 4) if events else None
+    return out
+
+
+def _crf_features(x: np.ndarray, names: Sequence[str], minutes: Sequence[int]) -> list[dict[str, Any]]:
+    rows = []
+    for values, minute in zip(x.tolist(), minutes):
+        row: dict[str, Any] = {f"{n}={v}": 1.0 for n, v in zip(names, values)
+                               if v or not n.startswith(("raw", "change"))}
+        row[f"hour={minute // 60 % 24}"] = 1.0
+        rows.append(row)
+    return rows
+
+
+def crf_scores(household: Household, sensors: SensorData, step_minutes: int, labelled: Sequence[Day] | None = None,
+               features: tuple[str, ...] = ("raw", "change", "last", "room")) -> Scores | None:
+    """A linear-chain CRF (sklearn-crfsuite, L-BFGS with its default regularisation) over the same
+    step features and the hour, trained on ``labelled`` (default: every training day), scored on
+    the test days; None when sklearn-crfsuite is not installed."""
+    try:
+        import sklearn_crfsuite
+    except ImportError:
+        return None
+    labelled = list(household.train if labelled is None else labelled)
+    layout = Recogniser(RecognitionSettings(features=features)).fit(labelled[:1], sensors, step_minutes).layout_
+    recogniser = Recogniser(RecognitionSettings(features=features)).fit(labelled[:1], sensors, step_minutes)
+
+    def seq(day: Day) -> list[dict[str, Any]]:
+        return _crf_features(recogniser.features(day), layout.names, day.minutes)
+    crf = sklearn_crfsuite.CRF(algorithm="lbfgs", max_iterations=100, all_possible_transitions=True)
+    crf.fit([seq(d) for d in labelled], [list(d.activities) for d in labelled])
+    predicted = crf.predict([seq(d) for d in household.test])
+    return recognition_scores(_flat(household.test), [a for p in predicted for a in p])

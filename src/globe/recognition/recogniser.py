@@ -1,0 +1,211 @@
+"""P(activity at step t | the home's sensors up to t): GLOBE's activity filter with sensor evidence.
+
+The recogniser is a hidden Markov model whose dynamics are the household's own activity model
+(by default the clock model: P(a_t | a_{t-1}, time of day), counted on labelled days) and whose
+emission is :class:`~globe.recognition.emission.SensorEmission` over the step features of
+:mod:`globe.recognition.features`. It runs on the same :class:`~globe.inference.activity_filter.ActivityFilter`
+that infers missing labels from object movements, so online recognition (filtering: no look-ahead,
+what the service can know at a step) and a label seen now and then (an answered question) need
+no new inference code; :func:`~globe.inference.activity_filter.smoothed` reads the kept histories
+back for labelling past days with hindsight.
+
+Few labels: with ``self_training``, days without labels are recognised (smoothed) and their
+confident steps (posterior at least ``confidence``) counted into the emission, weighted by their
+posterior; whether that helps is for cross-validation to say (:mod:`globe.recognition.selection`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from globe.data.records import Day
+from globe.data.sensors import SensorData
+from globe.inference.activity_filter import ActivityFilter, smoothed
+from globe.models.clock import ClockModel
+from globe.recognition.emission import SensorEmission
+from globe.recognition.features import Layout, step_features
+
+Answers = Sequence[Sequence[str | None]]
+"""Per day, per step: an activity someone said (a label or an answered question), or None."""
+
+
+@dataclass(frozen=True, slots=True)
+class RecognitionSettings:
+    """What cross-validation chooses for a home's recogniser."""
+
+    features: tuple[str, ...] = ("change", "last")
+    weight: float = 1.0
+    smoothing: float = 1.0
+    self_training: bool = False
+    confidence: float = 0.9
+    slot_minutes: int = 60
+    shrinkage: float = 5.0
+
+
+class Recogniser:
+    """The recogniser of one home (see module doc): ``fit`` on labelled days, then ``filter`` or
+    ``smooth`` any days of the home (by their sensor activations)."""
+
+    def __init__(self, settings: RecognitionSettings | None = None, *, max_hypotheses: int = 16,
+                 min_weight: float = 1e-4) -> None:
+        self.settings = settings or RecognitionSettings()
+        self.max_hypotheses = max_hypotheses
+        self.min_weight = min_weight
+
+    # -- fitting -------------------------------------------------------------------------------
+    def fit(self, days: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
+            answers: Answers | None = None) -> "Recogniser":
+        """Learn the dynamics and the emission from ``days`` (their activities are the labels);
+        with self-training, or where ``answers`` (one per ``unlabelled`` day: what the person
+        said at a few steps) are given, also from the ``unlabelled`` days as recognised with
+        hindsight, the answers pinned: their confident steps count in the emission, weighted by
+        their posterior, and their most probable activities in the dynamics."""
+        if not days:
+            raise ValueError("the recogniser needs at least one labelled day")
+        if answers is not None and len(answers) != len(unlabelled):
+            raise ValueError(f"answers for {len(answers)} days, {len(unlabelled)} unlabelled days")
+        s = self.settings
+        self.sensors_ = sensors
+        self.step_minutes_ = step_minutes
+        self.layout_ = Layout.of(sensors.sensors, s.features)
+        features = [self.features(d) for d in days]
+        self._fit_parts([d.activities for d in days], [d.weekday for d in days], features,
+                        [np.ones(len(d)) for d in days])
+        if unlabelled and (s.self_training or answers is not None):
+            if answers is not None:
+                answers = self._spread(unlabelled, answers)
+            rows = self.smooth(unlabelled, answers)
+            names = self.labels
+            guessed: list[Sequence[str]] = []
+            confident: list[Sequence[str | None]] = []
+            weights = []
+            for post in rows:
+                best, top = post.argmax(axis=1), post.max(axis=1)
+                guessed.append(tuple(names[b] for b in best.tolist()))
+                confident.append([names[b] if p >= s.confidence else None for b, p in zip(best.tolist(), top.tolist())])
+                weights.append(top)
+            self._fit_parts([*(d.activities for d in days), *guessed],
+                            [d.weekday for d in days] + [d.weekday for d in unlabelled],
+                            features + [self.features(d) for d in unlabelled],
+                            [np.ones(len(d)) for d in days] + weights,
+                            [*(d.activities for d in days), *confident])
+        return self
+
+    def _spread(self, days: Sequence[Day], answers: Answers) -> list[list[str | None]]:
+        """Each answer taken as the activity of the whole stretch around it that the recogniser
+        read as one activity (its most probable activity unchanged, read with hindsight): the
+        person did one thing there, and a stretch read wrong was read wrong for the same reason."""
+        names = self.labels
+        out = []
+        for post, said in zip(self.smooth(days), answers):
+            best = post.argmax(axis=1).tolist()
+            spread: list[str | None] = list(said)
+            for t, answer in enumerate(said):
+                if answer is None:
+                    continue
+                lo = t
+                while lo > 0 and best[lo - 1] == best[t] and said[lo - 1] is None:
+                    lo -= 1
+                hi = t
+                while hi + 1 < len(best) and best[hi + 1] == best[t] and said[hi + 1] is None:
+                    hi += 1
+                for i in range(lo, hi + 1):
+                    if said[i] is None:
+                        spread[i] = answer
+            out.append(spread)
+        del names
+        return out
+
+    def _fit_parts(self, sequences: Sequence[Sequence[str]], weekdays: Sequence[int | None],
+                   features: Sequence[np.ndarray], weights: Sequence[np.ndarray],
+                   labels: Sequence[Sequence[str | None]] | None = None) -> None:
+        s = self.settings
+        self.dynamics_ = ClockModel(slot_minutes=s.slot_minutes, shrinkage=s.shrinkage, step_minutes=self.step_minutes_)
+        self.dynamics_.fit(sequences, weekdays)
+        self.emission_ = SensorEmission(smoothing=s.smoothing, weight=s.weight).fit(
+            features, sequences if labels is None else labels, self.layout_.sizes, weights)
+        self.filter_ = ActivityFilter(self.dynamics_, max_hypotheses=self.max_hypotheses, min_weight=self.min_weight)
+
+    def features(self, day: Day) -> np.ndarray:
+        """The (steps x columns) sensor features of ``day``."""
+        return step_features(self.layout_, self.sensors_.of(day.name), day.minutes, self.step_minutes_)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The activities of every distribution returned (columns)."""
+        return tuple(self.filter_.labels)
+
+    # -- recognising ---------------------------------------------------------------------------
+    def filter(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
+        """Per day, (steps x :attr:`labels`): P(a_t | sensors up to t, answers up to t)."""
+        return self._run(days, answers, smooth=False)
+
+    def smooth(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
+        """Per day, (steps x :attr:`labels`): P(a_t | the whole day's sensors and answers)."""
+        return self._run(days, answers, smooth=True)
+
+    def predict(self, days: Sequence[Day], answers: Answers | None = None, *, smooth: bool = False) -> list[list[str]]:
+        """The most probable activity at each step of each day (online unless ``smooth``)."""
+        names = self.labels
+        rows = self._run(days, answers, smooth=smooth)
+        return [[names[i] for i in r.argmax(axis=1).tolist()] for r in rows]
+
+    def _run(self, days: Sequence[Day], answers: Answers | None, smooth: bool) -> list[np.ndarray]:
+        if not days:
+            return []
+        flt = self.filter_
+        belief = flt.start(len(days), weekdays=[d.weekday for d in days])
+        width = len(flt.labels)
+        likes = [self.emission_.likelihoods(self.features(d), list(flt.labels)) for d in days]
+        steps = max(len(d) for d in days)
+        out = [np.zeros((len(d), width)) for d in days]
+        for t in range(steps):
+            like = np.ones((len(days), width))
+            for q, lk in enumerate(likes):
+                if t < len(lk):
+                    like[q, : lk.shape[1]] = lk[t]
+            said = None if answers is None else [a[t] if t < len(a) else None for a in answers]
+            belief = flt.update(belief, t, said, likelihood=like)
+            if not smooth:
+                post = flt.posterior(belief)
+                for q, day in enumerate(days):
+                    if t < len(day):
+                        out[q][t, : post.shape[1]] = post[q]
+        if smooth:
+            full = smoothed(flt, belief)
+            for q, day in enumerate(days):
+                out[q] = full[q, : len(day)]
+        return out
+
+    def filter_asking(self, day: Day, ask: Callable[[int, np.ndarray], bool],
+                      answer: Callable[[int], str | None]) -> tuple[np.ndarray, list[str | None]]:
+        """The online loop with questions: at each step of ``day`` the sensors' evidence is taken
+        in, then ``ask(step, posterior)`` says whether to ask; if so ``answer(step)`` (the person,
+        or an annotation standing in for them; None: no answer) pins the step. Returns the
+        (steps x :attr:`labels`) posteriors after any answer, and the answers per step."""
+        flt = self.filter_
+        names = list(flt.labels)
+        likes = self.emission_.likelihoods(self.features(day), names)
+        belief = flt.start(1, weekdays=[day.weekday])
+        out = np.zeros((len(day), len(names)))
+        said: list[str | None] = [None] * len(day)
+        for t in range(len(day)):
+            like = likes[t][None, :]
+            after = flt.update(belief, t, None, likelihood=like)
+            post = flt.posterior(after)[0]
+            if ask(t, post):
+                said[t] = answer(t)
+                if said[t] is not None:
+                    after = flt.update(belief, t, [said[t]], likelihood=like)
+                    post = flt.posterior(after)[0]
+            out[t, : len(post)] = post[: out.shape[1]]
+            belief = after
+        return out, said
+
+    def describe(self) -> dict[str, Any]:
+        s = self.settings
+        return {"features": list(s.features), "weight": s.weight, "smoothing": s.smoothing,
+                "self_training": s.self_training, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
