@@ -21,10 +21,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from tests.simulated_sensors import sensor_home  # noqa: E402
+
 from globe.evaluation import recognition as R  # noqa: E402
 from globe.models.clock import ClockModel  # noqa: E402
-from globe.recognition.recogniser import RecognitionSettings, Recogniser  # noqa: E402
-from tests.simulated_sensors import sensor_home  # noqa: E402
+from globe.recognition.recogniser import Recogniser, RecognitionSettings  # noqa: E402
 
 
 def main() -> None:
