@@ -60,14 +60,15 @@ def sensor_home(days: int = 28, test: int = 7, step: int = 1, seed: int = 0, mis
         name = (date(2024, 1, 1) + timedelta(days=i)).isoformat()
         blocks = _unsettled(rng, _clock_blocks(rng, i % 7), drift)
         out_days.append(_day(name, blocks, step))
-        events[name] = _activations(rng, name, blocks, miss, false_per_hour, stuck=rng.random() < 0.1)
+        events[name] = _activations(rng, name, blocks, step, miss, false_per_hour, stuck=rng.random() < 0.1)
     return _household("Sensors", out_days, test), SensorData(SENSORS, events)
 
 
-def _activations(rng: random.Random, name: str, blocks: list[_Block], miss: float, false_per_hour: float,
+def _activations(rng: random.Random, name: str, blocks: list[_Block], step: int, miss: float, false_per_hour: float,
                  stuck: bool) -> SensorDay:
+    """The day's activations, inside the span its rows cover (06:00 to the end of the 24:00 row's step)."""
     rows: list[tuple[int, float, float]] = []
-    span = (START * 60.0, (END + 10) * 60.0)
+    span = (START * 60.0, (END + step) * 60.0)
 
     def fire(sensor: str, start: float, end: float | None = None, sure: bool = False) -> None:
         if not sure and rng.random() < miss:
@@ -76,7 +77,7 @@ def _activations(rng: random.Random, name: str, blocks: list[_Block], miss: floa
         e = min(max(end if end is not None else s, s), span[1])
         rows.append((_INDEX[sensor], round(s, 1), round(e, 1)))
 
-    ends = [b.start for b in blocks[1:]] + [float(END + 10)]
+    ends = [b.start for b in blocks[1:]] + [float(END + step)]
     for block, end in zip(blocks, ends):
         start_s, end_s = block.start * 60.0, end * 60.0
         if end_s <= start_s:

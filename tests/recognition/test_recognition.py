@@ -12,7 +12,7 @@ from sklearn.metrics import accuracy_score, balanced_accuracy_score
 from globe.data.records import Day
 from globe.data.sensors import Sensor, SensorDay
 from globe.evaluation import recognition as R
-from globe.recognition.asking import QuestionPolicy, random_steps, worth
+from globe.recognition.asking import DayAsker, QuestionPolicy, random_steps, worth
 from globe.recognition.emission import SensorEmission
 from globe.recognition.features import ROOM_BINS, Layout, step_features
 from globe.recognition.recogniser import Recogniser, RecognitionSettings
@@ -100,10 +100,14 @@ def test_an_answer_pins_its_step_and_asking_online_equals_answers_given_in_advan
 def test_answers_are_learnt_from():
     home, sensors = _home()
     labelled, unlabelled = home.train[-1:], home.train[:-1]
-    before = R._score(Recogniser().fit(labelled, sensors, 5), home.test).class_accuracy
-    answers = [[a if t % 24 == 0 else None for t, a in enumerate(d.activities)] for d in unlabelled]
-    after = R._score(Recogniser().fit(labelled, sensors, 5, unlabelled, answers), home.test).class_accuracy
-    assert after > before
+    settings = RecognitionSettings(features=("raw", "change", "last"), weight=0.5)
+    before = R._score(Recogniser(settings).fit(labelled, sensors, 5), home.test).class_accuracy
+    answers = [[a if t % 6 == 0 else None for t, a in enumerate(d.activities)] for d in unlabelled]
+    after = R._score(Recogniser(settings).fit(labelled, sensors, 5, unlabelled, answers), home.test).class_accuracy
+    every = [list(d.activities) for d in unlabelled]
+    full = R._score(Recogniser(settings).fit(labelled, sensors, 5, unlabelled, every), home.test).class_accuracy
+    assert after > before + 0.05  # an answer every half hour of the unlabelled days
+    assert full >= after  # every step answered: as good as labelled days
 
 
 def test_the_question_policy_paces_its_budget():
@@ -114,6 +118,9 @@ def test_the_question_policy_paces_its_budget():
     assert not policy.ask(0.99, 2, 50, 100, 10)  # the budget is spent
     assert policy.ask(0.1, 0, 98, 100, None)  # as many steps left as questions: ask
     assert worth(np.array([[0.7, 0.3]])).tolist() == pytest.approx([0.3])
+    asker = DayAsker(QuestionPolicy(1, [0.0, 0.5, 1.0]), 100, window=3)
+    assert not asker(0, np.array([0.4, 0.6]))  # worth 0.4 now, but the budget is paced over 100 steps
+    assert sum(asker(t, np.array([0.5, 0.5])) for t in range(1, 100)) == 1 and asker.asked == 1
     steps = random_steps(50, 5, (1, 2))
     assert len(set(steps)) == 5 and steps == sorted(steps) and steps == random_steps(50, 5, (1, 2))
 

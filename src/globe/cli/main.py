@@ -11,7 +11,7 @@ import typer
 from rich.text import Text
 
 from globe import __version__
-from globe.cli import admin_cmd, data_cmd, docs_cmd, evaluate_cmd, model_cmd, noise_cmd, service_cmd
+from globe.cli import admin_cmd, data_cmd, docs_cmd, evaluate_cmd, model_cmd, noise_cmd, recognise_cmd, service_cmd
 from globe.cli.common import console, out
 from globe.errors import GlobeError
 
@@ -25,6 +25,7 @@ app.command("evaluate")(evaluate_cmd.evaluate)
 app.command("reproduce")(evaluate_cmd.reproduce)
 app.command("noise")(noise_cmd.noise)
 app.command("robustness")(evaluate_cmd.robustness)
+app.command("recognise")(recognise_cmd.recognise)
 app.command("serve")(service_cmd.serve)
 app.command("robot")(service_cmd.robot)
 admin_cmd.register(app)

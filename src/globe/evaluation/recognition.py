@@ -25,8 +25,11 @@ that costs GLOBE's predictions.
 
 from __future__ import annotations
 
+import csv
+import json
 from dataclasses import dataclass, replace
-from typing import Any, Sequence
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -251,3 +254,110 @@ def crf_scores(household: Household, sensors: SensorData, step_minutes: int, lab
     crf.fit([seq(d) for d in labelled], [list(d.activities) for d in labelled])
     predicted = crf.predict([seq(d) for d in household.test])
     return recognition_scores(_flat(household.test), [a for p in predicted for a in p])
+
+
+@dataclass(frozen=True, slots=True)
+class RecognitionReport:
+    """Everything :func:`recognition_report` measured for one home."""
+
+    household: str
+    learning: list[dict[str, Any]]
+    asking: list[dict[str, Any]]
+    crf: Scores | None
+    scores: Scores  # online recognition from every labelled training day, on the test days
+    settings: dict[str, Any]
+    end_to_end: dict[str, Any]
+
+
+def recognition_report(household: Household, sensors: SensorData, step_minutes: int,
+                       counts: Sequence[int | None] = LEARNING_DAYS, budgets: Sequence[int] = BUDGETS,
+                       asking_from: int = 3, progress: Callable[[str], None] | None = None) -> RecognitionReport:
+    """The learning curve, the asking curve (from ``asking_from`` labelled days; skipped with
+    fewer training days), the CRF row, the scores and confusion of the recogniser trained on every
+    training day, and the end-to-end effect on the clock model's predictions, for one home."""
+    from globe.models.clock import ClockModel
+
+    def say(text: str) -> None:
+        if progress:
+            progress(f"{household.name}: {text}")
+    say("the learning curve (settings chosen by cross-validation at each point)")
+    learning = learning_curve(household, sensors, step_minutes, counts)
+    asking: list[dict[str, Any]] = []
+    if len(household.train) > asking_from:
+        say(f"the asking curve ({asking_from} labelled days, {', '.join(map(str, budgets))} questions a day)")
+        asking = asking_curve(household, sensors, step_minutes, labelled_days=asking_from, budgets=budgets)
+    say("the CRF row")
+    crf = crf_scores(household, sensors, step_minutes)
+    recogniser = fit_recogniser(list(household.train), sensors, step_minutes)
+    predicted = recogniser.predict(household.test)
+    scores = recognition_scores(_flat(household.test), [a for p in predicted for a in p])
+    say("the end-to-end effect")
+    model = ClockModel(step_minutes=step_minutes).fit([d.activities for d in household.train],
+                                                      [d.weekday for d in household.train])
+    return RecognitionReport(household.name, learning, asking, crf, scores, recogniser.describe(),
+                             end_to_end(model, household.test, predicted))
+
+
+def write_recognition(report: RecognitionReport, out: Path) -> list[Path]:
+    """``recognition.csv`` (the learning curve, the CRF row), ``asking.csv``, ``per_class.csv`` and
+    ``confusion.png`` (rows: the annotated activity, each row's shares) under ``out``/household."""
+    folder = out / report.household
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = [{"model": "globe (naive Bayes + clock)", **{k: v for k, v in r.items() if k != "settings"},
+             "settings": json.dumps(r["settings"], sort_keys=True)} for r in report.learning]
+    if report.crf is not None:
+        rows.append({"model": "crf (sklearn-crfsuite)", "labelled_days": report.learning[-1]["labelled_days"]
+                     if report.learning else "", **report.crf.row()})
+    written = [_write_csv(folder / "recognition.csv", rows)]
+    if report.asking:
+        written.append(_write_csv(folder / "asking.csv", report.asking))
+    written.append(_write_csv(folder / "per_class.csv", [
+        {"activity": a, "steps": int(report.scores.confusion[i].sum()), "f1": round(report.scores.f1.get(a, 0.0), 4)}
+        for i, a in enumerate(report.scores.labels) if report.scores.confusion[i].sum()]))
+    written.append(_write_csv(folder / "end_to_end.csv", [report.end_to_end]))
+    written.append(plot_confusion(report.scores, folder / "confusion.png", report.household))
+    return written
+
+
+def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    columns: list[str] = []
+    for row in rows:
+        columns += [k for k in row if k not in columns]
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=columns, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def plot_confusion(scores: Scores, path: Path, title: str = "") -> Path:
+    """The confusion matrix as shares of each annotated activity's steps (rows sum to 1), with the
+    activity's time-slice share beside its name: where recognition goes wrong, at a glance."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    support = scores.confusion.sum(axis=1)
+    keep = support > 0
+    shares = scores.confusion[keep] / support[keep, None]
+    rows = [f"{a} ({s / support.sum():.0%})" for a, s in zip(np.array(scores.labels)[keep], support[keep])]
+    size = max(4.0, 0.45 * len(scores.labels) + 2)
+    fig, ax = plt.subplots(figsize=(size + 1.5, size))
+    image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect="auto")
+    ax.set_xticks(range(len(scores.labels)), scores.labels, rotation=60, ha="right")
+    ax.set_yticks(range(len(rows)), rows)
+    for i in range(shares.shape[0]):
+        for j in range(shares.shape[1]):
+            if shares[i, j] >= 0.01:
+                ax.text(j, i, f"{shares[i, j]:.2f}", ha="center", va="center", fontsize=7,
+                        color="white" if shares[i, j] > 0.6 else "black")
+    ax.set_xlabel("recognised")
+    ax.set_ylabel("annotated (share of steps)")
+    head = f"{title}: " if title else ""
+    ax.set_title(f"{head}time-slice {scores.time_slice:.2f}, class {scores.class_accuracy:.2f}")
+    fig.colorbar(image, ax=ax, fraction=0.04)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -51,16 +51,22 @@ class QuestionPolicy:
 
 class DayAsker:
     """One day's questions under a :class:`QuestionPolicy`: called at each step with the
-    posterior, says whether to ask, and counts what it asked."""
+    posterior, says whether to ask, and counts what it asked. With ``window`` > 1 a step's worth
+    is the mean over the last ``window`` steps: a stretch read unsurely is worth an answer that
+    labels all of it; one unsure step at a change is worth little."""
 
-    def __init__(self, policy: QuestionPolicy, steps: int) -> None:
-        self.policy, self.steps = policy, steps
+    def __init__(self, policy: QuestionPolicy, steps: int, window: int = 1) -> None:
+        self.policy, self.steps, self.window = policy, steps, max(1, window)
         self.asked, self.last = 0, None  # type: int, int | None
+        self._recent: list[float] = []
 
     def __call__(self, step: int, posterior: np.ndarray) -> bool:
-        if not self.policy.ask(float(worth(posterior)), self.asked, step, self.steps, self.last):
+        self._recent = (self._recent + [float(worth(posterior))])[-self.window:]
+        value = sum(self._recent) / len(self._recent)
+        if not self.policy.ask(value, self.asked, step, self.steps, self.last):
             return False
         self.asked, self.last = self.asked + 1, step
+        self._recent = []
         return True
 
 
