@@ -198,12 +198,15 @@ def asking_curve(household: Household, sensors: SensorData, step_minutes: int, l
     return rows
 
 
-def end_to_end(model: ActivityModelBase, days: Sequence[Day], recognised: Sequence[Sequence[str]]) -> dict[str, Any]:
+def end_to_end(model: ActivityModelBase, days: Sequence[Day], recognised: Sequence[Sequence[str]],
+               expected: Sequence[np.ndarray] | None = None, labels: Sequence[str] = ()) -> dict[str, Any]:
     """``model`` (fitted on training days) predicting each next activity of ``days`` from their
     annotated and from their ``recognised`` histories, both scored against the annotation:
     one-step weighted F1 and next-different-activity accuracy (at each change of the annotated
-    activity, the model's most probable activity other than the current one against the
-    next one that differs)."""
+    activity, the most probable activity other than the current one against the next one). With
+    ``expected`` (per day, steps x ``labels``: P(a_{t+1} | sensors up to t), the recogniser's
+    :meth:`~globe.recognition.recogniser.Recogniser.predictive` over the same model) also the
+    filter's own prediction, which weighs every history the sensors allow (``filtered_...``)."""
     out: dict[str, Any] = {}
     for name, histories in (("annotated", [d.activities for d in days]), ("recognised", recognised)):
         true, predicted, hits, events = [], [], 0, 0
@@ -215,13 +218,28 @@ def end_to_end(model: ActivityModelBase, days: Sequence[Day], recognised: Sequen
                 true.append(acts[t])
                 predicted.append(best if best is not None else history[t - 1])
                 if acts[t] != acts[t - 1]:
-                    later = acts[t]
                     other = {a: p for a, p in dist.items() if a != history[t - 1]}
-                    guess = model.top(other) if other else None
                     events += 1
-                    hits += int(guess == later)
+                    hits += int((model.top(other) if other else None) == acts[t])
         out[f"{name}_one_step_f1"] = round(f1(true, predicted) or 0.0, 4)
         out[f"{name}_next_different_accuracy"] = round(hits / events, 4) if events else None
+    if expected is not None:
+        names = list(labels)
+        true, predicted, hits, events = [], [], 0, 0
+        for day, history, rows in zip(days, recognised, expected):
+            acts = day.activities
+            for t in range(1, len(acts)):
+                row = rows[t - 1]
+                true.append(acts[t])
+                predicted.append(names[int(row.argmax())])
+                if acts[t] != acts[t - 1]:
+                    masked = row.copy()
+                    if history[t - 1] in names:
+                        masked[names.index(history[t - 1])] = -1.0
+                    events += 1
+                    hits += int(names[int(masked.argmax())] == acts[t])
+        out["filtered_one_step_f1"] = round(f1(true, predicted) or 0.0, 4)
+        out["filtered_next_different_accuracy"] = round(hits / events, 4) if events else None
     return out
 
 
@@ -295,7 +313,8 @@ def recognition_report(household: Household, sensors: SensorData, step_minutes: 
     model = ClockModel(step_minutes=step_minutes).fit([d.activities for d in household.train],
                                                       [d.weekday for d in household.train])
     return RecognitionReport(household.name, learning, asking, crf, scores, recogniser.describe(),
-                             end_to_end(model, household.test, predicted))
+                             end_to_end(model, household.test, predicted, recogniser.predictive(household.test),
+                                        recogniser.labels))
 
 
 def write_recognition(report: RecognitionReport, out: Path) -> list[Path]:

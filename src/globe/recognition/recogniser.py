@@ -141,19 +141,24 @@ class Recogniser:
     # -- recognising ---------------------------------------------------------------------------
     def filter(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
         """Per day, (steps x :attr:`labels`): P(a_t | sensors up to t, answers up to t)."""
-        return self._run(days, answers, smooth=False)
+        return self._run(days, answers, "filter")
 
     def smooth(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
         """Per day, (steps x :attr:`labels`): P(a_t | the whole day's sensors and answers)."""
-        return self._run(days, answers, smooth=True)
+        return self._run(days, answers, "smooth")
+
+    def predictive(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
+        """Per day, (steps x :attr:`labels`): P(a_{t+1} | sensors up to t): what the activity
+        model expects next from everything the sensors said, not from one guessed history."""
+        return self._run(days, answers, "predictive")
 
     def predict(self, days: Sequence[Day], answers: Answers | None = None, *, smooth: bool = False) -> list[list[str]]:
         """The most probable activity at each step of each day (online unless ``smooth``)."""
         names = self.labels
-        rows = self._run(days, answers, smooth=smooth)
+        rows = self._run(days, answers, "smooth" if smooth else "filter")
         return [[names[i] for i in r.argmax(axis=1).tolist()] for r in rows]
 
-    def _run(self, days: Sequence[Day], answers: Answers | None, smooth: bool) -> list[np.ndarray]:
+    def _run(self, days: Sequence[Day], answers: Answers | None, mode: str) -> list[np.ndarray]:
         if not days:
             return []
         flt = self.filter_
@@ -169,12 +174,12 @@ class Recogniser:
                     like[q, : lk.shape[1]] = lk[t]
             said = None if answers is None else [a[t] if t < len(a) else None for a in answers]
             belief = flt.update(belief, t, said, likelihood=like)
-            if not smooth:
-                post = flt.posterior(belief)
+            if mode != "smooth":
+                post = flt.posterior(belief) if mode == "filter" else flt.predictive(belief)
                 for q, day in enumerate(days):
                     if t < len(day):
                         out[q][t, : post.shape[1]] = post[q]
-        if smooth:
+        if mode == "smooth":
             full = smoothed(flt, belief)
             for q, day in enumerate(days):
                 out[q] = full[q, : len(day)]
