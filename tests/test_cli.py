@@ -24,7 +24,7 @@ def test_evaluate_writes_a_results_folder(tmp_path):
     for name in ("table1.csv", "table1.md", "timing.csv", "details.csv", "config.json", "table1.png"):
         assert (tmp_path / name).is_file(), name
     rows = list(csv.DictReader((tmp_path / "table1.csv").open()))
-    assert {r["method"] for r in rows} == {"persistence", "ngram"}
+    assert {r["method"] for r in rows} == {"persistence", "ngram", "time_of_day", "hour_activity"}  # baselines always
     assert (tmp_path / "records" / "ngram_B_objects.csv").is_file()
 
 
@@ -324,7 +324,8 @@ def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
     rows = list(csv.DictReader((tmp_path / "out" / "table1.csv").open()))
     assert {r["household"] for r in rows} - {"mean"} == {"Mine"}
     ahead = list(csv.DictReader((tmp_path / "out" / "lookahead.csv").open()))
-    assert {r["method"] for r in ahead} == {"persistence"} and (tmp_path / "out" / "fetch_policy.csv").is_file()
+    assert {r["method"] for r in ahead} == {"persistence", "hour_activity"}  # the baseline row beside every model
+    assert (tmp_path / "out" / "fetch_policy.csv").is_file()
     assert json.loads((tmp_path / "out" / "data.json").read_text())["uses"].startswith("departures only")
     assert "uses counted: departures only" in " ".join(res.stdout.split())
     empty = globe("evaluate", "--data", str(tmp_path / "homes" / "notes"), "--out", str(tmp_path / "o2"))

@@ -21,7 +21,8 @@ def test_reproduce_logs_and_records_every_stage(small, tmp_path, caplog):
     with caplog.at_level(logging.INFO, logger="globe.stages"):
         res = main_job.reproduce(cfg, small, tmp_path, with_robustness=False, with_anticipation=False)
     names = [s["stage"] for s in res.stages]
-    assert names == ["load LLM", "table1: persistence", "table1: ngram", "activity anticipation",
+    assert names == ["load LLM", "table1: persistence", "table1: time_of_day", "table1: hour_activity",
+                     "table1: ngram", "activity anticipation",
                      "table1: write results"]
     done = [r.getMessage() for r in caplog.records if "done in" in r.getMessage()]
     assert len(done) == len(names) and all(m.startswith(n) for m, n in zip(done, names))

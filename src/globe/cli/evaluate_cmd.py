@@ -239,9 +239,12 @@ def print_anticipation(out_dir: Path) -> None:
     """The mean rows of the anticipation tables, read back from the results folder."""
     import csv
 
-    def rows(name: str) -> list[dict]:
+    def rows(name: str, over: str = "mean") -> list[dict]:
         with (out_dir / name).open(newline="", encoding="utf-8") as fh:
-            return [r for r in csv.DictReader(fh) if r.get("household") == "mean"]
+            return [r for r in csv.DictReader(fh) if r.get("household") == over]
+
+    def shown(method: str) -> str:
+        return METHODS[method].shown if method in METHODS else method
 
     look = rows("lookahead.csv")
     horizons = list(dict.fromkeys(r["horizon_min"] for r in look))
@@ -258,11 +261,12 @@ def print_anticipation(out_dir: Path) -> None:
         table.add_column(f"{h} min", justify="right")
     for method in dict.fromkeys(r["method"] for r in look):
         get = {r["horizon_min"]: r for r in look if r["method"] == method}
-        table.add_row(method, *[f"{float(get[h]['f1']):.3f}" for h in horizons])
+        table.add_row(shown(method), *[f"{float(get[h]['f1']):.3f}" for h in horizons])
     print_table(table)
-    fetch = [r for r in rows("fetch_policy.csv") if r.get("configured") in ("True", "true", "1")]
+    fetch = [r for r in rows("fetch_policy.csv", "all") if r.get("configured") in ("True", "true", "1")]
     for r in fetch:
-        out.print(f"fetch policy (configured costs): precision {float(r['precision']):.3f}, "
+        out.print(f"fetch policy (configured costs, {shown(r.get('method') or '')}): "
+                  f"precision {float(r['precision']):.3f}, "
                   f"recall {float(r['recall']):.3f}, median lead {r['median_lead_min']} min, {r['fetches']} fetches",
                   markup=False)
     if not (out_dir / "missing_labels.csv").is_file():

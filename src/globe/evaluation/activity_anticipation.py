@@ -23,7 +23,6 @@ two-line rule beats on its own training days.
 
 from __future__ import annotations
 
-from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -40,7 +39,7 @@ from globe.evaluation.selection import Fold, Memo, best_beyond_noise, best_of
 from globe.evaluation.tuning import data_folds, fold_days, tuned_models
 from globe.inference.horizon import activity_marginals, next_different
 from globe.models.base import ActivityModelBase
-from globe.models.baselines import HourActivityBaseline
+from globe.models.baselines import HourActivityBaseline, TimeOfDayBaseline, mode
 from globe.models.state_space import StateSpace, state_space
 
 ANTICIPATION_COLUMNS = ("household", "method", "horizon_min", "references", "weighted_f1", "accuracy", "log_loss")
@@ -80,14 +79,9 @@ class AnticipationScores:
 
 
 def time_of_day(train: Sequence[Day]) -> list[dict[str, float]]:
-    """The share of training days on which each activity was seen, at each step."""
-    counts: list[Counter[str]] = []
-    for day in train:
-        for t, a in enumerate(day.activities):
-            if t == len(counts):
-                counts.append(Counter())
-            counts[t][a] += 1
-    return [{a: c / sum(seen.values()) for a, c in seen.items()} for seen in counts]
+    """The share of training days on which each activity was seen, at each step
+    (:class:`~globe.models.baselines.TimeOfDayBaseline`, also a row of Table I)."""
+    return TimeOfDayBaseline().fit(train).by_step_
 
 
 def at_step(by_step: list[dict[str, float]], step: int) -> dict[str, float]:
@@ -97,8 +91,7 @@ def at_step(by_step: list[dict[str, float]], step: int) -> dict[str, float]:
 
 def _top(dist: dict[str, float]) -> str:
     """The most probable label (ties: the first name), or '<none>' for an empty distribution."""
-    best = max(dist.values(), default=0.0)
-    return min((a for a, p in dist.items() if p == best), default="<none>") if best > 0 else "<none>"
+    return mode(dist) or "<none>"
 
 
 @dataclass(frozen=True, slots=True)

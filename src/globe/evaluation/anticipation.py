@@ -5,6 +5,10 @@ Every choice is made on training days: the routine model's parameters by its cro
 (:func:`globe.evaluation.tuning.tuned_models`), the lookahead's change thresholds and movement
 settings by :func:`globe.evaluation.lookahead.choose_settings`. The fetch policy has no fitted parameter:
 its threshold follows from the configured costs.
+
+Both tables have a baseline row beside the models (``hour_activity``): objects by the clock and
+the activity alone (:func:`~globe.evaluation.lookahead.evaluate_moves_baseline`,
+:func:`~globe.evaluation.fetch.evaluate_uses_baseline`), counted on the same training days.
 """
 
 from __future__ import annotations
@@ -17,12 +21,23 @@ from globe import assembly
 from globe.config import Deployment, GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation import report
-from globe.evaluation.fetch import FETCH_COLUMNS, FetchEvaluation, evaluate_fetch, fetch_rows, lead_time_rows
+from globe.evaluation.fetch import (
+    FETCH_COLUMNS,
+    FetchEvaluation,
+    evaluate_fetch,
+    evaluate_uses_baseline,
+    fetch_rows,
+    fit_uses_baseline,
+    lead_time_rows,
+    replay_test_days,
+)
 from globe.evaluation.lookahead import (
+    BASELINE,
     LOOKAHEAD_COLUMNS,
     LookaheadResult,
     choose_settings,
     evaluate_lookahead,
+    evaluate_moves_baseline,
     lookahead_rows,
     setting_of,
 )
@@ -33,7 +48,7 @@ from globe.evaluation.selection import Memo, SearchKey
 from globe.evaluation.tuning import tuned_models
 from globe.session import build_session
 
-TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0}
+TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0, BASELINE: 0.5}
 """Rough relative cost of one household's lookahead per method (the routine model's CV costs most):
 the parallel run starts the longest first."""
 
@@ -47,6 +62,14 @@ def method_models(method: str, household: Household, config: GlobeConfig, memo: 
     if method == "routine":
         return tuned_models(household, config, "routine", memo)[0]
     raise ValueError(f"unknown lookahead method {method!r}; expected persistence, ngram or routine")
+
+
+def lookahead_methods(config: GlobeConfig) -> list[str]:
+    """The lookahead's rows: ``lookahead.methods`` and the object baseline (after persistence, else
+    first), so no table of models goes without the rule they must beat."""
+    methods = [m for m in config.lookahead.methods if m != BASELINE]
+    at = methods.index("persistence") + 1 if "persistence" in methods else 0
+    return [*methods[:at], BASELINE, *methods[at:]]
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,36 +92,40 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
     step = assembly.common_step(homes, config)
     memo = Memo() if memo is None else memo
     policy_method = config.policy.method
-    tasks: list[tuple[Household, str | None]] = [(h, m) for h in homes for m in config.lookahead.methods]
+    tasks: list[tuple[Household, str | None]] = [(h, m) for h in homes for m in lookahead_methods(config)]
     tasks += [(h, None) for h in homes if policy_method not in config.lookahead.methods]
     if progress:
         progress(f"lookahead and fetch policy: {len(tasks)} households x methods (in parallel)")
     before = memo.keys()
 
-    def run(i: int) -> tuple[LookaheadResult | None, FetchEvaluation | None, dict]:
+    def run(i: int) -> tuple[LookaheadResult | None, tuple[FetchEvaluation, ...], dict]:
         h, method = tasks[i]
         look = None
-        if method is not None:
+        if method == BASELINE:
+            look = evaluate_moves_baseline(h, config)
+        elif method is not None:
             look = evaluate_lookahead(h, config, method_models(method, h, config, memo), method, memo)
-        fetch = _fetch(h, config, memo, look) if method in (None, policy_method) else None
+        fetch = _fetch(h, config, memo, look) if method in (None, policy_method) else ()
         shared = memo.entries(lambda k: k not in before and isinstance(k, SearchKey) and k.search == "lookahead-cv")
         return None if look is None else replace(look, forecaster=None), fetch, shared
 
-    look, fetch = [], []
+    look: list[LookaheadResult] = []
+    fetch: list[FetchEvaluation] = []
     cost = [TASK_COST.get(method or "", 1.0) for _, method in tasks]
-    for result, evaluation, shared in run_forked(run, len(tasks), worker_count(config.evaluation.workers), cost):
+    for result, evaluations, shared in run_forked(run, len(tasks), worker_count(config.evaluation.workers), cost):
         memo.update(shared)
         look += [result] if result is not None else []
-        fetch += [evaluation] if evaluation is not None else []
+        fetch += evaluations
     order = {h.name: i for i, h in enumerate(homes)}
-    fetch.sort(key=lambda e: order[e.household])
+    fetch.sort(key=lambda e: (e.method == BASELINE, order[e.household]))
     return AnticipationResult(tuple(look), tuple(fetch), config, step)
 
 
-def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult | None) -> FetchEvaluation:
+def _fetch(h: Household, config: GlobeConfig, memo: Memo,
+           same: LookaheadResult | None) -> tuple[FetchEvaluation, FetchEvaluation]:
     """The fetch policy on ``h``'s test days: replayed through a session of the policy's method,
     whose movement model has the settings the lookahead of that method chose on training days
-    (``same``, when it ran)."""
+    (``same``, when it ran); then the baseline's fetches at the same steps by the same rule."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
         run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
@@ -107,7 +134,11 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult 
     deployment = Deployment.configured(config).model_copy(update={
         "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next})
     session = build_session(h, config, deployment, None, learn=False)
-    return evaluate_fetch(session, h, h.test, config.policy.curve_ratios)
+    replayed = replay_test_days(session, h, h.test)
+    policy = session.policy
+    baseline = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps)
+    return (evaluate_fetch(session, h, h.test, config.policy.curve_ratios, config.policy.method, replayed),
+            evaluate_uses_baseline(baseline, policy, h.test, replayed, h.name, config.policy.curve_ratios))
 
 
 def _ratio(config: GlobeConfig) -> float:
@@ -140,7 +171,7 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope:
     frows = fetch_rows(result.fetch, _ratio(result.config))
     report.write_csv(paths["fetch_policy.csv"], frows, list(FETCH_COLUMNS))
     save_figure(fetch_curve_figure(frows), paths["fetch_policy.png"])
-    lrows = lead_time_rows(result.fetch)
+    lrows = lead_time_rows([ev for ev in result.fetch if ev.method != BASELINE])
     report.write_csv(paths["fetch_lead_times.csv"], lrows, ["household", "lead_min", "uses"])
     save_figure(lead_time_figure(lrows), paths["fetch_lead_times.png"])
     return list(paths.values())

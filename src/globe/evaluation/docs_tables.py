@@ -25,6 +25,7 @@ from globe.config import GlobeConfig
 from globe.errors import DataError
 from globe.evaluation.methods import METHODS
 from globe.evaluation.published import TABLE1, TABLE1_MEAN_ONLY
+from globe.models.baselines import HOUR_ACTIVITY
 
 MARKER = re.compile(r"(<!-- globe:table (?P<name>[a-z0-9_]+) -->\n)(?P<body>.*?)(<!-- /globe:table -->)", re.S)
 
@@ -67,7 +68,8 @@ def markdown(header: Sequence[str], rows: Iterable[Sequence[str]], right: int = 
 
 
 def _label(method: str) -> str:
-    return METHODS[method].label if method in METHODS else method
+    """A method as the tables name it (a baseline says so)."""
+    return METHODS[method].shown if method in METHODS else method
 
 
 # ---- Table I and its companions ----------------------------------------------------------------
@@ -210,13 +212,19 @@ def lookahead_selection(results: Path) -> str:
 
 
 def fetch_policy(results: Path) -> str:
-    """The fetch policy at the configured costs per household, and over all households along the cost ratio."""
+    """The fetch policy at the configured costs per household, and over all households along the cost
+    ratio; then the baseline's fetches at the configured costs."""
     rows = read_rows(results, "fetch_policy.csv")
-    body = [[r["household"], r["cost_ratio"], _f(r["threshold"]), r["fetches"], _f(r["precision"]), _f(r["recall"]),
-             _f(r["median_lead_min"], 0)]
-            for r in rows if r["configured"] == "True" or r["household"] == "all"]
-    return markdown(["household", "costs useless : missed", "fetch when P >", "fetches", "precision", "recall",
-                     "median lead (min)"], body)
+
+    def cells(r: dict[str, str]) -> list[str]:
+        return [_label(r.get("method") or ""), r["household"], r["cost_ratio"], _f(r["threshold"]), r["fetches"],
+                _f(r["precision"]), _f(r["recall"]), _f(r["median_lead_min"], 0)]
+
+    body = [cells(r) for r in rows if r.get("method") != HOUR_ACTIVITY
+            and (r["configured"] == "True" or r["household"] == "all")]
+    body += [cells(r) for r in rows if r.get("method") == HOUR_ACTIVITY and r["configured"] == "True"]
+    return markdown(["model", "household", "costs useless : missed", "fetch when P >", "fetches", "precision",
+                     "recall", "median lead (min)"], body, right=2)
 
 
 def fetch_lead_times(results: Path) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import statistics
 from dataclasses import dataclass, field
-from typing import Iterable, Sequence
+from typing import Iterable, Sequence, cast
 
 from globe import assembly
 from globe.config import GlobeConfig
@@ -14,6 +14,7 @@ from globe.evaluation.methods import METHODS
 from globe.evaluation.metrics import AVERAGES, Average, calibration, log_loss, records_f1, rounded
 from globe.evaluation.protocol import Evaluation, evaluate_days
 from globe.evaluation.selection import Memo
+from globe.models.base import ActivityModelBase
 from globe.reasoning.backends.base import LLMBackend
 
 log = logging.getLogger(__name__)
@@ -64,9 +65,9 @@ def run_methods(
                                stay_margin=prepared.stay_margin)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment, oracle=True,
                                    stay_margin=prepared.stay_margin)
+            activity = cast(ActivityModelBase, prepared.activity)  # a baseline too: describe reads get_params()
             runs.append(MethodRun(name, h.name, ev, oracle, prepared.train_s, prepared.selection,
-                                  assembly.describe(prepared.activity, prepared.chooser,
-                                                    prepared.stay_margin)))
+                                  assembly.describe(activity, prepared.chooser, prepared.stay_margin)))
     return runs
 
 

@@ -11,18 +11,30 @@ again until its window has passed, and none is fetched while in use or just put 
 The candidates do not depend on the costs, so each step's are kept from the replay and every
 point of the precision-recall curve over the cost ratio follows the same rule over them; at the
 configured costs that is exactly what the session decided.
+
+Beside it, the object baseline (:data:`BASELINE`): the same days, steps and rule, its candidates
+P(o is used within the lead window | the activity at t, the clock slot) counted on training days
+(:class:`~globe.models.baselines.HourActivityAhead`), so the table shows what a robot would get
+from the clock and the activity alone.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
+
+import numpy as np
 
 from globe.data.records import Day, Household
 from globe.evaluation.online import add_report, day_observations, replay, replay_dates
-from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches
+from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, expected_value, follow_fetches
+from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead
+from globe.sequences.movements import moved_objects
 from globe.session import HouseholdSession
+
+BASELINE = HOUR_ACTIVITY
+"""The fetch table's baseline row: fetches by the clock and the activity alone."""
 
 LAST_DATE = dt.date(2000, 12, 31)  # what the test days are replayed up to (their weekdays kept)
 
@@ -68,16 +80,29 @@ class FetchEvaluation:
     household: str
     report: FetchReport
     curve: tuple[tuple[float, float, FetchReport], ...]  # (cost ratio useless/missed, threshold, report)
+    method: str = ""  # whose candidates: the policy's method, or BASELINE
+
+
+def replay_test_days(session: HouseholdSession, household: Household, days: Sequence[Day]) -> list[ReplayedDay]:
+    """``days`` replayed through ``session``, which must not learn."""
+    if session.learning:
+        raise ValueError("the fetch policy is scored with models that learn nothing from the test days")
+    return [replay_day(session, household, day, date) for day, date in zip(days, replay_dates(days, LAST_DATE))]
 
 
 def evaluate_fetch(session: HouseholdSession, household: Household, days: Sequence[Day],
-                   ratios: Sequence[float]) -> FetchEvaluation:
-    """Replay ``days`` through ``session`` (which must not learn), then follow the same policy at
-    each cost ratio in ``ratios`` over the candidates it saw."""
-    if session.learning:
-        raise ValueError("the fetch policy is scored with models that learn nothing from the test days")
-    replayed = [replay_day(session, household, day, date) for day, date in zip(days, replay_dates(days, LAST_DATE))]
-    policy = session.policy
+                   ratios: Sequence[float], method: str = "", replayed: Sequence[ReplayedDay] | None = None
+                   ) -> FetchEvaluation:
+    """Replay ``days`` through ``session`` (which must not learn; ``replayed``: already done), then
+    follow the same policy at each cost ratio in ``ratios`` over the candidates it saw."""
+    replayed = replay_test_days(session, household, days) if replayed is None else replayed
+    return FetchEvaluation(household.name, pooled([day.report for day in replayed]),
+                           _curve(session.policy, replayed, ratios), method)
+
+
+def _curve(policy: FetchPolicy, replayed: Sequence[ReplayedDay],
+           ratios: Sequence[float]) -> tuple[tuple[float, float, FetchReport], ...]:
+    """``policy`` at each cost ratio over the candidates of ``replayed``."""
     curve = []
     for ratio in ratios:
         variant = FetchPolicy(policy.forecaster, cost_useless=ratio, cost_missed=1.0,
@@ -87,21 +112,69 @@ def evaluate_fetch(session: HouseholdSession, household: Household, days: Sequen
         for day in replayed:
             follow_policy(variant, day, report)
         curve.append((float(ratio), variant.threshold, report))
-    return FetchEvaluation(household.name, pooled([day.report for day in replayed]), tuple(curve))
+    return tuple(curve)
 
 
-FETCH_COLUMNS = ("household", "cost_ratio", "threshold", "fetches", "precision", "recall", "median_lead_min",
+def fit_uses_baseline(days: Sequence[Day], objects: Sequence[str], min_lead: int, window: int) -> HourActivityAhead:
+    """P(o is used at a step u with ``min_lead`` <= u - t <= ``window`` | the activity at t, the
+    clock slot of t), counted at every step t of ``days`` (a use: :func:`moved_objects`)."""
+    ahead = HourActivityAhead(objects, 1)
+    lo = max(1, min_lead)
+    for day in days:
+        used = np.array([[o in moved for o in objects] for moved in moved_objects(day, objects)], dtype=bool)
+        n = len(day)
+        within = np.zeros((n, 1, len(objects)), dtype=bool)
+        for t in range(n):
+            within[t, 0] = used[t + lo: t + window + 1].any(axis=0)
+        ahead.add(day.activities, day.minutes, within)
+    return ahead
+
+
+def evaluate_uses_baseline(baseline: HourActivityAhead, policy: FetchPolicy, days: Sequence[Day],
+                           replayed: Sequence[ReplayedDay], household: str, ratios: Sequence[float]
+                           ) -> FetchEvaluation:
+    """The baseline row: at each step the session decided (of ``replayed``, ``days`` replayed), the
+    baseline's candidates instead of the forecaster's, followed by ``policy``'s rule (its costs:
+    the configured report; each of ``ratios``: the curve)."""
+    mine = []
+    for day, seen in zip(days, replayed):
+        row = {m: t for t, m in enumerate(day.minutes)}
+        candidates: list[tuple[FetchCandidate, ...]] = []
+        for minute, theirs in zip(seen.minutes, seen.candidates):
+            r = row.get(minute)
+            if not theirs or r is None:  # the session decided nothing here (the day's last step)
+                candidates.append(())
+                continue
+            p = baseline.proba(day.activities[r], minute)[0]
+            value = expected_value(p, policy.cost_useless, policy.cost_missed)
+            order = sorted(range(len(p)), key=lambda j: (-p[j], baseline.objects[j]))
+            candidates.append(tuple(FetchCandidate(baseline.objects[j], float(p[j]), None, float(value[j]))
+                                    for j in order))
+        mine.append(replace(seen, candidates=tuple(candidates)))
+    reports = [follow_policy(policy, day) for day in mine]
+    return FetchEvaluation(household, pooled(reports), _curve(policy, mine, ratios), BASELINE)
+
+
+FETCH_COLUMNS = ("method", "household", "cost_ratio", "threshold", "fetches", "precision", "recall", "median_lead_min",
                  "configured")
 
 
 def fetch_rows(evaluations: Sequence[FetchEvaluation], configured_ratio: float) -> list[dict]:
-    """``fetch_policy.csv``: the precision-recall curve over the cost ratio, per household and pooled."""
+    """``fetch_policy.csv``: the precision-recall curve over the cost ratio, per method (the
+    policy's, then the baseline), per household and pooled."""
+    rows: list[dict] = []
+    for method in dict.fromkeys(ev.method for ev in evaluations):
+        rows += _method_rows(method, [ev for ev in evaluations if ev.method == method], configured_ratio)
+    return rows
+
+
+def _method_rows(method: str, evaluations: Sequence[FetchEvaluation], configured_ratio: float) -> list[dict]:
     rows: list[dict] = []
 
     def row(name: str, ratio: float, threshold: float, rep: FetchReport) -> dict:
         lead = rep.median_lead_min
-        return {"household": name, "cost_ratio": ratio, "threshold": round(threshold, 4), "fetches": rep.fetches,
-                "precision": round(rep.precision, 4), "recall": round(rep.recall, 4),
+        return {"method": method, "household": name, "cost_ratio": ratio, "threshold": round(threshold, 4),
+                "fetches": rep.fetches, "precision": round(rep.precision, 4), "recall": round(rep.recall, 4),
                 "median_lead_min": "" if lead is None else lead, "configured": abs(ratio - configured_ratio) < 1e-12}
 
     for ev in evaluations:

@@ -33,6 +33,7 @@ from globe.evaluation.tuning import data_folds, fold_days
 from globe.inference.forecast import Forecaster, Forecasts
 from globe.inference.movements import MovementModel
 from globe.models.base import ActivityModelBase
+from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead, HourActivityBaseline, mode
 
 
 @dataclass(frozen=True, slots=True)
@@ -420,3 +421,128 @@ def lookahead_rows(results: Sequence[LookaheadResult], step_minutes: int = 10) -
                             for k in ("precision", "recall", "f1")},
                          "activity_accuracy": round(float(np.mean([r.activity_accuracy[s] for r in mine])), 4)})
     return rows
+
+
+# ---- the object baseline's row ---------------------------------------------------------------
+
+BASELINE = HOUR_ACTIVITY
+"""The lookahead's baseline row: where objects go by the clock and the activity alone."""
+
+UNKNOWN_PLACE = "<unknown>"
+
+
+@dataclass(slots=True)
+class MovesBaseline:
+    """The lookahead's object baseline, counted on training days: P(an object's first move within
+    each horizon | the activity under way, the clock slot) straight from the reference steps
+    (:class:`~globe.models.baselines.HourActivityAhead`), its most frequent first new place from
+    where it is (else overall), and the activity ahead by hour + activity
+    (:class:`~globe.models.baselines.HourActivityBaseline`)."""
+
+    moves: HourActivityAhead
+    places: dict[tuple[int, str], tuple[str, float]]  # (object column, from) -> (its likeliest next place, share)
+    anywhere: dict[int, tuple[str, float]]  # object column -> the same, from anywhere
+    activity: HourActivityBaseline
+    locations: tuple[str, ...]  # every place seen, then UNKNOWN_PLACE (as the movement model's)
+
+
+def first_moves(day: Day, rs: Sequence[int], horizons: int) -> np.ndarray:
+    """(references x horizons x objects): whether each object's first move after reference step r
+    (to a place other than its place at r) comes within steps r+1..r+1+s, as the lookahead scores
+    it (an object in use at r never: :func:`score_arrays`)."""
+    ids, _ = _coded(day)
+    at = np.asarray(rs, dtype=int)
+    if not len(at):
+        return np.zeros((0, horizons, ids.shape[1]), dtype=bool)
+    future = ids[at[:, None] + 1 + np.arange(horizons)[None, :]]  # (refs, horizons, objects)
+    window = future != ids[at][:, None, :]
+    moved = window.any(axis=1) & ~_in_use(day)[at]
+    first = window.argmax(axis=1)
+    return moved[:, None, :] & (first[:, None, :] <= np.arange(horizons)[None, :, None])
+
+
+def fit_moves_baseline(days: Sequence[Day], objects: Sequence[str], horizons: int, la: LookaheadConfig
+                       ) -> MovesBaseline:
+    """:class:`MovesBaseline` on ``days`` (every reference step the lookahead would score)."""
+    from collections import Counter
+
+    moves = HourActivityAhead(objects, horizons)
+    goes: dict[tuple[int, str], Counter[str]] = {}
+    seen: set[str] = set()
+    for day in days:
+        rs = list(reference_steps(day, horizons, la.first_reference, la.last_reference))
+        moves.add([day.activities[r - 1] for r in rs], [day.minutes[r - 1] for r in rs], first_moves(day, rs, horizons),
+                  ~_in_use(day)[rs])
+        ids, names = _coded(day)
+        seen.update(names)
+        for t, j in zip(*np.nonzero(ids[1:] != ids[:-1])):
+            goes.setdefault((int(j), names[ids[t, j]]), Counter())[names[ids[t + 1, j]]] += 1
+    anywhere: dict[int, Counter[str]] = {}
+    for (j, _), to in goes.items():
+        anywhere.setdefault(j, Counter()).update(to)
+
+    def likeliest(to: Counter[str]) -> tuple[str, float]:
+        place = min(to, key=lambda x: (-to[x], x))
+        return place, to[place] / sum(to.values())
+
+    return MovesBaseline(moves, {k: likeliest(v) for k, v in goes.items()},
+                         {j: likeliest(v) for j, v in anywhere.items()},
+                         HourActivityBaseline(horizons).fit(days), (*sorted(seen), UNKNOWN_PLACE))
+
+
+def baseline_days(baseline: MovesBaseline, days: Sequence[Day], horizons: int, first: int = 1,
+                  last: int | None = None, stride: int = 1) -> LookaheadRun:
+    """The pairs of ``baseline``'s predictions at every reference step of ``days``, scored as a
+    forecaster's (:func:`score_arrays`): the predicted first new place with P(a first move within
+    the horizon) x its share among the object's next places."""
+    run = LookaheadRun.empty(horizons)
+    refs = reference_queries(days, horizons, first, last, stride)
+    if not refs:
+        return run
+    index = {x: i for i, x in enumerate(baseline.locations)}
+    labels = list(baseline.activity.classes_)
+    codes = {a: i for i, a in enumerate(labels)}
+    n_obj = len(baseline.moves.objects)
+    best = np.zeros((len(refs), horizons, n_obj), dtype=int)
+    prob = np.zeros((len(refs), horizons, n_obj))
+    top = np.full((len(refs), horizons), -1, dtype=int)
+    for q, (day, r) in enumerate(refs):
+        current, minute = day.activities[r - 1], day.minutes[r - 1]
+        here = day.locations[r]
+        for j in range(n_obj):
+            place, share = baseline.places.get((j, here[j])) or baseline.anywhere.get(j, (UNKNOWN_PLACE, 0.0))
+            best[q, :, j] = index[place]
+            prob[q, :, j] = share
+        prob[q] *= baseline.moves.proba(current, minute)
+        for s in range(horizons):
+            said = mode(baseline.activity.proba(current, minute, s + 1))
+            top[q, s] = codes.get(said, -1) if said is not None else -1
+    score_arrays(run, refs, best, prob, top, labels, baseline.locations, {})
+    return run
+
+
+def evaluate_moves_baseline(household: Household, config: GlobeConfig) -> LookaheadResult:
+    """The baseline row: its change threshold per horizon chosen by F1 on held-out training days
+    (contiguous folds, every ``cv_stride``-th reference, as the models'), then counted on every
+    training day and scored on the test days."""
+    la, horizons = config.lookahead, assembly.lookahead_steps(config, household)
+    started = time.perf_counter()
+    runs = []
+    for fold in data_folds(household, config.selection.folds):
+        train, held_out = fold_days(household, fold)
+        fitted = fit_moves_baseline(train, household.objects, horizons, la)
+        runs.append(baseline_days(fitted, held_out, horizons, la.first_reference, la.last_reference, la.cv_stride))
+    per = threshold_f1s(pool(runs, horizons), la.thresholds)
+    thresholds = best_thresholds(per, la.thresholds)
+    plain = dict.fromkeys(SETTING_KEYS, False)
+    selection = Selection({**plain, "thresholds": thresholds},
+                          [({**plain, "horizon": s, "threshold": t}, f)
+                           for s, row in enumerate(per) for t, f in zip(la.thresholds, row)],
+                          time.perf_counter() - started)
+    fit_started = time.perf_counter()
+    fitted = fit_moves_baseline(household.train, household.objects, horizons, la)
+    train_s = time.perf_counter() - fit_started
+    run = baseline_days(fitted, household.test, horizons, la.first_reference, la.last_reference)
+    return LookaheadResult(BASELINE, household.name, thresholds,
+                           tuple(p.counts(t) for p, t in zip(run.pairs, thresholds)), tuple(run.activity_accuracy()),
+                           train_s, selection, False, False, False)

@@ -22,7 +22,7 @@ from globe.data.records import Household
 from globe.errors import ConfigError
 from globe.evaluation import report
 from globe.evaluation.experiments import run_methods
-from globe.evaluation.methods import METHODS, families
+from globe.evaluation.methods import METHODS, families, with_baselines
 from globe.evaluation.parallel import precompute_selections
 from globe.evaluation.published import DataScope
 from globe.evaluation.results import Table1Results, write_table1_results
@@ -88,10 +88,11 @@ def backend_for(config: GlobeConfig, methods: Sequence[str] = ()) -> LLMBackend 
 def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequence[str], out_dir: Path,
              backend: LLMBackend | None = None, stages: Stages | None = None,
              memo: Memo | None = None, objects_ahead: bool = False) -> Table1Results:
-    """Table I rows for ``methods`` on each household's test days and the activity ahead, written
-    to ``out_dir``; with ``objects_ahead``, also the lookahead and fetch-policy tables of the
-    households with objects (:func:`object_anticipation`, forecasting with those of ``methods``
-    it can). ``memo`` (cross-validation results and fits) is filled and reused."""
+    """Table I rows for ``methods`` and the baselines (:func:`~globe.evaluation.methods.with_baselines`)
+    on each household's test days and the activity ahead, written to ``out_dir``; with
+    ``objects_ahead``, also the lookahead and fetch-policy tables of the households with objects
+    (:func:`object_anticipation`, forecasting with those of ``methods`` it can, beside the
+    baselines). ``memo`` (cross-validation results and fits) is filled and reused."""
     methods = check_methods(methods)
     stages = stages or Stages(out_dir)
     memo = Memo() if memo is None else memo
@@ -100,7 +101,7 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
         with stages.stage("table1: model selection (cross-validation, in parallel)"):
             precompute_selections(config, households, needed, memo)
     runs = []
-    for method in methods:
+    for method in with_baselines(methods):
         with stages.stage(f"table1: {method}"):
             runs += run_methods(config, households, [method], backend, memo)
     with stages.stage("activity anticipation"):

@@ -3,13 +3,18 @@
 ``ngram_smoothed``, ``routine`` and ``globe_routine`` go beyond the paper; their
 hyperparameters are chosen by cross-validation over each household's training days
 (:func:`globe.evaluation.tuning.tuned_models`), never by looking at test days.
+
+Three rows are baselines (:data:`BASELINES`), rules every model must clear: persistence (objects
+from the n-gram, as the paper's row), the time-of-day mode and hour + current activity, the last
+two with the object baseline (the most frequent use given the clock hour and the predicted
+activity, :class:`~globe.models.baselines.HourActivityObjects`).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 from globe import assembly
 from globe.assembly import FittedHousehold
@@ -18,18 +23,24 @@ from globe.data.records import Household
 from globe.evaluation.selection import DataKey, FitKey, Memo, Selection
 from globe.evaluation.tuning import chosen_alignment, tuned_gate, tuned_models
 from globe.models.base import ActivityModelBase
-from globe.models.baselines import PersistenceModel
+from globe.models.baselines import (
+    HOUR_ACTIVITY,
+    HourActivityBaseline,
+    HourActivityObjects,
+    PersistenceModel,
+    TimeOfDayBaseline,
+)
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ObjectChooser
+from globe.reasoning.choice import ContextFor, ObjectChooser, Ranking
 from globe.reasoning.gate import LLMOnlyChooser
-from globe.sequences.movements import Alignment
+from globe.sequences.movements import Alignment, extract_movements
 
 
 @dataclass(frozen=True, slots=True)
 class Prepared:
     """A method ready to run on one household."""
 
-    activity: ActivityModelBase
+    activity: ActivityModelBase | TimeOfDayBaseline | HourActivityBaseline
     chooser: ObjectChooser
     train_s: float
     selection: dict[str, Selection] = field(default_factory=dict)
@@ -44,6 +55,12 @@ class Method:
     needs_llm: bool
     prepare: Callable[[Household, GlobeConfig, LLMBackend | None, Memo], Prepared]
     family: str | None = None  # the model family chosen by cross-validation, if any
+    baseline: bool = False  # a rule every model must clear (said beside its label wherever it is shown)
+
+    @property
+    def shown(self) -> str:
+        """The label as tables and plots show it: a baseline says so."""
+        return f"{self.label} (baseline)" if self.baseline else self.label
 
 
 def _fit(h: Household, cfg: GlobeConfig, memo: Memo, models: ModelConfig | None = None) -> FittedHousehold:
@@ -60,6 +77,44 @@ def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, mem
     t = time.perf_counter()
     model = PersistenceModel().fit([d.activities for d in h.train])
     return Prepared(model, ObjectChooser(fitted.objects), time.perf_counter() - t + fitted.train_s)
+
+
+class HourActivityChooser(ObjectChooser):
+    """The object baseline as a chooser: the most frequent use given the clock and the predicted
+    activity (:class:`~globe.models.baselines.HourActivityObjects`). The protocol tells it when
+    the object moved (``ranking_at``); asked without the clock it answers from the activity alone."""
+
+    name = HOUR_ACTIVITY
+
+    def __init__(self, model: HourActivityObjects) -> None:
+        super().__init__(model)
+        self.clock_model = model
+
+    def ranking_at(self, minute: int, activity: str, belief: Mapping[str, float] | None,
+                   context_for: ContextFor) -> Ranking:
+        dist = self.clock_model.predict_proba(activity, (), minute)
+        return self.clock_model.ranked(activity, dist), dist
+
+
+def object_baseline(h: Household, alignment: Alignment) -> HourActivityObjects:
+    """The object baseline counted on ``h``'s training days: every use (:mod:`globe.sequences.movements`:
+    a return from a use place is none), credited to its activity by ``alignment`` and to its minute."""
+    return HourActivityObjects().fit((ev.activity, ev.minute, ev.obj) for day in h.train
+                                     for ev in extract_movements(day, h.objects, alignment))
+
+
+def _time_of_day(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    t = time.perf_counter()
+    model = TimeOfDayBaseline().fit(h.train)
+    chooser = HourActivityChooser(object_baseline(h, cfg.sequences.alignment))
+    return Prepared(model, chooser, time.perf_counter() - t)
+
+
+def _hour_activity(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
+    t = time.perf_counter()
+    model = HourActivityBaseline(1).fit(h.train)
+    chooser = HourActivityChooser(object_baseline(h, cfg.sequences.alignment))
+    return Prepared(model, chooser, time.perf_counter() - t)
 
 
 def _globe(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
@@ -119,7 +174,9 @@ def _tuned(family: str, with_gate: bool) -> Callable[[Household, GlobeConfig, LL
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
-        Method("persistence", "Persistence", False, _persistence),
+        Method("persistence", "Persistence", False, _persistence, baseline=True),
+        Method("time_of_day", "Time-of-day mode", False, _time_of_day, baseline=True),
+        Method(HOUR_ACTIVITY, "Hour + activity", False, _hour_activity, baseline=True),
         Method("ngram", "n-gram Markov", False, _ngram),
         Method("globe", "GLOBE", True, _globe),
         Method("globe_combine", "GLOBE, LLM + n-gram scores", True, _globe_combine),
@@ -131,3 +188,14 @@ METHODS: dict[str, Method] = {
                "routine"),
     )
 }
+
+BASELINES: tuple[str, ...] = tuple(name for name, m in METHODS.items() if m.baseline)
+"""The baseline rows, in Table I's order: every evaluation shows them beside the models."""
+
+
+def with_baselines(methods: Sequence[str]) -> list[str]:
+    """``methods`` with every baseline row it lacks, right after the last baseline listed (first,
+    when none is): no table of models without the rules they must beat."""
+    missing = [b for b in BASELINES if b not in methods]
+    at = max((i + 1 for i, m in enumerate(methods) if m in BASELINES), default=0)
+    return [*methods[:at], *missing, *methods[at:]]

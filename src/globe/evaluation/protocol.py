@@ -4,7 +4,9 @@ Activity: at every step t = 1..T-1 of each test day, predict a_t from the true a
 Object: at every movement event, predict the object from the *predicted* activity of the
 event's activity step and the objects already moved in the current (true) activity run; that
 context is reset when the predicted activity differs from the true one. Candidates are O(â).
-``oracle=True`` conditions on the true activity instead.
+``oracle=True`` conditions on the true activity instead. A predictor or chooser that reads the
+clock (the hour + activity baselines) is told the day (``scan_day``) and each movement's minute
+(``ranking_at``).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass
-from typing import Callable, Protocol, Sequence
+from typing import Callable, Protocol, Sequence, runtime_checkable
 
 from globe.data.records import Day, Household
 from globe.models.base import stay_or_change
@@ -28,6 +30,15 @@ class ActivityPredictor(Protocol):
     def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]: ...
     def ranked(self, distribution: dict[str, float]) -> list[str]: ...
     def top(self, distribution: dict[str, float]) -> str | None: ...  # ranked(...)[0], None if empty
+
+
+@runtime_checkable
+class DayPredictor(Protocol):
+    """A predictor that reads the clock (hour + activity): asked with the whole :class:`Day`."""
+
+    def scan_day(self, day: Day) -> list[dict[str, float]]: ...
+    def ranked(self, distribution: dict[str, float]) -> list[str]: ...
+    def top(self, distribution: dict[str, float]) -> str | None: ...
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -99,7 +110,7 @@ class Evaluation:
     prefetch_s: float = 0.0  # the LLM's batched scoring of every question asked (then read from the cache)
 
 
-def _top(model: ActivityPredictor, distribution: dict[str, float], current: str | None = None,
+def _top(model: ActivityPredictor | DayPredictor, distribution: dict[str, float], current: str | None = None,
          stay_margin: float = 1.0) -> str:
     best = stay_or_change(model.top(distribution), distribution, current, stay_margin)
     return NO_PREDICTION if best is None else best
@@ -117,12 +128,13 @@ class _Query:
     belief: dict[str, float]
     context_for: ContextFor
     injected: bool
+    minute: int  # when the object moved: what a chooser that reads the clock is told (``ranking_at``)
 
 
 def evaluate_days(
     household: Household,
     days: Sequence[Day],
-    activity_model: ActivityPredictor,
+    activity_model: ActivityPredictor | DayPredictor,
     chooser: ObjectChooser,
     *,
     alignment: Alignment = "previous",
@@ -144,7 +156,8 @@ def evaluate_days(
     started = time.perf_counter()
     for day in days:
         acts = day.activities
-        dists = activity_model.scan_proba(acts, day.weekday)
+        dists = activity_model.scan_day(day) if isinstance(activity_model, DayPredictor) else \
+            activity_model.scan_proba(acts, day.weekday)
         predicted = [_top(activity_model, d, acts[t - 1] if t else None, stay_margin) for t, d in enumerate(dists)]
         for t in range(1, len(acts)):
             act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1],
@@ -158,19 +171,21 @@ def evaluate_days(
                     run.activity if oracle else predicted[ev.activity_step],
                     {run.activity: 1.0} if oracle else dists[ev.activity_step],
                     run_context(run.activity, run.objects[:i]),
-                    injected(day.name, ev.step, ev.obj) if injected else False))
+                    injected(day.name, ev.step, ev.obj) if injected else False, ev.minute))
         if progress:
             progress(1)
     # The n-gram ranking of each event is computed once: the dry pass below and the real one
     # share it, and so do callers that pass ``rankings`` for several choosers over the same models.
     memo: dict = {} if rankings is None else rankings
+    at = getattr(chooser, "ranking_at", None)  # a chooser that reads the clock (the object baseline)
 
     def ranking(q: _Query) -> Ranking | None:
         if not chooser.uses_ranking:
             return None
         key = (household.name, q.day, q.step, q.true, oracle)
         if key not in memo:
-            memo[key] = chooser.ngram_ranking(q.activity, q.belief, q.context_for)
+            memo[key] = at(q.minute, q.activity, q.belief, q.context_for) if at is not None else \
+                chooser.ngram_ranking(q.activity, q.belief, q.context_for)
         return memo[key]
 
     backend = getattr(chooser, "backend", None)

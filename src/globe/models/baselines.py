@@ -1,15 +1,21 @@
-"""Reference activity models that share the n-gram model's interface."""
+"""Baselines: the rules every model must clear, for the activity (persistence, the time-of-day
+mode, hour + current activity) and for objects (the most frequent use given the hour and the
+activity, and its horizon version for the lookahead and the fetch policy)."""
 
 from __future__ import annotations
 
 from collections import Counter
 from itertools import repeat
-from typing import Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from globe.models.base import ActivityModelBase, Weekdays
+from globe.models.base import ActivityModelBase, Weekdays, rank
 from globe.models.state_space import StateSpace
+
+HOUR_ACTIVITY = "hour_activity"
+"""The name of the hour + activity rows in every results table (Table I, the lookahead, the fetch
+policy): the activity and object baselines of this module."""
 
 
 class PersistenceModel(ActivityModelBase):
@@ -72,7 +78,29 @@ class PersistenceStates(StateSpace):
         return out
 
 
-class HourActivityBaseline:
+def mode(distribution: Mapping[str, float]) -> str | None:
+    """The most probable label (ties: the first name), None for an empty or all-zero distribution:
+    the point prediction of every baseline, so ties never depend on dict order."""
+    best = max(distribution.values(), default=0.0)
+    return min((a for a, p in distribution.items() if p == best), default=None) if best > 0 else None
+
+
+class _TableRow:
+    """What the Table I protocol asks of an activity predictor beyond its distributions."""
+
+    kind = "baseline"
+
+    def ranked(self, distribution: Mapping[str, float]) -> list[str]:
+        return sorted(distribution, key=lambda a: (-distribution[a], a))
+
+    def top(self, distribution: Mapping[str, float]) -> str | None:
+        return mode(distribution)
+
+    def get_params(self) -> dict[str, Any]:
+        return {}
+
+
+class HourActivityBaseline(_TableRow):
     """"Hour + current activity": the activity h steps ahead given the current activity and the
     clock hour, counted per horizon straight from the training days (a *direct* h-ahead estimate,
     where a model's forecast iterates one-step transitions). Its point prediction is the most
@@ -87,6 +115,8 @@ class HourActivityBaseline:
     ever gets 0. The next *different* activity is counted the same way (:meth:`next_proba`).
     """
 
+    kind = "hour_activity"
+
     def __init__(self, horizons: int, *, slot_minutes: int = 60, shrinkage: float = 0.5, eps: float = 0.01) -> None:
         self.horizons = horizons
         self.slot_minutes = slot_minutes
@@ -98,8 +128,10 @@ class HourActivityBaseline:
         h, width = self.horizons, self.slot_minutes
         seen: Counter[tuple[int, int, str, str]] = Counter()  # (horizon, hour, a_r, a_{r+j}); horizon 0: next different
         labels: set[str] = set()
+        first: Counter[str] = Counter()
         for day in days:
             acts, n = day.activities, len(day.activities)
+            first.update(acts[:1])
             slots = [m // width for m in day.minutes]
             labels.update(acts)
             for j in range(1, min(h, n - 1) + 1):
@@ -114,8 +146,20 @@ class HourActivityBaseline:
             self.pair_[j].setdefault((slot, a), Counter())[b] += c
             self.slot_[j].setdefault(slot, Counter())[b] += c
         self.classes_ = tuple(sorted(labels))
+        self.first_ = {a: c / sum(first.values()) for a, c in sorted(first.items())}
         self._answers: dict[tuple[int, str, int, bool], dict[str, float]] = {}
         return self
+
+    def get_params(self) -> dict[str, Any]:
+        return {"horizons": self.horizons, "slot_minutes": self.slot_minutes, "shrinkage": self.shrinkage,
+                "eps": self.eps}
+
+    def scan_day(self, day: Any) -> list[dict[str, float]]:
+        """One step ahead at every step of ``day`` (a :class:`~globe.data.records.Day`: the Table I
+        protocol's question, with the clock it needs): step t from a_{t-1} at its minute, the first
+        step from the training days' first activities."""
+        acts, minutes = day.activities, day.minutes
+        return [dict(self.first_)] + [self.proba(acts[t - 1], minutes[t - 1], 1) for t in range(1, len(acts))]
 
     def _proba(self, j: int, current: str, minute: int, stay: bool) -> dict[str, float]:
         """The shrunk distribution (class doc), kept per (horizon, activity, hour): few of them
@@ -146,3 +190,157 @@ class HourActivityBaseline:
     def next_proba(self, current: str, minute: int) -> dict[str, float]:
         """P(the next activity other than ``current``), ``current`` under way at ``minute``."""
         return self._proba(0, current, minute, stay=False)
+
+
+class TimeOfDayBaseline(_TableRow):
+    """"The time-of-day mode": at step t, the share of training days on which each activity was
+    seen at their step t, whatever happened before. A rule that knows the clock and nothing of the
+    day so far; a model that cannot beat it at some horizon has learnt nothing about the hours."""
+
+    kind = "time_of_day"
+
+    def fit(self, days: Sequence[Any]) -> "TimeOfDayBaseline":
+        """Count ``days`` (:class:`~globe.data.records.Day`, or plain activity sequences)."""
+        counts: list[Counter[str]] = []
+        for day in days:
+            for t, a in enumerate(getattr(day, "activities", day)):
+                if t == len(counts):
+                    counts.append(Counter())
+                counts[t][a] += 1
+        self.by_step_ = [{a: c / sum(seen.values()) for a, c in seen.items()} for seen in counts]
+        return self
+
+    def at(self, step: int) -> dict[str, float]:
+        """The distribution at ``step`` (empty past the training days' last step)."""
+        return self.by_step_[step] if step < len(self.by_step_) else {}
+
+    def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
+        """The distribution at every step of a day (the Table I protocol's question)."""
+        return [self.at(t) for t in range(len(day))]
+
+
+class HourActivityObjects:
+    """"The most frequent departure given the hour and the activity": the object baseline, with the
+    per-activity object n-gram's interface (:class:`~globe.models.objects.ObjectModel`) plus the
+    clock. Counted from the uses of training days (a move that counts as a use: a departure for an
+    imported home, every relocation for HOMER+), each credited to its activity and the clock slot
+    of its step, the levels shrunk into each other as :class:`HourActivityBaseline`'s,
+
+        P(o | a, slot) = (n(a, slot, o) + k P(o | a)) / (n(a, slot) + k)
+        P(o | a)       = (n(a, o) + k P(o)) / (n(a) + k)
+        P(o)           = n(o) / n
+
+    so the mode of a seen (activity, slot) wins and the coarser levels break its ties. It ignores
+    what moved earlier in the run: what a robot would know from the clock and the activity alone."""
+
+    kind = "hour_activity_objects"
+
+    def __init__(self, *, slot_minutes: int = 60, shrinkage: float = 0.5) -> None:
+        self.slot_minutes = slot_minutes
+        self.shrinkage = shrinkage
+
+    def get_params(self) -> dict[str, Any]:
+        return {"slot_minutes": self.slot_minutes, "shrinkage": self.shrinkage}
+
+    def fit(self, uses: Iterable[tuple[str, int, str]]) -> "HourActivityObjects":
+        """Count ``uses``: (activity credited, clock minute of the step, object)."""
+        self.pair_: dict[tuple[str, int], Counter[str]] = {}
+        self.frequency_: dict[str, Counter[str]] = {}
+        self.overall_: Counter[str] = Counter()
+        for activity, minute, obj in uses:
+            self.pair_.setdefault((activity, minute // self.slot_minutes), Counter())[obj] += 1
+            self.frequency_.setdefault(activity, Counter())[obj] += 1
+            self.overall_[obj] += 1
+        self._answers: dict[tuple[str, int | None], dict[str, float]] = {}
+        return self
+
+    def candidates(self, activity: str) -> tuple[str, ...]:
+        """O(a): every object used during ``activity`` in training, sorted."""
+        return tuple(sorted(self.frequency_.get(activity, ())))
+
+    def recent_runs(self, activity: str, k: int) -> tuple[tuple[str, ...], ...]:
+        """None: a baseline shows the LLM nothing (part of the object models' interface)."""
+        return ()
+
+    def predict_proba(self, activity: str, history: Sequence[str] = (), minute: int | None = None
+                      ) -> dict[str, float]:
+        """P(the object used | ``activity`` at clock ``minute``); without a minute, the activity's
+        level. ``history`` is ignored. Memoised: the dict returned is shared, to be read only."""
+        slot = None if minute is None else minute // self.slot_minutes
+        found = self._answers.get((activity, slot))
+        if found is None:
+            found = self._answers[(activity, slot)] = self._shrunk(activity, slot)
+        return found
+
+    def _shrunk(self, activity: str, slot: int | None) -> dict[str, float]:
+        total, k = sum(self.overall_.values()), self.shrinkage
+        if not total:
+            return {}
+        dist = {o: c / total for o, c in self.overall_.items()}
+        levels = [self.frequency_.get(activity)] + ([] if slot is None else [self.pair_.get((activity, slot))])
+        for counts in levels:
+            if counts:
+                n = sum(counts.values())
+                dist = {o: (counts.get(o, 0) + k * p) / (n + k) for o, p in dist.items()}
+        return dist
+
+    def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]:
+        """Most probable first; ties by the activity's counts, then by name."""
+        return rank(distribution, self.frequency_.get(activity, {}))
+
+    def predict(self, activity: str, history: Sequence[str] = (), minute: int | None = None) -> str | None:
+        ranked = self.ranked(activity, self.predict_proba(activity, history, minute))
+        return ranked[0] if ranked else None
+
+
+class HourActivityAhead:
+    """P(an object's event within each of ``horizons`` windows | the current activity, the clock
+    slot), counted directly from reference steps of training days: the lookahead's and the fetch
+    policy's object baseline (what the event is, a first move or a use within a lead window, is
+    the caller's: :meth:`add` takes the outcomes). The same shrinkage as
+    :class:`HourActivityObjects`: (activity, slot) -> activity -> every reference, each level a
+    share of the references it counted for that object (one in use is not asked whether it will
+    be taken)."""
+
+    def __init__(self, objects: Sequence[str], horizons: int, *, slot_minutes: int = 60,
+                 shrinkage: float = 0.5) -> None:
+        self.objects = tuple(objects)
+        self.horizons = horizons
+        self.slot_minutes = slot_minutes
+        self.shrinkage = shrinkage
+        self._shape = (horizons, len(self.objects))
+        self._events: dict[object, np.ndarray] = {None: np.zeros(self._shape)}
+        self._refs: dict[object, np.ndarray] = {None: np.zeros(len(self.objects))}  # per object
+        self._answers: dict[tuple[str, int], np.ndarray] = {}
+
+    def add(self, activities: Sequence[str], minutes: Sequence[int], events: np.ndarray,
+            counted: np.ndarray | None = None) -> "HourActivityAhead":
+        """Count references: the activity and clock minute of each, ``events`` (references x
+        horizons x objects, bool: the object's event happened within that window) and ``counted``
+        (references x objects: which objects each reference asks about; default all)."""
+        events = np.asarray(events, dtype=float)
+        asked = np.ones((len(events), len(self.objects))) if counted is None else np.asarray(counted, dtype=float)
+        for a, m, ev, c in zip(activities, minutes, events, asked):
+            for key in (None, a, (a, m // self.slot_minutes)):
+                got = self._events.get(key)
+                if got is None:
+                    self._events[key], self._refs[key] = ev.copy(), c.copy()
+                else:
+                    got += ev
+                    self._refs[key] += c
+        self._answers.clear()
+        return self
+
+    def proba(self, activity: str, minute: int) -> np.ndarray:
+        """(horizons x objects): P(the event within each window). Shared: read only."""
+        slot = minute // self.slot_minutes
+        found = self._answers.get((activity, slot))
+        if found is None:
+            k = self.shrinkage
+            n = self._refs[None]
+            p = np.divide(self._events[None], n, out=np.zeros(self._shape), where=n > 0)
+            for key in (activity, (activity, slot)):
+                if key in self._refs:
+                    p = (self._events[key] + k * p) / (self._refs[key] + k)
+            found = self._answers[(activity, slot)] = p
+        return found

@@ -1,0 +1,64 @@
+"""The baselines every model must clear, counted by hand: the time-of-day mode, hour + activity
+one step ahead (the Table I question), the object baseline (the most frequent use given the hour
+and the activity, backing off to the activity, then to every use) and its horizon version."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from globe.data.records import Day
+from globe.models.baselines import HourActivityAhead, HourActivityBaseline, HourActivityObjects, TimeOfDayBaseline, mode
+
+
+def day(name: str, acts: str, start: int = 420) -> Day:
+    minutes = tuple(range(start, start + 10 * len(acts), 10))
+    return Day(name, minutes, tuple(acts), tuple(() for _ in acts))
+
+
+def test_time_of_day_is_the_share_of_days_at_each_step():
+    model = TimeOfDayBaseline().fit([day("d0", "AAB"), day("d1", "ABB"), day("d2", "ABC")])
+    assert model.at(1) == {"A": 1 / 3, "B": 2 / 3}
+    assert model.at(5) == {}  # past the training days' last step: nothing known
+    scanned = model.scan_proba(tuple("XYZ"))  # whatever happened so far
+    assert [model.top(d) for d in scanned] == ["A", "B", "B"]
+    assert model.top({"B": 0.5, "A": 0.5}) == "A" == mode({"B": 0.5, "A": 0.5})  # ties: the first name
+
+
+def test_hour_activity_one_step_ahead_reads_the_clock_of_the_day():
+    # at 07:xx A is followed by B; at 09:xx by C: the hour, not the activity alone, tells which
+    train = [day(f"m{i}", "AB", 420) for i in range(3)] + [day(f"e{i}", "AC", 540) for i in range(3)]
+    model = HourActivityBaseline(1).fit(train)
+    morning, evening = model.scan_day(day("t0", "AA", 420)), model.scan_day(day("t1", "AA", 540))
+    assert model.top(morning[1]) == "B" and model.top(evening[1]) == "C"
+    assert morning[0] == {"A": 1.0}  # the first step: the training days' first activities
+    assert sum(morning[1].values()) == pytest.approx(1.0)
+
+
+def test_object_baseline_backs_off_from_the_hour_to_the_activity_to_every_use():
+    uses = [("meal", 420, "kettle")] * 3 + [("meal", 1140, "microwave")] * 2 + [("work", 600, "laptop")]
+    model = HourActivityObjects().fit(uses)
+    assert model.predict("meal", minute=425) == "kettle" and model.predict("meal", minute=1150) == "microwave"
+    assert model.predict("meal", minute=800) == "kettle"  # an unseen hour: the activity's most frequent
+    assert model.predict("meal") == "kettle"  # no clock given: the activity's level
+    assert model.predict("sleep", minute=420) == "kettle"  # an unseen activity: every use's most frequent
+    dist = model.predict_proba("meal", (), 1150)
+    assert sum(dist.values()) == pytest.approx(1.0) and dist["laptop"] > 0  # nothing of training gets 0
+    assert model.candidates("meal") == ("kettle", "microwave") and model.recent_runs("meal", 3) == ()
+
+
+def test_object_baseline_ties_go_to_the_coarser_level():
+    uses = [("meal", 420, "kettle"), ("meal", 420, "fridge"), ("meal", 1140, "fridge")]
+    model = HourActivityObjects().fit(uses)
+    assert model.predict("meal", minute=420) == "fridge"  # 1:1 at 07:xx, fridge ahead over the activity
+
+
+def test_ahead_counts_the_share_of_references_with_the_event_and_backs_off():
+    ahead = HourActivityAhead(("kettle", "fridge"), 2, shrinkage=1e-9)
+    events = np.array([[[True, False], [True, True]], [[False, False], [True, False]]])
+    ahead.add(["meal", "meal"], [420, 430], events)
+    ahead.add(["work"], [600], np.zeros((1, 2, 2), dtype=bool))
+    p = ahead.proba("meal", 425)
+    assert p[0] == pytest.approx([0.5, 0.0]) and p[1] == pytest.approx([1.0, 0.5])
+    assert ahead.proba("work", 900)[1] == pytest.approx([0.0, 0.0], abs=1e-6)  # the activity's level at an unseen hour
+    assert ahead.proba("sleep", 0)[1] == pytest.approx([2 / 3, 1 / 3])  # an unseen activity: every reference
