@@ -135,3 +135,27 @@ def test_import_names_the_day_file_a_limit_refuses(tmp_path):
         cli("household", "import", "--db", str(tmp_path / "db.sqlite3"), "--name", "t", "--method", "ngram", str(home))
     assert (err.value.source, err.value.line) == (str(home / "train" / "001.csv"), 6)
     assert "longer than 128 characters" in err.value.message and "x" * 65 not in str(err.value)
+
+
+def test_import_keeps_a_folders_sensors(tmp_path):
+    from globe.data.csv_logs import write_day, write_nodes
+    from globe.data.sensors import write_sensor_data
+    from globe.service.store import Store
+    from tests.simulated_sensors import sensor_home
+
+    home, sensors = sensor_home(days=5, test=1, step=10, seed=4)
+    folder = tmp_path / "Sensors"
+    write_nodes(folder / "nodes.csv", home.nodes)
+    for split, days in (("train", home.train), ("test", home.test)):
+        for day in days:
+            write_day(folder / split / f"{day.name}.csv", day, home.objects)
+    write_sensor_data(folder, sensors)
+    db = tmp_path / "globe.sqlite3"
+    cli("household", "import", "--db", str(db), "--name", "s", "--method", "ngram", str(folder))
+    store = Store(db)
+    try:
+        assert [s.name for s in store.sensors("s") or ()] == [s.name for s in sensors.sensors]
+        stored = [d.events for d in store.training_days("s")]
+        assert len(stored) == len(home.train) and all(stored)  # each training day's activations kept
+    finally:
+        store.close()

@@ -4,12 +4,16 @@ and ``globe household import|delete|export`` (import reads a folder on this disk
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from globe.cli.common import console, count, out
 from globe.errors import DataError
+
+if TYPE_CHECKING:
+    from globe.data.records import Household
+    from globe.data.sensors import SensorData
 
 DbOption = Annotated[Path, typer.Option("--db", help="the service's SQLite file (created if missing)")]
 
@@ -134,13 +138,26 @@ def household_import(
         settings = {"grid": session_grid(household, cfg).as_dict(), "method": chosen_by,
                     "new_activities": new_activities_rule(cfg, bool(days)),
                     "deployment": deployment.model_dump(mode="json")}
-        store.add_household(household, tz, texts, settings=settings)
+        store.add_household(household, tz, texts, settings=settings, sensors=_sensors_of(folder, files, household))
     finally:
         store.close()
     which = "training and test" if include_test else "training; --include-test adds test/"
     learned = f"{count(len(days), 'day')} ({which})"
     console.print(f"imported household {name!r}: {len(objects)} objects, {learned}, time zone {tz}; it runs "
                   f"{deployment_summary(deployment)}", soft_wrap=True)
+
+
+def _sensors_of(folder: Path, files: list[Path], household: Household) -> SensorData | None:
+    """The folder's sensors (``sensors.csv``, ``events/``), each day's activations keyed by the name
+    the household gives the day read from that file (the service recognises activities from them)."""
+    from globe.data.sensors import SensorData, day_stem, load_sensor_data  # noqa: F811
+
+    found = load_sensor_data(folder.parent, folder.name)
+    if found is None:
+        return None
+    days = {day_stem(day.name): found.days[path.stem] for path, day in zip(files, household.train)
+            if path.stem in found.days}
+    return SensorData(found.sensors, days)
 
 
 @household_app.command("delete")

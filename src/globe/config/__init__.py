@@ -206,6 +206,9 @@ class ServiceConfig(_Section):
     new_activities: Literal["auto", "refuse", "learn"] = Field(
         "auto", description="an activity a household has never seen: 'refuse' it (the known ones are listed), 'learn' "
         "it, or 'auto': refuse where the household was created with training days, learn where it starts from none")
+    questions_per_day: int = Field(
+        5, ge=0, le=1000, description="a household with sensors may ask the person 'what are you doing?' this many "
+        "times a day, where the recognised activity is least sure (0: never)")
     max_clock_skew: dt.timedelta = Field(
         dt.timedelta(days=1), ge=dt.timedelta(0), le=dt.timedelta(days=36500),
         description="ISO 8601 duration (P1D, PT6H): times this far ahead of the server clock or before creation "

@@ -98,26 +98,7 @@ class Recogniser:
         """Each answer taken as the activity of the whole stretch around it that the recogniser
         read as one activity (its most probable activity unchanged, read with hindsight): the
         person did one thing there, and a stretch read wrong was read wrong for the same reason."""
-        names = self.labels
-        out = []
-        for post, said in zip(self.smooth(days), answers):
-            best = post.argmax(axis=1).tolist()
-            spread: list[str | None] = list(said)
-            for t, answer in enumerate(said):
-                if answer is None:
-                    continue
-                lo = t
-                while lo > 0 and best[lo - 1] == best[t] and said[lo - 1] is None:
-                    lo -= 1
-                hi = t
-                while hi + 1 < len(best) and best[hi + 1] == best[t] and said[hi + 1] is None:
-                    hi += 1
-                for i in range(lo, hi + 1):
-                    if said[i] is None:
-                        spread[i] = answer
-            out.append(spread)
-        del names
-        return out
+        return [spread_answers(post.argmax(axis=1).tolist(), said) for post, said in zip(self.smooth(days), answers)]
 
     def _fit_parts(self, sequences: Sequence[Sequence[str]], weekdays: Sequence[int | None],
                    features: Sequence[np.ndarray], weights: Sequence[np.ndarray],
@@ -214,3 +195,22 @@ class Recogniser:
         s = self.settings
         return {"features": list(s.features), "weight": s.weight, "smoothing": s.smoothing,
                 "self_training": s.self_training, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
+
+
+def spread_answers(best: Sequence[int], said: Sequence[str | None]) -> list[str | None]:
+    """Each label in ``said`` taken as the activity of the whole stretch around it whose most
+    probable activity (``best``, read with hindsight) stays the same and is unlabelled."""
+    spread: list[str | None] = list(said)
+    for t, answer in enumerate(said):
+        if answer is None:
+            continue
+        lo = t
+        while lo > 0 and best[lo - 1] == best[t] and said[lo - 1] is None:
+            lo -= 1
+        hi = t
+        while hi + 1 < len(best) and best[hi + 1] == best[t] and said[hi + 1] is None:
+            hi += 1
+        for i in range(lo, hi + 1):
+            if said[i] is None:
+                spread[i] = answer
+    return spread

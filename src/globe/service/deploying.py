@@ -16,6 +16,8 @@ from typing import Any, Callable
 
 from globe.config import CV_METHODS, Deployment, DeployMethod, GlobeConfig
 from globe.data.records import Household
+from globe.data.sensors import SensorData
+from globe.recognition.recogniser import RecognitionSettings
 
 log = logging.getLogger(__name__)
 Done = Callable[[str, Deployment], None]
@@ -73,3 +75,15 @@ class Selections:
         finally:
             with self._lock:
                 self._running.discard(name)
+
+
+def choose_recognition(household: Household, sensors: SensorData, step_minutes: int) -> RecognitionSettings:
+    """The recogniser's settings of a household with sensors: chosen by cross-validation on its
+    labelled training days that have recorded sensors
+    (:func:`globe.evaluation.recognition.choose_settings`); the default with fewer than two."""
+    labelled = [d for d in household.train if sensors.of(d.name) is not None]
+    if len(labelled) < 2:
+        return RecognitionSettings()
+    from globe.evaluation.recognition import choose_settings
+
+    return choose_settings(labelled, sensors, step_minutes)

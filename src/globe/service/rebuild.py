@@ -1,5 +1,7 @@
 """A stored household back in memory: its session built from its stored map, training days and
-settings (grid, deployment, label rule), its stored observations replayed in time order.
+settings (grid, deployment, label rule, the recogniser's settings), with its sensors and their
+training days' activations where it has them, its stored observations (and the sensor activations
+they carried) replayed in time order: what the session learned online is learned again.
 
 A stored row that cannot be replayed (written by an older GLOBE, or damaged) is quarantined,
 logged and counted, and the rest loads: nothing stored can stop the service.
@@ -17,16 +19,18 @@ from typing import Any
 from globe.config import Deployment, GlobeConfig, ServiceConfig
 from globe.data.csv_logs import activity_label
 from globe.data.records import Household
+from globe.data.sensors import SensorData, SensorDay, day_stem, parse_events_text
 from globe.errors import DataError, GlobeError, LimitError, StoreError
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import scoring, timepolicy
-from globe.service.deploying import Selections
+from globe.service.deploying import Selections, choose_recognition
 from globe.service.schema import HouseholdRow
 from globe.service.store import Store
 from globe.service.stored_days import legacy_day
 from globe.service.upload import DayParser
 from globe.session import DayGrid, HouseholdSession, Observation, build_session, session_grid
 from globe.session.build import new_activities_rule
+from globe.session.sensing import SensorEvent, settings_from_dict, settings_to_dict
 
 log = logging.getLogger(__name__)
 
@@ -70,16 +74,23 @@ def rebuild(store: Store, config: GlobeConfig, backend: LLMBackend | None, selec
     nodes, objects = store.load_map(row.name)
     parser = DayParser(objects, frozenset(n.node for n in nodes), {n.cls: n.node for n in nodes if n.movable})
     days, set_aside = [], 0
+    listed = store.sensors(row.name)
+    events: dict[str, SensorDay] = {}
     for i, kept in enumerate(store.training_days(row.name)):
         try:
             text = kept.text
             day = legacy_day(text) if text.startswith("{") else parser.parse(text, f"days[{i}]")[0]
-            days.append(day if kept.date is None else dataclasses.replace(day, name=kept.date))
+            day = day if kept.date is None else dataclasses.replace(day, name=kept.date)
+            if listed is not None and kept.events is not None:
+                stem = day_stem(day.name)
+                events[stem] = parse_events_text(kept.events, listed, stem, f"events[{i}]")
+            days.append(day)
         except (GlobeError, ValueError, KeyError, TypeError) as err:
             log.warning("household %s: stored training day %d set aside: %s", row.name, i, err)
             set_aside += 1
     household = Household(row.name, nodes, objects, tuple(days), (), f"sqlite:{store.path}")
-    out = Restored(stored_session(store, config, backend, selections, household), set_aside=set_aside)
+    sensors = None if listed is None else SensorData(listed, events)
+    out = Restored(stored_session(store, config, backend, selections, household, sensors), set_aside=set_aside)
     session = out.session
     bad: list[int] = []
     replay: list[tuple[dt.datetime, int, Observation]] = []
@@ -93,7 +104,8 @@ def rebuild(store: Store, config: GlobeConfig, backend: LLMBackend | None, selec
             activity = stored.activity
             if activity is not None:
                 activity = labels.get(activity) or labels.setdefault(activity, activity_label(activity))
-            obs = Observation(time, activity, _locations(json.loads(stored.locations)))
+            obs = Observation(time, activity, _locations(json.loads(stored.locations)),
+                              _sensor_events(stored.sensors, tz))
             check_limits(obs, config.service)
             replay.append((time.astimezone(dt.timezone.utc), stored.id, obs))
         except (GlobeError, ValueError, TypeError, KeyError, OverflowError) as err:
@@ -128,15 +140,18 @@ def rebuild(store: Store, config: GlobeConfig, backend: LLMBackend | None, selec
 
 
 def stored_session(store: Store, config: GlobeConfig, backend: LLMBackend | None, selections: Selections,
-                   household: Household) -> HouseholdSession:
+                   household: Household, sensors: SensorData | None = None) -> HouseholdSession:
     """The session of a stored household, on its stored grid and deployment. A household stored
     without them (created before households kept them, or whose selection has not ended) gets its
-    days' grid and what :meth:`Selections.deployment` gives it now, stored where final."""
+    days' grid and what :meth:`Selections.deployment` gives it now, stored where final; one with
+    ``sensors`` stored without its recogniser's settings (imported from a folder) has them chosen
+    now, and stored."""
     name = household.name
     settings = store.settings(name)
     try:
         grid = DayGrid(**settings["grid"]) if "grid" in settings else None
         deployment = Deployment.model_validate(settings["deployment"]) if settings.get("deployment") else None
+        recognition = settings_from_dict(settings["recognition"]) if settings.get("recognition") else None
     except (TypeError, ValueError) as err:
         raise StoreError(f"the stored settings of household {name!r} cannot be read ({err})") from None
     if grid is None or "new_activities" not in settings:
@@ -148,8 +163,24 @@ def stored_session(store: Store, config: GlobeConfig, backend: LLMBackend | None
         deployment, final = selections.deployment(household, settings.get("method") or config.selection.deploy)
         if final:
             store.set_settings(name, settings | {"deployment": deployment.model_dump(mode="json")})
-    return build_session(household, config, deployment, backend, grid=DayGrid(**settings["grid"]),
-                         new_activities=settings["new_activities"])
+    grid = DayGrid(**settings["grid"])
+    if sensors is not None and recognition is None:
+        recognition = choose_recognition(household, sensors, grid.step_minutes)
+        settings = store.settings(name) | {"recognition": settings_to_dict(recognition)}
+        store.set_settings(name, settings)
+    return build_session(household, config, deployment, backend, grid=grid,
+                         new_activities=settings["new_activities"], sensors=sensors, recognition=recognition)
+
+
+def _sensor_events(stored: str | None, tz: Any) -> tuple[SensorEvent, ...]:
+    """Stored sensor activations (JSON [[sensor, start, end], ...]; None: none) in the household's zone."""
+    if stored is None:
+        return ()
+    rows = json.loads(stored)
+    if not isinstance(rows, list):
+        raise TypeError("stored sensor events are not a JSON list")
+    return tuple(SensorEvent(str(n), timepolicy.to_zone(dt.datetime.fromisoformat(a), tz),
+                             timepolicy.to_zone(dt.datetime.fromisoformat(b), tz)) for n, a, b in rows)
 
 
 def _locations(value: Any) -> dict[str, str]:

@@ -25,6 +25,7 @@ from globe import assembly
 from globe.config import Deployment, DeployMethod, GlobeConfig
 from globe.data.csv_logs import activity_label
 from globe.data.records import Household
+from globe.data.sensors import SensorData
 from globe.errors import (
     DataError,
     DuplicateHouseholdError,
@@ -38,7 +39,7 @@ from globe.errors import (
 from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import scoring, timepolicy
-from globe.service.deploying import Selections
+from globe.service.deploying import Selections, choose_recognition
 from globe.service.rebuild import Pending, check_limits, rebuild
 from globe.service.schema import FoundObservation, HouseholdRow
 from globe.service.schemas import (
@@ -50,15 +51,18 @@ from globe.service.schemas import (
     ObservationAck,
     OnlineScores,
     Prediction,
+    QuestionOut,
+    RecognisedOut,
     ShadowOut,
     StatsOut,
     check_household_name,
 )
 from globe.service.store import Store
 from globe.service.stored_days import DayEncoding
-from globe.service.upload import household_from, parse_nodes
+from globe.service.upload import household_from, parse_nodes, sensors_from
 from globe.session import Decision, HouseholdSession, Observation, build_session, session_grid
 from globe.session.build import deployment_summary, new_activities_rule
+from globe.session.sensing import SensorEvent, settings_to_dict
 
 log = logging.getLogger(__name__)
 
@@ -132,7 +136,8 @@ class Registry:
     # -- households ------------------------------------------------------------------------------
     def create_uploaded(self, name: str, timezone: str | None, node_rows: Sequence[Mapping[str, Any]],
                         day_texts: list[str], dates: Sequence[dt.date] | None = None, *, method: str | None = None,
-                        new_activities: str | None = None) -> HouseholdInfo:
+                        new_activities: str | None = None, sensors: Sequence[Mapping[str, Any]] | None = None,
+                        events: Sequence[str | None] | None = None) -> HouseholdInfo:
         """Validate a household sent over HTTP (its map's rows and its days' texts) against the
         configured limits and the rules of files on disk, then :meth:`create` it."""
         s = self.config.service
@@ -151,17 +156,22 @@ class Registry:
             where = err.source
             detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
             raise type(err)(detail, field=f"{where}.{err.field}" if err.field else where) from None
-        session = self.create(household, zone, day_texts, method=method, new_activities=new_activities)
+        if events is not None and sensors is None:
+            raise DataError("events without sensors: send the household's sensors too", field="events")
+        data = None if sensors is None else sensors_from(sensors, events, household, self.config.data.step_minutes)
+        session = self.create(household, zone, day_texts, method=method, new_activities=new_activities, sensors=data)
         return HouseholdInfo(name=name, timezone=zone, objects=list(household.objects),
                              days_learned=session.days_learned, grid=session.grid.describe(),
-                             deployment=deployment_summary(session.deployment), selecting=self.selecting(name))
+                             deployment=deployment_summary(session.deployment), selecting=self.selecting(name),
+                             sensors=0 if data is None else len(data.sensors))
 
     def create(self, household: Household, timezone: str, day_texts: list[str], *, method: str | None = None,
-               new_activities: str | None = None) -> HouseholdSession:
+               new_activities: str | None = None, sensors: SensorData | None = None) -> HouseholdSession:
         """Build, then store, a validated household (the build fails before anything is stored).
         The name is reserved while it builds, so other requests are not held up meanwhile. Its
         models are chosen as ``method`` says (default ``selection.deploy``): in the background
-        where that means cross-validation (:class:`~globe.service.deploying.Selections`)."""
+        where that means cross-validation (:class:`~globe.service.deploying.Selections`). A household
+        with ``sensors`` keeps them, its recogniser's settings chosen on its labelled days now."""
         name = household.name
         with self._lock:
             if name in self._served or name in self._creating or self.store.household(name) is not None:
@@ -188,8 +198,13 @@ class Registry:
 
                     deployment = choose_deployment(household, self.config, method=chosen_by)
                     settings["deployment"] = deployment.model_dump(mode="json")
+                recognition = None
+                if sensors is not None:
+                    recognition = choose_recognition(household, sensors, grid.step_minutes)
+                    settings["recognition"] = settings_to_dict(recognition)
                 session = build_session(household, self.config, deployment, self.backend, grid=grid,
-                                        new_activities=rule)  # type: ignore[arg-type]
+                                        new_activities=rule, sensors=sensors,  # type: ignore[arg-type]
+                                        recognition=recognition)
             except BaseException:
                 encoding.stop()
                 raise
@@ -198,7 +213,7 @@ class Registry:
                 helper.result()
             encoded = encoding.blobs
             with self._lock:
-                self.store.add_household(household, timezone, day_texts, encoded, settings=settings)
+                self.store.add_household(household, timezone, day_texts, encoded, settings=settings, sensors=sensors)
                 row = self.store.household(name)
                 assert row is not None
                 self._served[name] = Served(row, session)
@@ -379,16 +394,20 @@ class Registry:
                 log.exception("a listener of household %s failed", name)
 
     def observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
-                client_id: str | None) -> ObservationAck:
+                client_id: str | None, sensors: Sequence[tuple[str, dt.datetime, dt.datetime | None]] = ()
+                ) -> ObservationAck:
         """One observation (:meth:`_observe`), then the listeners told when it was applied (not
-        when it is a retry's duplicate or held pending)."""
-        ack = self._observe(name, time=time, activity=activity, locations=locations, client_id=client_id)
+        when it is a retry's duplicate or held pending). ``sensors``: (sensor, start, end or None)
+        of the activations it carries."""
+        ack = self._observe(name, time=time, activity=activity, locations=locations, client_id=client_id,
+                            sensors=sensors)
         if not ack.duplicate and not ack.pending:
             self._notify(name)
         return ack
 
     def _observe(self, name: str, *, time: dt.datetime, activity: str | None, locations: Mapping[str, str],
-                 client_id: str | None) -> ObservationAck:
+                 client_id: str | None, sensors: Sequence[tuple[str, dt.datetime, dt.datetime | None]] = ()
+                 ) -> ObservationAck:
         """One observation: validated completely, committed to the store, then applied, all under
         the household's lock, and only then acknowledged. A retry with a known ``client_id``
         returns the first acknowledgement (a different observation under that id is a 409).
@@ -418,7 +437,9 @@ class Registry:
             zoned = timepolicy.to_zone(time, tz, after=a.last_instant)
             now = timepolicy.utcnow()
             timepolicy.check_bounds(zoned, created=held.row.created_at, now=now, skew=s.max_clock_skew)
-            obs = Observation(zoned, activity, locations)
+            events = tuple(SensorEvent(n, timepolicy.to_zone(a, tz), timepolicy.to_zone(a if b is None else b, tz))
+                           for n, a, b in sensors)
+            obs = Observation(zoned, activity, locations, events)
             instant = zoned.astimezone(dt.timezone.utc)
             held_back = instant > now + s.max_ahead
             try:
@@ -435,8 +456,9 @@ class Registry:
             ack = {"day": place.day, "step": place.step}
             settled = None if held_back else a.settle(place)
             statements = [] if settled is None else scoring.statements(name, settled)
-            stored = self._write(name, held, lambda: self.store.add_observation(name, zoned, activity, dict(locations),
-                                                                               client_id, ack, statements))
+            stored = self._write(name, held, lambda: self.store.add_observation(
+                name, zoned, activity, dict(locations), client_id, ack, statements,
+                sensors=[(e.sensor, e.start, e.end) for e in events]))
             if settled is None:
                 bisect.insort(held.pending, Pending(instant, obs), key=lambda p: p.instant)
             else:
@@ -476,7 +498,7 @@ class Registry:
                                              shadow)
                     except StoreError as err:  # the prediction stands; only its score is lost
                         log.warning("household %s: the fetch decision was not stored: %s", name, err)
-            return prediction(d, shadow)
+            return prediction(d, shadow, session.grid.clock(d.question.step) if d.question else None)
 
     def set_shadow(self, name: str, shadow: bool) -> ShadowOut:
         """Switch the household's shadow mode (stored: it outlives a restart; the listeners are told,
@@ -539,8 +561,9 @@ class Registry:
             return sum(s.session is not None for s in self._served.values())
 
 
-def prediction(d: Decision, shadow: bool) -> Prediction:
-    """The service's answer for a decision: ``act`` only outside shadow mode."""
+def prediction(d: Decision, shadow: bool, clock: str | None = None) -> Prediction:
+    """The service's answer for a decision: ``act`` only outside shadow mode (``clock``: the
+    question's step as HH:MM)."""
     choice = d.choice
     first = d.fetches[0] if d.fetches else None
     return Prediction(status=d.status, days_learned=d.days_learned, day=d.day, step=d.step, activity=d.activity,
@@ -551,7 +574,13 @@ def prediction(d: Decision, shadow: bool) -> Prediction:
                       fetch_to=first.to_location if first else None,
                       fetch_probability=first.probability if first else None,
                       fetches=[FetchOut(object=c.obj, to=c.to_location, probability=c.probability) for c in d.fetches],
-                      shadow=shadow)
+                      shadow=shadow,
+                      recognised=RecognisedOut(activity=d.recognised[0], probability=d.recognised[1])
+                      if d.recognised else None,
+                      labelled_steps=d.labelled_steps, recognised_steps=d.recognised_steps,
+                      question=None if d.question is None else QuestionOut(
+                          day=d.question.day, step=d.question.step, time=clock or "",
+                          activities=[RecognisedOut(activity=a, probability=p) for a, p in d.question.options]))
 
 
 def _same_observation(found: FoundObservation, time: dt.datetime, activity: str | None, locations: Mapping[str, str],

@@ -131,6 +131,14 @@ MIGRATIONS: list[str] = [
     """
     ALTER TABLE households ADD COLUMN settings TEXT;
     """,
+    # 8: a home's ambient sensors (activity recognition): the household's sensor list (JSON rows of
+    # sensors.csv; NULL: no sensors), each training day's activations (its events CSV, compressed as
+    # the days are; NULL: not recorded) and the activations an observation carried (JSON; NULL: none)
+    """
+    ALTER TABLE households ADD COLUMN sensors TEXT;
+    ALTER TABLE training_days ADD COLUMN events BLOB;
+    ALTER TABLE observations ADD COLUMN sensors TEXT;
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -160,10 +168,12 @@ class FoundObservation:
 
 @dataclass(frozen=True, slots=True)
 class StoredDay:
-    """A stored training day: its text and its date (ISO 8601; None: not given)."""
+    """A stored training day: its text and its date (ISO 8601; None: not given), and its sensor
+    activations' events CSV (None: not recorded)."""
 
     text: str
     date: str | None
+    events: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,6 +183,7 @@ class StoredObservation:
     activity: str | None
     locations: str  # JSON
     received_at: str
+    sensors: str | None = None  # JSON: [[sensor, start, end], ...] (ISO times), or None
 
 
 @dataclass(frozen=True, slots=True)

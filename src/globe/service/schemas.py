@@ -62,6 +62,17 @@ class NodeIn(_Body):
                                 description="node it is on or in at the start of a day")
 
 
+class SensorIn(_Body):
+    """One sensor of the home: a row of ``sensors.csv``."""
+
+    sensor: str = Field(..., min_length=1, max_length=4096, description="the sensor's name in the log",
+                        json_schema_extra=_documented(LABEL_PATTERN))
+    type: str = Field("other", max_length=64, description="its kind in one lowercase word: motion, door, contact, "
+                                                          "pressure, flush, appliance, ...")
+    room: str = Field("", max_length=4096, description="the room it is in (empty: unknown)")
+    object: str = Field("", max_length=4096, description="the object column it feeds (empty: none)")
+
+
 class HouseholdCreate(_Body):
     name: str = Field(..., min_length=1, max_length=64, pattern=HOUSEHOLD_NAME_PATTERN, description="household id")
     timezone: str | None = Field(None, max_length=64,
@@ -78,6 +89,12 @@ class HouseholdCreate(_Body):
     new_activities: Literal["refuse", "learn"] | None = Field(
         None, description="an activity it has never seen: refused (the known ones listed) or learned; default: "
         "refused where it has training days, learned where it starts from none")
+    sensors: list[SensorIn] | None = Field(
+        None, max_length=10_000, description="optional: the home's ambient sensors (the rows of sensors.csv); "
+        "its activities are then recognised from them where no label is given")
+    events: list[str | None] | None = Field(
+        None, description="optional, with sensors: each training day's activations, in the order of days (the text "
+        "of events/<day>.csv: sensor,start,end in seconds after the day's midnight; null: not recorded)")
 
 
 class HouseholdInfo(_Body):
@@ -88,6 +105,16 @@ class HouseholdInfo(_Body):
     grid: str = Field("", description="its clock: step, day start and steps a day (from its training days)")
     deployment: str = Field("", description="what it runs, in words")
     selecting: bool = Field(False, description="its models are being chosen by cross-validation in the background")
+    sensors: int = Field(0, description="its ambient sensors (0: none; then activities come from labels only)")
+
+
+class SensorEventIn(_Body):
+    """One sensor activation: when it began and ended (ISO 8601 as the observation's time: naive =
+    wall time in the household's zone, aware = converted; a number is seconds since 1970 UTC)."""
+
+    sensor: str = Field(..., min_length=1, max_length=4096, description="the sensor's name (one of the household's)")
+    start: dt.datetime
+    end: dt.datetime | None = Field(None, description="when it ended (null: a firing, end = start)")
 
 
 class ObservationIn(_Body):
@@ -98,6 +125,10 @@ class ObservationIn(_Body):
                                       description="object class -> node label where it is (partial allowed)")
     id: str | None = Field(None, min_length=1, max_length=4096,
                            description="client-chosen id: a retry with it returns the first answer")
+    sensors: list[SensorEventIn] = Field(
+        default_factory=list, max_length=100_000,
+        description="sensor activations since the last observation (a household with sensors): the evidence its "
+                    "activity is recognised from at this step")
 
 
 class ObservationAck(_Body):
@@ -115,6 +146,24 @@ class FetchOut(BaseModel):
     object: str
     to: str | None = Field(..., description="where to bring it: where it is most likely used")
     probability: float = Field(..., description="P(it is used within the policy's lead window)")
+
+
+class RecognisedOut(BaseModel):
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    activity: str
+    probability: float
+
+
+class QuestionOut(BaseModel):
+    """"What are you doing?": answered by an observation with the activity (within the step)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    day: str
+    step: int = Field(..., description="the step asked about (the last observed one)")
+    time: str = Field(..., description="the step's start, HH:MM on the household's clock")
+    activities: list[RecognisedOut] = Field(..., description="the likely activities, most probable first")
 
 
 class Prediction(BaseModel):
@@ -144,6 +193,14 @@ class Prediction(BaseModel):
         "policy.max_fetches_per_step; fetch_object is the first), also in shadow mode, where act stays false")
     shadow: bool = Field(False, description="the household is in shadow mode: GLOBE decided fetch_object (and scores "
                                             "that decision) but act stays false until an admin switches shadow off")
+    recognised: RecognisedOut | None = Field(
+        None, description="a household with sensors, the last observed step unlabelled: the activity under way as "
+                          "recognised from the sensors, and its probability")
+    labelled_steps: int = Field(0, description="today's steps with an activity label (answers included)")
+    recognised_steps: int = Field(0, description="today's steps without a label, their activity recognised")
+    question: QuestionOut | None = Field(
+        None, description="ask the person what they are doing now (a budget of service.questions_per_day a day, "
+                          "spent where the recognised activity is least sure); the answer is an observation's activity")
 
 
 class FeedbackIn(_Body):
@@ -265,6 +322,7 @@ class StoredObservation(_Body):
     received_at: str
     client_id: str | None
     quarantined: bool
+    sensors: str | None = Field(None, description="JSON list of [sensor, start, end] it carried (null: none)")
 
 
 class StoredFeedback(_Body):
@@ -286,6 +344,10 @@ class HouseholdExport(_Body):
     days: list[str] = Field(..., description="the training days' texts (day-file CSV)")
     dates: list[str | None] = Field(default_factory=list, description="each training day's date, as stored (null: "
                                                                       "not given)")
+    sensors: str | None = Field(None, description="its sensors as stored (JSON text: rows of sensors.csv; null: "
+                                                  "none)")
+    events: list[str | None] = Field(default_factory=list, description="each training day's sensor events CSV, as "
+                                                                       "stored (null: not recorded)")
     observations: list[StoredObservation]
     feedback: list[StoredFeedback]
 

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 from globe.data.records import Household, Node
+from globe.data.sensors import Sensor, SensorData, format_events
 from globe.errors import StoreError, StoreUnavailableError
 from globe.service.dbfile import DatabaseFiles, check_database_file
 from globe.service.schema import (
@@ -309,25 +310,32 @@ class Store:
 
     def add_household(self, household: Household, timezone: str, day_texts: Sequence[str],
                       encoded: Sequence[bytes] | None = None, shadow: bool = True,
-                      settings: dict | None = None) -> None:
+                      settings: dict | None = None, sensors: SensorData | None = None) -> None:
         """Store the map and the training days (as their CSV text: compact, re-validated on load;
         with the date of each of ``household.train`` named by one) and what it runs (``settings``,
-        see schema 7); ``encoded`` is :meth:`encode_days` of ``day_texts`` when the caller has it."""
+        see schema 7); ``encoded`` is :meth:`encode_days` of ``day_texts`` when the caller has it;
+        ``sensors``: the home's sensors and each training day's activations (schema 8)."""
         blobs = self.encode_days(day_texts) if encoded is None else encoded
         if len(blobs) != len(day_texts):
             raise ValueError(f"{len(blobs)} encoded days for {len(day_texts)} day texts")
         stmts: list[tuple[str, tuple]] = [
-            ("INSERT INTO households (name, nodes, objects, created_at, timezone, shadow, settings) "
-             "VALUES (?, ?, ?, ?, ?, ?, ?)",
+            ("INSERT INTO households (name, nodes, objects, created_at, timezone, shadow, settings, sensors) "
+             "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
              (household.name, json.dumps([{f: getattr(n, f) for f in _NODE_FIELDS} for n in household.nodes]),
               json.dumps(household.objects), _now(), timezone, int(shadow),
-              None if settings is None else json.dumps(settings))),
+              None if settings is None else json.dumps(settings),
+              None if sensors is None else json.dumps([[s.name, s.type, s.room, s.object] for s in sensors.sensors]))),
         ]
+        events: list[bytes | None] = [None] * len(household.train)
+        if sensors is not None:
+            for i, day in enumerate(household.train):
+                found = sensors.of(day.name)
+                events[i] = None if found is None else encode_day(format_events(found, sensors.sensors))
         dates = [None if d.calendar_date is None else d.calendar_date.isoformat() for d in household.train]
         if len(dates) != len(blobs):
             raise ValueError(f"{len(blobs)} day texts for {len(dates)} training days")
-        stmts += [("INSERT INTO training_days (household, position, day, date) VALUES (?, ?, ?, ?)",
-                   (household.name, i, blob, when)) for i, (blob, when) in enumerate(zip(blobs, dates))]
+        stmts += [("INSERT INTO training_days (household, position, day, date, events) VALUES (?, ?, ?, ?, ?)",
+                   (household.name, i, blob, when, ev)) for i, (blob, when, ev) in enumerate(zip(blobs, dates, events))]
         self._transaction(f"store household {household.name!r}", stmts, household.name)
 
     def households(self) -> list[HouseholdRow]:
@@ -373,20 +381,31 @@ class Store:
 
     def training_days(self, name: str) -> list[StoredDay]:
         """Each stored day: its CSV text (stored zlib-compressed: a tenth of the size; or, from
-        schema 1-2 files, a JSON-encoded :class:`Day`) and its date, if given."""
-        rows = self._read("SELECT day, date FROM training_days WHERE household = ? ORDER BY position", (name,))
-        return [StoredDay(decode_day(day), date) for day, date in rows]
+        schema 1-2 files, a JSON-encoded :class:`Day`), its date, if given, and its sensor events."""
+        rows = self._read("SELECT day, date, events FROM training_days WHERE household = ? ORDER BY position", (name,))
+        return [StoredDay(decode_day(day), date, None if ev is None else decode_day(ev)) for day, date, ev in rows]
+
+    def sensors(self, name: str) -> tuple[Sensor, ...] | None:
+        """The household's sensors (schema 8; None: it has none)."""
+        rows = self._read("SELECT sensors FROM households WHERE name = ?", (name,))
+        if not rows or rows[0][0] is None:
+            return None
+        try:
+            found = json.loads(rows[0][0])
+            return tuple(Sensor(*(str(v) for v in row)) for row in found)
+        except (ValueError, TypeError) as err:
+            raise StoreError(f"the stored sensors of household {name!r} are damaged ({err})") from None
 
     def export_household(self, name: str) -> dict | None:
         """Everything stored about a household, as stored (nothing is parsed, so a damaged row is
         exported too): its map's JSON text, its training days' texts and dates, its observations
         and feedback. None if there is no such household."""
-        rows = self._read("SELECT name, timezone, created_at, nodes, objects, settings FROM households WHERE name = ?",
-                          (name,))
+        rows = self._read("SELECT name, timezone, created_at, nodes, objects, settings, sensors FROM households "
+                          "WHERE name = ?", (name,))
         if not rows:
             return None
-        name_, timezone, created_at, nodes, objects, settings = rows[0]
-        observations = self._read("SELECT id, time, activity, locations, received_at, client_id, quarantined "
+        name_, timezone, created_at, nodes, objects, settings, sensors = rows[0]
+        observations = self._read("SELECT id, time, activity, locations, received_at, client_id, quarantined, sensors "
                                   "FROM observations WHERE household = ? ORDER BY id", (name,))
         feedback = self._read("SELECT object, accepted, received_at FROM feedback WHERE household = ? ORDER BY id",
                               (name,))
@@ -394,8 +413,9 @@ class Store:
         return {
             "name": name_, "timezone": timezone, "created_at": created_at, "nodes": nodes, "objects": objects,
             "settings": settings, "days": [d.text for d in days], "dates": [d.date for d in days],
+            "sensors": sensors, "events": [d.events for d in days],
             "observations": [{"id": i, "time": t, "activity": a, "locations": loc, "received_at": r, "client_id": c,
-                              "quarantined": bool(q)} for i, t, a, loc, r, c, q in observations],
+                              "quarantined": bool(q), "sensors": sn} for i, t, a, loc, r, c, q, sn in observations],
             "feedback": [{"object": o, "accepted": bool(a), "received_at": r} for o, a, r in feedback],
         }
 
@@ -409,14 +429,16 @@ class Store:
 
     # -- observations and feedback ----------------------------------------------------------
     def add_observation(self, household: str, time: dt.datetime, activity: str | None, locations: dict[str, str],
-                        client_id: str | None, ack: dict, also: Sequence[tuple[str, tuple]] = ()) -> int:
-        """Store an observation, with ``also`` (the scores it settles) in the same transaction;
-        returns the observation's row id."""
+                        client_id: str | None, ack: dict, also: Sequence[tuple[str, tuple]] = (),
+                        sensors: Sequence[tuple[str, dt.datetime, dt.datetime]] = ()) -> int:
+        """Store an observation (with the sensor activations it carried), with ``also`` (the scores
+        it settles) in the same transaction; returns the observation's row id."""
+        events = json.dumps([[n, a.isoformat(), b.isoformat()] for n, a, b in sensors]) if sensors else None
         return self._transaction("store the observation", [(
-            "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack) "
-            "VALUES (?, ?, ?, ?, ?, ?, ?)",
+            "INSERT INTO observations (household, time, activity, locations, received_at, client_id, ack, sensors) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             (household, time.isoformat(), activity, json.dumps(locations, sort_keys=True), _now(), client_id,
-             json.dumps(ack))), *also])
+             json.dumps(ack), events)), *also])
 
     def find_observation(self, household: str, client_id: str) -> FoundObservation | None:
         rows = self._read("SELECT id, ack, time, activity, locations FROM observations "
@@ -431,7 +453,7 @@ class Store:
         return FoundObservation(found_id, answer if isinstance(answer, dict) else {}, time, activity, locations)
 
     def observations(self, household: str) -> Iterator[StoredObservation]:
-        rows = self._read("SELECT id, time, activity, locations, received_at FROM observations "
+        rows = self._read("SELECT id, time, activity, locations, received_at, sensors FROM observations "
                           "WHERE household = ? AND quarantined = 0 ORDER BY id", (household,))
         for r in rows:
             yield StoredObservation(*r)

@@ -28,6 +28,7 @@ from globe.data.csv_logs import (
     parse_nodes_text,
 )
 from globe.data.records import Day, Household, Node
+from globe.data.sensors import SensorData, SensorDay, day_span, day_stem, parse_events_text, parse_sensors_text
 from globe.errors import DataError, LimitError
 
 NODES = "nodes"
@@ -220,3 +221,38 @@ def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str],
     days = tuple(Day(n, d.minutes, tuple(map(sys.intern, d.activities)), d.locations, d.source, d.covering)
                  for n, d in zip(names, days))
     return Household(name, nodes, objects, days, (), "upload")
+
+
+def sensors_from(rows: Sequence[Mapping[str, Any]], events: Sequence[str | None] | None, household: Household,
+                 step_minutes: int | None) -> SensorData:
+    """A home's sensors sent over HTTP (the rows of ``sensors.csv``) and each training day's
+    activations (the text of its ``events/<day>.csv``, in the order of the days; None: not
+    recorded), by the rules of the files on disk (:mod:`globe.data.sensors`), errors naming
+    ``sensors[i].field`` or ``events[i]`` and the line."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(("sensor", "type", "room", "object"))
+    for row in rows:
+        writer.writerow([row.get(k, "") for k in ("sensor", "type", "room", "object")])
+    try:
+        sensors = parse_sensors_text(out.getvalue(), "sensors", household.objects)
+    except DataError as err:
+        where = f"sensors[{err.line - 2}]" if err.line and err.line >= 2 else "sensors"
+        raise type(err)(f"{where}: {err.message}", field=f"{where}.{err.field}" if err.field else where) from None
+    texts = list(events or [])
+    if len(texts) > len(household.train):
+        raise DataError(f"{len(texts)} events texts for {len(household.train)} days; give one per day, in order "
+                        "(null: not recorded)", field="events")
+    step = step_minutes or household_step(household.train) or 0
+    days: dict[str, SensorDay] = {}
+    for i, (text, day) in enumerate(zip(texts, household.train)):
+        if text is None or not day.minutes:
+            continue
+        where = f"events[{i}]"
+        try:
+            days[day_stem(day.name)] = parse_events_text(text, sensors, day_stem(day.name), where,
+                                                         day_span(day.minutes, step))
+        except DataError as err:
+            detail = f"{where}:{err.line}: {err.message}" if err.line else f"{where}: {err.message}"
+            raise type(err)(detail, field=f"{where}.{err.field}" if err.field else where) from None
+    return SensorData(sensors, days)

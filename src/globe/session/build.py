@@ -1,6 +1,8 @@
 """A household's session from its map, its training days and its deployment: every part built by
 :mod:`globe.assembly` from the configuration with the deployment applied
-(:meth:`globe.config.GlobeConfig.deployed`), on the household's own grid."""
+(:meth:`globe.config.GlobeConfig.deployed`), on the household's own grid; a household with ambient
+sensors also gets its sensor emission (:mod:`globe.session.sensing`), with the recogniser's settings
+as chosen where the household was created (the default otherwise)."""
 
 from __future__ import annotations
 
@@ -8,8 +10,12 @@ from globe import assembly
 from globe.config import Deployment, GlobeConfig, ModelConfig
 from globe.data.csv_logs import household_step
 from globe.data.records import Household
+from globe.data.sensors import SensorData
+from globe.inference.activity_filter import ActivityFilter
 from globe.reasoning.backends.base import LLMBackend
+from globe.recognition.recogniser import RecognitionSettings
 from globe.session.grid import DayGrid, check_grid, household_grid
+from globe.session.sensing import SessionSensors
 from globe.session.session import HouseholdSession, NewActivities
 
 
@@ -34,9 +40,15 @@ def new_activities_rule(config: GlobeConfig, has_days: bool) -> NewActivities:
 
 def build_session(household: Household, config: GlobeConfig, deployment: Deployment, backend: LLMBackend | None, *,
                   grid: DayGrid | None = None, learn: bool = True,
-                  new_activities: NewActivities | None = None) -> HouseholdSession:
+                  new_activities: NewActivities | None = None, sensors: SensorData | None = None,
+                  recognition: RecognitionSettings | None = None,
+                  questions_per_day: int | None = None) -> HouseholdSession:
     """The session of ``household`` running ``deployment`` (its models counted on its training
-    days), with ``backend`` behind the object gate (None: the n-gram's choice)."""
+    days), with ``backend`` behind the object gate (None: the n-gram's choice). With ``sensors``
+    (the household's, with its training days' events), its sensor emission is counted on its
+    labelled training days with the ``recognition`` settings (chosen by cross-validation where the
+    household is created; default: :class:`RecognitionSettings`'s), asking at most
+    ``questions_per_day`` a day (default ``service.questions_per_day``)."""
     grid = session_grid(household, config, grid)
     cfg = config.deployed(deployment)
     cfg = cfg.model_copy(update={"data": cfg.data.model_copy(update={"step_minutes": grid.step_minutes})})
@@ -48,11 +60,21 @@ def build_session(household: Household, config: GlobeConfig, deployment: Deploym
     policy = assembly.fetch_policy(assembly.forecaster_over(fitted.activity, movements, cfg.lookahead), cfg.policy,
                                    grid.step_minutes)
     fc = cfg.filter
-    return HouseholdSession(household, activity=fitted.activity, chooser=chooser, emission=emission, policy=policy,
-                            grid=grid, deployment=deployment, alignment=cfg.sequences.alignment,
-                            max_hypotheses=fc.max_hypotheses, min_weight=fc.min_weight,
-                            forecast_hypotheses=fc.forecast_hypotheses, learn=learn,
-                            new_activities=new_activities or new_activities_rule(config, bool(household.train)))
+    sensing = None
+    if sensors is not None:
+        budget = config.service.questions_per_day if questions_per_day is None else questions_per_day
+        sensing = SessionSensors(sensors.sensors, recognition or RecognitionSettings(), grid.step_minutes, budget)
+        sensing.learn_days(household.train, sensors)
+    session = HouseholdSession(household, activity=fitted.activity, chooser=chooser, emission=emission,
+                               policy=policy, grid=grid, deployment=deployment, alignment=cfg.sequences.alignment,
+                               max_hypotheses=fc.max_hypotheses, min_weight=fc.min_weight,
+                               forecast_hypotheses=fc.forecast_hypotheses, learn=learn,
+                               new_activities=new_activities or new_activities_rule(config, bool(household.train)),
+                               sensing=sensing)
+    if sensing is not None and sensors is not None and household.train and sensing.budget > 0:
+        reference = ActivityFilter(fitted.activity, max_hypotheses=fc.max_hypotheses, min_weight=fc.min_weight)
+        sensing.reference_from(reference, household.train, sensors)
+    return session
 
 
 def activity_model_summary(models: ModelConfig) -> str:

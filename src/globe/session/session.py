@@ -26,6 +26,14 @@ evaluation scored at that step.
   added to every model, so the result equals training on all days at once. Unknown steps of a
   learned day take the filter's most probable history; a day labelled on fewer than half of its
   steps (up to the last observed one) teaches nothing.
+- **Sensors** (a household with ambient sensors, :mod:`globe.session.sensing`): every step up to
+  the last observed one also takes in what the sensors showed there (the events observations
+  carry), as the filter's likelihood, in the same filter. A step without a label then has its
+  activity *recognised* (the filter's most probable activity there); with a budget of questions a
+  day, the session asks "what are you doing?" where an answer is worth most
+  (:class:`~globe.recognition.asking.QuestionPolicy`, decided as each observation is applied, so a
+  replay asks the same questions); an answer is the step's label. The emission learns each
+  finished day from its labelled and answered steps.
 
 A household may start with no training day (cold start): until it has learned a first day its
 decisions say ``status = "learning"`` and never fetch.
@@ -46,16 +54,26 @@ from globe.config import Deployment
 from globe.data.csv_logs import activity_label
 from globe.data.labels import known_activity
 from globe.data.records import IN_USE_CLASS, Day, Household
+from globe.data.sensors import SensorDay
 from globe.errors import DataError, UnknownLabelError
-from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
+from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts, smoothed
 from globe.inference.emission import MovementEmission
 from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches, left_alone
 from globe.inference.forecast import Forecast, mixture
 from globe.models.base import ActivityModelBase, stay_or_change
 from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
+from globe.recognition.asking import DayAsker, worth
+from globe.recognition.recogniser import spread_answers
 from globe.sequences.movements import Alignment, used_between
 from globe.sequences.runs import activity_runs
 from globe.session.grid import DayGrid
+from globe.session.sensing import (
+    MAX_OPTIONS,
+    Question,
+    SensorEvent,
+    SessionSensors,
+    seconds_after_midnight,
+)
 
 UTC = dt.timezone.utc
 NewActivities = Literal["refuse", "learn"]
@@ -66,6 +84,7 @@ class Observation:
     time: dt.datetime  # in the household's zone (aware), or its wall time (naive)
     activity: str | None  # None: unknown at this step
     locations: Mapping[str, str]  # object -> location (may be partial: the others keep their last place)
+    sensors: Sequence[SensorEvent] = ()  # sensor activations reported with it (a household with sensors)
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,6 +111,10 @@ class Decision:
     fetches: tuple[FetchCandidate, ...]
     candidates: tuple[FetchCandidate, ...] = ()  # every candidate fetch (for the evaluation's cost curve)
     left_alone: frozenset[str] = frozenset()  # objects no fetch could touch (in use, just put back)
+    recognised: tuple[str, float] | None = None  # the activity under way recognised (its step had no label)
+    labelled_steps: int = 0  # today's steps with a label (answers included)
+    recognised_steps: int = 0  # today's steps whose activity was recognised from the sensors (no label)
+    question: Question | None = None  # "what are you doing?" at the last observed step
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,7 +137,8 @@ class HouseholdSession:
     def __init__(self, household: Household, *, activity: ActivityModelBase, chooser: ObjectChooser,
                  emission: MovementEmission, policy: FetchPolicy, grid: DayGrid, deployment: Deployment,
                  alignment: Alignment = "previous", max_hypotheses: int = 32, min_weight: float = 1e-4,
-                 forecast_hypotheses: int = 4, learn: bool = True, new_activities: NewActivities = "refuse") -> None:
+                 forecast_hypotheses: int = 4, learn: bool = True, new_activities: NewActivities = "refuse",
+                 sensing: SessionSensors | None = None) -> None:
         self.activity_model = activity
         self.chooser = chooser
         self.emission = emission
@@ -127,6 +151,7 @@ class HouseholdSession:
         self.forecast_hypotheses = forecast_hypotheses
         self.learning = learn
         self.new_activities = new_activities
+        self.sensing = sensing
         self.lock = threading.RLock()
         self._locations = {label: label for label in household.locations}  # interned labels
         self._object_index = {o: i for i, o in enumerate(household.objects)}
@@ -148,6 +173,9 @@ class HouseholdSession:
         self._beliefs: list[Belief] = []  # the filter's, before the day and after each observed step
         self._stale: int | None = None  # the first step the filter has not taken in since it changed
         self._belief_dist: tuple[tuple, dict[str, float]] | None = None
+        self._sensor_day: SensorDay | None = None  # today's sensor activations, as read (None: to read again)
+        self._asker: DayAsker | None = None  # today's questions (a household with sensors and a budget)
+        self._question: Question | None = None  # the last question asked today
         self._open(None)
 
     # -- validation ------------------------------------------------------------------------
@@ -173,6 +201,22 @@ class HouseholdSession:
                                         f"{self.household.name})", field=f"locations.{obj[:64]}")
             if loc not in self._locations:
                 raise UnknownLabelError(f"unknown location {loc[:64]!r} for {obj!r}", field=f"locations.{obj}")
+        if obs.sensors:
+            self.validate_sensors(obs.sensors)
+
+    def validate_sensors(self, events: Sequence[SensorEvent]) -> None:
+        """Sensor events name the household's sensors and end no earlier than they start."""
+        if self.sensing is None:
+            raise DataError(f"household {self.household.name} has no sensors (create it with its sensors to send "
+                            "sensor events)", field="sensors")
+        for i, event in enumerate(events):
+            if event.sensor not in self.sensing.index:
+                known = ", ".join(s.name for s in self.sensing.sensors[:20])
+                raise UnknownLabelError(f"unknown sensor {event.sensor[:64]!r} (the household's sensors: {known})",
+                                        field=f"sensors[{i}].sensor")
+            if _instant(event.end) < _instant(event.start):
+                raise DataError(f"sensor event ends ({event.end.isoformat()}) before it starts "
+                                f"({event.start.isoformat()})", field=f"sensors[{i}].end")
 
     def activity_label(self, raw: str) -> str:
         """The one label rule (:func:`globe.data.labels.known_activity`): an activity this household
@@ -218,6 +262,11 @@ class HouseholdSession:
                 self._uses.append(frozenset())
         if activity is not None:
             self._labels[step] = activity
+        if obs.sensors and self.sensing is not None:
+            index = self.sensing.index
+            self._events += [(index[e.sensor], seconds_after_midnight(e.start, day), seconds_after_midnight(e.end, day))
+                             for e in obs.sensors]
+            self._sensor_day = None
         if obs.locations:
             state = list(self._states[step])
             for obj, loc in obs.locations.items():
@@ -232,7 +281,24 @@ class HouseholdSession:
         self._stale = step if self._stale is None else min(self._stale, step)
         self._last_instant = _instant(obs.time)
         self.observations += 1
+        self._consult(step)
         return Placement(day, step, True)
+
+    def _consult(self, step: int) -> None:
+        """Ask the question policy about ``step`` when it has no label (after each observation, so a
+        replay of the same observations asks the same questions)."""
+        if self._asker is None or self._filter is None or self._labels[step] is not None:
+            return
+        belief = self._filtered()
+        if belief is None or belief.step != step:
+            return
+        post = self._filter.posterior(belief)[0]
+        self._worths[step] = float(worth(post))
+        if self._asker(step, post):
+            names = list(self._filter.labels)
+            order = np.argsort(-post, kind="stable")[:MAX_OPTIONS]
+            options = tuple((names[int(i)], float(post[i])) for i in order if post[i] > 0)
+            self._question = Question(self._day or "", step, options)
 
     def _filtered(self) -> Belief | None:
         """The activity filter's belief after the last observed step (None before a first day is
@@ -243,12 +309,48 @@ class HouseholdSession:
             return None
         if self._stale is not None:
             kept = [b for b in self._beliefs if b.step < self._stale]
+            sensing = self.sensing
+            features = None if sensing is None else sensing.features(
+                self._today_events(), [self.grid.minute(t) for t in range(self._stale, len(self._labels))])
             for t in range(self._stale, len(self._labels)):
-                if self._looked[t]:
-                    moved = self._uses[t] if t and self._looked[t - 1] else None
-                    kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved]))
+                if self._looked[t] or features is not None:  # the sensors watched every step
+                    moved = self._uses[t] if t and self._looked[t] and self._looked[t - 1] else None
+                    like = None
+                    if features is not None and sensing is not None:
+                        like = sensing.likelihood(features[t - self._stale], list(self._filter.labels))
+                    kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved], likelihood=like))
             self._beliefs, self._stale = kept, None
         return self._beliefs[-1]
+
+    def _today_events(self) -> SensorDay:
+        """Today's sensor activations so far (seconds after today's midnight)."""
+        if self._sensor_day is None:
+            self._sensor_day = SensorDay.of(self._day or "", self._events)
+        return self._sensor_day
+
+    def recognised(self) -> tuple[str, float] | None:
+        """The activity under way at the last observed step and its probability, recognised from
+        the sensors (and movements) where the step has no label; None otherwise."""
+        if self.sensing is None or not self._labels or self._labels[-1] is not None:
+            return None
+        belief = self._filtered()
+        if self._filter is None or belief is None or belief.step < 0:
+            return None
+        post = self._filter.posterior(belief)[0]
+        best = int(np.argmax(post))
+        return self._filter.labels[best], float(post[best])
+
+    def question(self) -> Question | None:
+        """The question asked at the last observed step, while it has no answer (None: none)."""
+        q = self._question
+        if q is None or q.day != self._day or q.step != len(self._labels) - 1 or self._labels[q.step] is not None:
+            return None
+        return q
+
+    def step_counts(self) -> tuple[int, int]:
+        """(today's labelled steps, today's steps recognised from the sensors) up to the last observed."""
+        labelled = sum(a is not None for a in self._labels)
+        return labelled, (len(self._labels) - labelled if self.sensing is not None and self._filter is not None else 0)
 
     def moved(self, step: int) -> frozenset[str]:
         """The objects used at ``step``: its place differs from the step before's, and it was not
@@ -405,7 +507,10 @@ class HouseholdSession:
 
     def _decide(self) -> Decision:
         step = len(self._labels)
-        nothing = Decision(self.status, self.days_learned, self._day or "", step, None, 0.0, None, ())
+        labelled, recognised = self.step_counts()
+        found, question = self.recognised(), self.question()
+        nothing = Decision(self.status, self.days_learned, self._day or "", step, None, 0.0, None, (),
+                           recognised=found, labelled_steps=labelled, recognised_steps=recognised, question=question)
         top = self.next_activity()
         if top is None:
             return nothing
@@ -414,7 +519,7 @@ class HouseholdSession:
         choice = self.chooser.choose_given(nxt, self.belief(), run_context(activity, objects))
         fetches, candidates, alone = self._fetches()
         return Decision(self.status, self.days_learned, self._day or "", step, nxt, probability, choice, fetches,
-                        candidates, alone)
+                        candidates, alone, found, labelled, recognised, question)
 
     def object_ranking(self, activity: str, run: Sequence[str] | None = None) -> tuple[list[str], dict[str, float]]:
         """The objects likely needed during ``activity``, most likely first, and their
@@ -495,17 +600,44 @@ class HouseholdSession:
         self._belief_dist = None
         self._filter = None
         self._beliefs, self._stale = [], None
+        self._events: list[tuple[int, float, float]] = []  # today's sensor activations (sensor, start, end)
+        self._sensor_day = None
+        self._asker = None
+        self._question = None
+        self._worths: dict[int, float] = {}  # per unlabelled step, the worth of asking there
         if self.days_learned > 0:
             self._filter = ActivityFilter(self.activity_model, self.emission, max_hypotheses=self.max_hypotheses,
                                           min_weight=self.min_weight)
             weekday = None if day is None else dt.date.fromisoformat(day).weekday()
             self._beliefs = [self._filter.start(1, weekdays=[weekday])]
+            policy = self.sensing.policy() if self.sensing is not None else None
+            if policy is not None and day is not None:
+                self._asker = DayAsker(policy, self.grid.steps)
 
     def _close(self) -> None:
         """The finished day is learned (see module doc)."""
+        if self.learning:
+            self._learn_sensors()
         labelled = sum(a is not None for a in self._labels)
         if self.learning and len(self._labels) >= 2 and 2 * labelled >= len(self._labels):
             self.learn([self.current_day()])
+
+    def _learn_sensors(self) -> None:
+        """The sensor emission counts the finished day's labelled steps, each label spread over the
+        stretch read (with hindsight) as one activity; its worths of asking join the reference."""
+        sensing = self.sensing
+        if sensing is None or not self._labels:
+            return
+        if self._worths:
+            sensing.add_reference([self._worths[t] for t in sorted(self._worths)])
+        if all(a is None for a in self._labels):
+            return
+        labels: list[str | None] = list(self._labels)
+        belief = self._filtered() if None in labels else None
+        if belief is not None and self._filter is not None and belief.step == len(labels) - 1:
+            labels = spread_answers(smoothed(self._filter, belief)[0].argmax(axis=1).tolist(), labels)
+        minutes = [self.grid.minute(t) for t in range(len(labels))]
+        sensing.learn([sensing.features(self._today_events(), minutes)], [labels])
 
     def learn(self, days: Sequence[Day]) -> None:
         """Add whole days to every model (the same counts as training on them from the start)."""

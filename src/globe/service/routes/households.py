@@ -20,8 +20,9 @@ def list_households(registry: RegistryDep, caller: AdminDep) -> list[str]:
 @router.post("/households", status_code=201, response_model=HouseholdInfo, responses=ERROR_RESPONSES)
 def create_household(body: HouseholdCreate, registry: RegistryDep, caller: AdminDep) -> HouseholdInfo:
     nodes = [n.model_dump(by_alias=True) for n in body.nodes]
+    sensors = None if body.sensors is None else [s.model_dump() for s in body.sensors]
     return registry.create_uploaded(body.name, body.timezone, nodes, body.days, body.dates, method=body.method,
-                                    new_activities=body.new_activities)
+                                    new_activities=body.new_activities, sensors=sensors, events=body.events)
 
 
 @router.delete("/households/{name}", status_code=204, responses=ERROR_RESPONSES)

@@ -14,4 +14,5 @@ router = APIRouter(route_class=FastJSONRoute)
 @router.post("/households/{name}/observations", status_code=201, response_model=ObservationAck,
              responses=ERROR_RESPONSES)
 def observe(name: str, body: ObservationIn, registry: RegistryDep, caller: MemberDep) -> ObservationAck:
-    return registry.observe(name, time=body.time, activity=body.activity, locations=body.locations, client_id=body.id)
+    return registry.observe(name, time=body.time, activity=body.activity, locations=body.locations, client_id=body.id,
+                            sensors=[(e.sensor, e.start, e.end) for e in body.sensors])

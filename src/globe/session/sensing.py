@@ -1,0 +1,157 @@
+"""A household's ambient sensors in its session: what makes a home nobody labels still predictable.
+
+A household whose folder has sensors (``sensors.csv``, ``events/<day>.csv``;
+:mod:`globe.data.sensors`) gets a :class:`SessionSensors`: the step features of
+:mod:`globe.recognition.features` for the recogniser's chosen settings (chosen by
+cross-validation on the labelled training days where the household is created,
+:func:`globe.evaluation.recognition.choose_settings`, and passed down as the deployment is) and a
+:class:`~globe.recognition.emission.SensorEmission` counted on the labelled training days. The
+session's one activity filter takes each step's likelihood from it beside the step's label and
+object movements; the emission learns each finished day from its labelled and answered steps (an
+answer labels the whole stretch read as one activity, as :meth:`Recogniser.fit` reads answers), and
+the day's worths of asking join the reference the question policy paces itself by.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from globe.data.records import Day
+from globe.data.sensors import Sensor, SensorData, SensorDay
+from globe.inference.activity_filter import ActivityFilter
+from globe.recognition.asking import QuestionPolicy, worth
+from globe.recognition.emission import SensorEmission
+from globe.recognition.features import Layout, step_features
+from globe.recognition.recogniser import RecognitionSettings
+
+MAX_OPTIONS = 5
+"""The likely activities a question offers, at most."""
+
+
+@dataclass(frozen=True, slots=True)
+class SensorEvent:
+    """One sensor activation as a client reports it: the sensor's name, when it began and ended
+    (wall times in the household's zone, or aware; a firing has ``end == start``)."""
+
+    sensor: str
+    start: dt.datetime
+    end: dt.datetime
+
+
+@dataclass(frozen=True, slots=True)
+class Question:
+    """"What are you doing?" at ``step`` of ``day``: the likely activities, best first."""
+
+    day: str
+    step: int
+    options: tuple[tuple[str, float], ...]
+
+
+def settings_to_dict(settings: RecognitionSettings) -> dict[str, object]:
+    """The recogniser's settings as stored with a household (JSON)."""
+    return {"features": list(settings.features), "weight": settings.weight, "smoothing": settings.smoothing,
+            "self_training": settings.self_training, "confidence": settings.confidence,
+            "slot_minutes": settings.slot_minutes, "shrinkage": settings.shrinkage}
+
+
+def settings_from_dict(found: object) -> RecognitionSettings:
+    """Stored settings back (a :class:`ValueError` naming what is wrong otherwise)."""
+    if not isinstance(found, dict):
+        raise ValueError("the stored recognition settings are not a JSON object")
+    fields = set(RecognitionSettings.__dataclass_fields__)
+    unknown = set(found) - fields
+    if unknown:
+        raise ValueError(f"unknown recognition settings {sorted(unknown)}")
+    values = dict(found)
+    if "features" in values:
+        values["features"] = tuple(values["features"])
+    settings = RecognitionSettings(**values)
+    Layout.of((), settings.features)  # checks the feature names
+    return settings
+
+
+class SessionSensors:
+    """A household's sensors, its feature layout and its sensor emission (see module doc)."""
+
+    def __init__(self, sensors: Sequence[Sensor], settings: RecognitionSettings, step_minutes: int,
+                 budget: int = 0) -> None:
+        if budget < 0:
+            raise ValueError(f"a budget of {budget} questions a day; expected 0 or more")
+        self.sensors = tuple(sensors)
+        self.settings = settings
+        self.step_minutes = step_minutes
+        self.budget = budget
+        self.layout = Layout.of(self.sensors, settings.features)
+        self.index = {s.name: i for i, s in enumerate(self.sensors)}
+        self.reference = np.zeros(0)  # worths of asking seen on the days lived so far
+        self._features: list[np.ndarray] = []
+        self._labels: list[Sequence[str | None]] = []
+        self.emission = SensorEmission(smoothing=settings.smoothing, weight=settings.weight)
+        self._refit()
+
+    def features(self, day: SensorDay | None, minutes: Sequence[int]) -> np.ndarray:
+        """(steps x columns) features of the steps starting at ``minutes``."""
+        return step_features(self.layout, day, minutes, self.step_minutes)
+
+    def likelihood(self, row: np.ndarray, labels: Sequence[str]) -> np.ndarray:
+        """(1 x ``labels``): the likelihood of one step's features under each activity (at most 1)."""
+        return self.emission.likelihoods(row[None, :], labels)
+
+    def learn(self, features: Sequence[np.ndarray], labels: Sequence[Sequence[str | None]]) -> None:
+        """Count days' features against their labels (None: an unlabelled step) into the emission."""
+        self._features += list(features)
+        self._labels += [tuple(a) for a in labels]
+        self._refit()
+
+    def learn_days(self, days: Sequence[Day], data: SensorData) -> None:
+        """Count the recorded ones of labelled ``days`` (their events in ``data``)."""
+        found = [(d, data.of(d.name)) for d in days]
+        kept = [(d, e) for d, e in found if e is not None]
+        self.learn([self.features(e, d.minutes) for d, e in kept], [d.activities for d, _ in kept])
+
+    def _refit(self) -> None:
+        self.emission.fit(self._features, self._labels, self.layout.sizes)
+
+    @property
+    def days_counted(self) -> int:
+        return len(self._features)
+
+    def policy(self) -> QuestionPolicy | None:
+        """Today's question policy (None: no questions)."""
+        return QuestionPolicy(self.budget, self.reference) if self.budget > 0 else None
+
+    def add_reference(self, worths: Sequence[float] | np.ndarray) -> None:
+        self.reference = np.concatenate([self.reference, np.asarray(worths, dtype=np.float64)])
+
+    def reference_from(self, flt: ActivityFilter, days: Sequence[Day], data: SensorData) -> None:
+        """The worths of asking on ``days`` read online with their sensors only (no label): how
+        unsure the household's recogniser usually is, so the first day's questions are paced."""
+        recorded = [(d, data.of(d.name)) for d in days]
+        recorded = [(d, e) for d, e in recorded if e is not None and len(d)]
+        if not recorded or self.budget <= 0:
+            return
+        belief = flt.start(len(recorded), weekdays=[d.weekday for d, _ in recorded])
+        labels = list(flt.labels)
+        likes = [self.emission.likelihoods(self.features(e, d.minutes), labels) for d, e in recorded]
+        out: list[list[float]] = [[] for _ in recorded]
+        for t in range(max(len(d) for d, _ in recorded)):
+            like = np.ones((len(recorded), len(labels)))
+            for q, lk in enumerate(likes):
+                if t < len(lk):
+                    like[q] = lk[t]
+            belief = flt.update(belief, t, None, likelihood=like)
+            post = flt.posterior(belief)
+            for q, (d, _) in enumerate(recorded):
+                if t < len(d):
+                    out[q].append(float(worth(post[q])))
+        self.add_reference([w for day in out for w in day])
+
+
+def seconds_after_midnight(time: dt.datetime, day: str) -> float:
+    """``time`` (a wall time in the household's zone) as seconds after the midnight of ``day``."""
+    wall = time.replace(tzinfo=None)
+    return (wall - dt.datetime.combine(dt.date.fromisoformat(day), dt.time())).total_seconds()
