@@ -163,3 +163,22 @@ def test_the_crf_row_runs_when_installed():
     home, sensors = _home()
     scores = R.crf_scores(home, sensors, 5)
     assert scores is not None and scores.time_slice > 0.7
+
+
+def test_the_emission_learns_day_by_day_as_from_all_days_at_once():
+    home, sensors = _home()
+    rec = Recogniser(RecognitionSettings(features=("raw", "change", "last", "room"))).fit(home.train[:1], sensors, 5)
+    features = [rec.features(d) for d in home.train]
+    labels = [list(d.activities) for d in home.train]
+    labels[2] = [None] * len(labels[2])  # an unlabelled day counts only in the home-at-large rates
+    sizes = rec.layout_.sizes
+    whole = SensorEmission().fit(features, labels, sizes)
+    daily = SensorEmission().fit(features[:1], labels[:1], sizes)
+    for x, acts in zip(features[1:], labels[1:]):
+        daily.partial_fit([x], [acts], sizes)
+    names = sorted(whole.classes_)
+    assert sorted(daily.classes_) == names
+    test = rec.features(home.test[0])
+    assert np.allclose(whole.log_likelihoods(test, names), daily.log_likelihoods(test, names))
+    with pytest.raises(ValueError, match="columns"):
+        daily.partial_fit([x[:, :3]], [acts], sizes[:3])

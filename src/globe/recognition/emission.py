@@ -40,38 +40,56 @@ class SensorEmission(CountingModel):
     def fit(self, features: Sequence[np.ndarray], activities: Sequence[Sequence[str | None]], sizes: np.ndarray,
             weights: Sequence[np.ndarray] | None = None) -> "SensorEmission":
         """Count each day's (steps x columns) ``features`` against its activities (None: an
-        unlabelled step, skipped); ``sizes`` is each column's number of values."""
-        self._validate_params()
+        unlabelled step, counted only in the home-at-large rates); ``sizes`` is each column's
+        number of values. Reset, then :meth:`partial_fit`."""
+        self._reset()
+        return self.partial_fit(features, activities, sizes, weights)
+
+    def partial_fit(self, features: Sequence[np.ndarray], activities: Sequence[Sequence[str | None]],
+                    sizes: np.ndarray, weights: Sequence[np.ndarray] | None = None) -> "SensorEmission":
+        """Add days to the counts (what a service learns at each day's end): only counts are kept,
+        never the days, so a home's year costs no more memory than its first day."""
         sizes = np.asarray(sizes, dtype=np.int64)
-        offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        labels = sorted({a for day in activities for a in day if a is not None})
-        code = {a: i for i, a in enumerate(labels)}
-        counts = np.zeros((len(labels), int(sizes.sum())))
-        overall = np.zeros(int(sizes.sum()))
+        if not hasattr(self, "training_data_"):
+            self._validate_params()
+            self.sizes_ = sizes
+            self.offsets_ = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            self.counts_ = np.zeros((0, int(sizes.sum())))
+            self.overall_ = np.zeros(int(sizes.sum()))
+            self.classes_: tuple[str, ...] = ()
+            self.training_data_ = 0.0  # labelled steps counted (weighted)
+        elif not np.array_equal(sizes, self.sizes_):
+            raise ValueError(f"features of {len(sizes)} columns for an emission of {len(self.sizes_)}")
+        new = sorted({a for day in activities for a in day if a is not None} - set(self.classes_))
+        if new:
+            self.classes_ += tuple(new)
+            self.counts_ = np.vstack([self.counts_, np.zeros((len(new), self.counts_.shape[1]))])
+        code = {a: i for i, a in enumerate(self.classes_)}
+        width = len(sizes)
         for q, (x, acts) in enumerate(zip(features, activities)):
             if len(x) != len(acts):
                 raise ValueError(f"{len(x)} feature rows for {len(acts)} activities")
             w = np.ones(len(acts)) if weights is None else np.asarray(weights[q], dtype=np.float64)
-            cells = x + offsets[None, :]
-            np.add.at(overall, cells.ravel(), np.repeat(w, x.shape[1]))
-            rows = np.array([code.get(a, -1) if a is not None else -1 for a in acts], dtype=np.int64)
+            cells = np.asarray(x, dtype=np.int64) + self.offsets_[None, :]
+            np.add.at(self.overall_, cells.ravel(), np.repeat(w, width))
+            rows = np.array([code[a] if a is not None else -1 for a in acts], dtype=np.int64)
             keep = rows >= 0
             if keep.any():
-                np.add.at(counts, (np.repeat(rows[keep], x.shape[1]), cells[keep].ravel()),
-                          np.repeat(w[keep], x.shape[1]))
+                np.add.at(self.counts_, (np.repeat(rows[keep], width), cells[keep].ravel()), np.repeat(w[keep], width))
+                self.training_data_ += float(w[keep].sum())
+        self._derive()
+        return self
+
+    def _derive(self) -> None:
+        """The smoothed log-probabilities from the counts (see the class doc)."""
+        sizes, offsets = self.sizes_, self.offsets_
         column = np.repeat(np.arange(len(sizes)), sizes)
-        base = (overall + 1.0) / np.bincount(column, weights=overall + 1.0, minlength=len(sizes))[column]
-        totals = np.zeros((len(labels), len(sizes)))
-        for c in range(len(sizes)):
-            totals[:, c] = counts[:, offsets[c]:offsets[c] + sizes[c]].sum(axis=1)
-        prob = (counts + self.smoothing * base[None, :]) / (totals[:, column] + self.smoothing)
-        self.training_data_ = int(counts.sum() / max(len(sizes), 1))  # labelled steps (weighted)
-        self.classes_ = tuple(labels)
-        self.sizes_ = sizes
-        self.offsets_ = offsets
+        base = (self.overall_ + 1.0) / np.bincount(column, weights=self.overall_ + 1.0, minlength=len(sizes))[column]
+        totals = np.add.reduceat(self.counts_, offsets, axis=1) if self.counts_.size else np.zeros(
+            (len(self.classes_), len(sizes)))
+        prob = (self.counts_ + self.smoothing * base[None, :]) / (totals[:, column] + self.smoothing)
         self.log_table_ = np.log(prob)
         self.log_base_ = np.log(base)
-        return self
 
     def log_likelihoods(self, features: np.ndarray, labels: Sequence[str]) -> np.ndarray:
         """(steps x ``labels``): the tempered log-likelihood of each step's features under each

@@ -88,10 +88,9 @@ class SessionSensors:
         self.layout = Layout.of(self.sensors, settings.features)
         self.index = {s.name: i for i, s in enumerate(self.sensors)}
         self.reference = np.zeros(0)  # worths of asking seen on the days lived so far
-        self._features: list[np.ndarray] = []
-        self._labels: list[Sequence[str | None]] = []
-        self.emission = SensorEmission(smoothing=settings.smoothing, weight=settings.weight)
-        self._refit()
+        self._days = 0
+        self.emission = SensorEmission(smoothing=settings.smoothing, weight=settings.weight).fit(
+            [], [], self.layout.sizes)
 
     def features(self, day: SensorDay | None, minutes: Sequence[int]) -> np.ndarray:
         """(steps x columns) features of the steps starting at ``minutes``."""
@@ -103,9 +102,8 @@ class SessionSensors:
 
     def learn(self, features: Sequence[np.ndarray], labels: Sequence[Sequence[str | None]]) -> None:
         """Count days' features against their labels (None: an unlabelled step) into the emission."""
-        self._features += list(features)
-        self._labels += [tuple(a) for a in labels]
-        self._refit()
+        self.emission.partial_fit(features, labels, self.layout.sizes)
+        self._days += len(features)
 
     def learn_days(self, days: Sequence[Day], data: SensorData) -> None:
         """Count the recorded ones of labelled ``days`` (their events in ``data``)."""
@@ -113,12 +111,9 @@ class SessionSensors:
         kept = [(d, e) for d, e in found if e is not None]
         self.learn([self.features(e, d.minutes) for d, e in kept], [d.activities for d, _ in kept])
 
-    def _refit(self) -> None:
-        self.emission.fit(self._features, self._labels, self.layout.sizes)
-
     @property
     def days_counted(self) -> int:
-        return len(self._features)
+        return self._days
 
     def policy(self) -> QuestionPolicy | None:
         """Today's question policy (None: no questions)."""
