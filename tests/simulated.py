@@ -160,3 +160,40 @@ def weekly_home(days: int = 75, test: int = 10, seed: int = 0, dated: bool = Tru
         name = (date(2024, 1, 1) + timedelta(days=i)).isoformat() if dated else f"day{i:03d}"
         out.append(_day(name, blocks, 10))
     return _household("Weekly", out, test)
+
+
+def clocked_objects_home(days: int = 35, test: int = 7, seed: int = 0) -> Household:
+    """A home whose objects follow the hour and the day of the week, not the activity: relaxing
+    all afternoon (from about 13:00, every day alike), the kettle is taken at 15:00 on weekdays and
+    the microwave at 17:00 at the weekend (each put back a step later, as a sensor reports a use).
+    Named by date from Monday 2024-01-01 on: the clock and the day type tell the uses apart; the
+    activity, and how long it has lasted, cannot."""
+    rng = random.Random(seed)
+    out = []
+    for i in range(days):
+        j = lambda sd: rng.gauss(0, sd)  # noqa: E731
+        use = ("kettle", 900.0) if i % 7 < 5 else ("microwave", 1020.0)
+        relax = 780 + j(20)
+        blocks = [_Block("sleeping", START), _Block("breakfast", 450 + j(10)), _Block("idle", 500 + j(10)),
+                  _Block("lunch", 730 + j(10)), _Block("relax", relax, ((use[0], use[1] + j(4) - relax),)),
+                  _Block("dinner", 1140 + j(10)), _Block("sleeping", 1380 + j(15))]
+        out.append(_day((date(2024, 1, 1) + timedelta(days=i)).isoformat(), blocks, 10))
+    return _household("ClockedObjects", out, test)
+
+
+def activity_objects_home(days: int = 30, test: int = 6, seed: int = 0) -> Household:
+    """A home with no routine of the clock whose objects follow the activity: runs of random
+    activities at random hours, and 25 minutes into every run of ``cooking`` (40 or 60 minutes
+    long) the kettle is taken. How long the activity has lasted times the use; the hour cannot."""
+    rng = random.Random(seed)
+    labels = ("idle", "relax", "cooking", "grooming", "work")
+    out = []
+    for i in range(days):
+        blocks, t = [], float(START)
+        while t < END:
+            label = rng.choice(labels)
+            cooking = label == "cooking"
+            blocks.append(_Block(label, t, (("kettle", 25.0),) if cooking else ()))
+            t += rng.choice((40, 60)) if cooking else rng.choice((10, 20, 30, 60, 90))
+        out.append(_day(f"day{i:03d}", blocks, 10))
+    return _household("ActivityObjects", out, test)

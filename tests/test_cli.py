@@ -324,7 +324,7 @@ def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
     rows = list(csv.DictReader((tmp_path / "out" / "table1.csv").open()))
     assert {r["household"] for r in rows} - {"mean"} == {"Mine"}
     ahead = list(csv.DictReader((tmp_path / "out" / "lookahead.csv").open()))
-    assert {r["method"] for r in ahead} == {"persistence", "hour_activity"}  # the baseline row beside every model
+    assert {r["method"] for r in ahead} == {"persistence", "hour_activity", "oracle"}  # baseline and oracle rows
     assert (tmp_path / "out" / "fetch_policy.csv").is_file()
     assert json.loads((tmp_path / "out" / "data.json").read_text())["uses"].startswith("departures only")
     assert "uses counted: departures only" in " ".join(res.stdout.split())

@@ -15,7 +15,7 @@ def test_results_folder(households, config, tmp_path):
                                  "policy.curve_ratios": (1.0, 3.0)})
     messages: list[str] = []
     result = run_anticipation(cfg, {"A": households["A"]}, progress=messages.append)
-    assert messages == ["lookahead and fetch policy: 2 households x methods (in parallel)"]  # and the baseline
+    assert messages == ["lookahead and fetch policy: 3 households x methods (in parallel)"]  # baseline, oracle
     paths = write_anticipation_results(tmp_path, result, DataScope.of([households["A"]]))
     assert all(p.exists() and p.stat().st_size > 0 for p in paths)
     with (tmp_path / "lookahead.csv").open() as fh:
@@ -24,13 +24,13 @@ def test_results_folder(households, config, tmp_path):
     assert [r["horizon_min"] for r in rows if r["household"] == "mean" and r["method"] == "persistence"] == \
         ["10", "20", "30", "40", "50", "60"]
     assert {r["household"] for r in rows} == {"A", "mean"}
-    assert list(dict.fromkeys(r["method"] for r in rows)) == ["persistence", "hour_activity"]
+    assert list(dict.fromkeys(r["method"] for r in rows)) == ["persistence", "hour_activity", "oracle"]
     with (tmp_path / "fetch_policy.csv").open() as fh:
         fetch = list(csv.DictReader(fh))
-    for method in ("persistence", "hour_activity"):  # the policy's fetches, then the baseline's
+    for method in ("persistence", "hour_activity", "oracle"):  # the policy's fetches, the baseline's, the oracle's
         assert [r["configured"] for r in fetch if r["household"] == "A" and r["method"] == method] == ["False", "True"]
     with (tmp_path / "lookahead_selection.csv").open() as fh:
         chosen = [r for r in csv.DictReader(fh) if r["chosen"] == "True"]
     assert [r["horizon_min"] for r in chosen if r["method"] == "persistence"] == ["10", "20", "30", "40", "50", "60"]
-    assert len({r["run_end"] for r in chosen}) == 1
+    assert len({r["run_end"] for r in chosen if r["method"] == "persistence"}) == 1
     assert all(float(r["threshold"]) in cfg.lookahead.thresholds for r in chosen)

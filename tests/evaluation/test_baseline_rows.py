@@ -15,15 +15,9 @@ from globe.config import GlobeConfig
 from globe.data.records import Day, Household
 from globe.evaluation import main_job
 from globe.evaluation.experiments import run_methods, table1_rows
-from globe.evaluation.lookahead import (
-    BASELINE,
-    LookaheadRun,
-    baseline_days,
-    first_moves,
-    fit_moves_baseline,
-    reference_queries,
-)
+from globe.evaluation.lookahead import BASELINE, ORACLE, baseline_days, first_moves, fit_moves_baseline
 from globe.evaluation.methods import BASELINES, METHODS, object_baseline, with_baselines
+from globe.evaluation.relocation import LookaheadRun, reference_queries
 from tests.simulated import HOME_PLACES, IN_USE, OBJECTS, _nodes, random_home
 
 CONFIG = GlobeConfig().with_overrides({"llm.backend": "none", "selection.folds": 3})
@@ -118,8 +112,9 @@ def test_evaluate_writes_the_baseline_rows_and_says_they_are_baselines(tmp_path)
     look = {(r["method"], r["horizon_min"]): r for r in read(tmp_path / "lookahead.csv") if r["household"] == "mean"}
     assert float(look[(BASELINE, "60")]["f1"]) > float(look[("persistence", "60")]["f1"])
     fetch = [r for r in read(tmp_path / "fetch_policy.csv") if r["household"] == "all" and r["configured"] == "True"]
-    assert [r["method"] for r in fetch] == ["persistence", BASELINE]
+    assert [r["method"] for r in fetch] == ["persistence", BASELINE, ORACLE]
     mine = fetch[1]
     # every use fetched in advance; the hour-wide slot also fetches at its first step, an hour early
     assert float(mine["recall"]) == 1.0 and float(mine["precision"]) >= 0.5
-    assert {r["method"] for r in read(tmp_path / "lookahead_selection.csv")} == {"persistence", BASELINE, "ngram"}
+    assert {r["method"] for r in read(tmp_path / "lookahead_selection.csv")} == {"persistence", BASELINE, "ngram",
+                                                                                ORACLE}

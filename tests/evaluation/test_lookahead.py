@@ -5,13 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from globe.evaluation.lookahead import (
+from globe.evaluation.lookahead import LookaheadResult, forecast_days, lookahead_rows
+from globe.evaluation.relocation import (
     HorizonPairs,
-    LookaheadResult,
     LookaheadRun,
     RelocationCounts,
-    forecast_days,
-    lookahead_rows,
     reference_steps,
     relocation_counts,
     true_first_locations,
@@ -115,7 +113,7 @@ def test_cross_validation_lets_the_simpler_setting_win_ties(monkeypatch, househo
     and each horizon takes the first listed threshold among equals."""
     from globe.evaluation import lookahead as lk
 
-    def fake_runs(household, cfg, models, settings, memo):
+    def fake_runs(household, cfg, models, settings, memo, oracle=False):
         pairs = [HorizonPairs([np.array([0.9, 0.45])], [np.array([True, True])], [np.array([True, True])])
                  for _ in range(6)]
         return {s: LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int)) for s in settings}

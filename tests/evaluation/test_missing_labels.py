@@ -11,6 +11,7 @@ from globe import assembly
 from globe.config import GlobeConfig
 from globe.errors import ConfigError
 from globe.evaluation import lookahead as lk
+from globe.evaluation import relocation
 from globe.evaluation.missing_labels import (
     FilterSetup,
     check_fractions,
@@ -121,9 +122,9 @@ def test_threshold_per_label_share_is_chosen_on_training_days_with_that_share(mo
     def fake_hidden(setup_, cfg, fraction, memo=None, setting=(True, False, False)):
         seen.append((fraction, setting))
         # a change at every pair, found with p = 0.35 (horizon 0) or 0.22 (the others)
-        pairs = [lk.HorizonPairs([np.array([0.35 if s == 0 else 0.22])], [np.array([True])], [np.array([True])])
+        pairs = [relocation.HorizonPairs([np.array([0.35 if s == 0 else 0.22])], [np.array([True])], [np.array([True])])
                  for s in range(6)]
-        return lk.LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int))
+        return relocation.LookaheadRun(6, pairs, np.zeros(6, int), np.zeros(6, int))
 
     labelled = {"run_end": True, "run_memory": False, "run_next": True, "thresholds": (0.5, 0.4, 0.3, 0.25, 0.2, 0.15)}
     monkeypatch.setattr(ml, "hidden_cv_run", fake_hidden)

@@ -1,11 +1,11 @@
 """Regression test: a fresh main job on HOMER+ gives the committed reference results.
 
 The LLM-free half of ``globe reproduce`` (the model selections, the baseline, n-gram, smoothed
-and routine rows of Table I, calibration, activity anticipation, the lookahead, the fetch policy
-and missing labels) is run and compared row by row with ``reference/homer_plus``: choices exactly,
-figures to the third decimal. Ties in every selection are broken by an explicit order, so a changed
-last bit cannot flip a row; a row that moves is a change to explain (and to commit with new
-reference results).
+and routine rows of Table I, calibration, activity anticipation, the lookahead and the fetch policy
+with their baseline and oracle rows, and missing labels) is run and compared row by row with
+``reference/homer_plus``: choices exactly, figures to the third decimal. Ties in every selection
+are broken by an explicit order, so a changed last bit cannot flip a row; a row that moves is a
+change to explain (and to commit with new reference results).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pytest
 
 REFERENCE = Path(__file__).resolve().parents[2] / "reference" / "homer_plus"
 METHODS = ("persistence", "ngram", "ngram_smoothed", "routine")  # run; the baselines' rows come with them
-COMPARED = (*METHODS, "time_of_day", "hour_activity")
+COMPARED = (*METHODS, "time_of_day", "hour_activity", "oracle")  # the oracle: the lookahead's and fetch policy's
 #: file -> the columns that name a row (every other column is a result)
 KEYS = {
     "selection.csv": ("method", "household", "part", "params", "criterion"),
@@ -31,7 +31,7 @@ KEYS = {
     "next_activity.csv": ("household", "method"),
     "lookahead.csv": ("method", "household", "horizon_min"),
     "lookahead_selection.csv": ("method", "household", "run_end", "run_memory", "run_next", "horizon_min",
-                                "threshold"),
+                                "threshold", "objects"),
     "fetch_policy.csv": ("method", "household", "cost_ratio", "configured"),
     "fetch_lead_times.csv": ("household", "lead_min"),
     "missing_labels.csv": ("method", "household", "labels_pct"),

@@ -443,3 +443,38 @@ def test_pruned_paths_are_the_most_probable_ties_broken_by_name():
     paths = f.paths(("c", "a"), 2)  # after (c, a): a 0.5, b 0.25, c 0.25 -> aa .3125, ab .1875 and 7 of .0625
     assert [path for _, path in paths] == [("a", "a"), ("a", "b"), ("b", "a"), ("c", "a")]
     assert sum(p for p, _ in paths) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("head", [False, True])
+def test_a_known_path_forecasts_as_a_model_sure_of_it(households, config, head):
+    """The oracle's forecast (:func:`forecast_known`) along the path a model is sure of equals that
+    model's forecast, to the bit: persistence on HOMER+, every movement setting on."""
+    from globe.inference.forecast import forecast_known
+
+    h = households["A"]
+    models = config.models.model_copy(update={"activity_estimator": "persistence"})
+    fc = assembly.forecaster(h, config, models=models, run_end=True, run_memory=True, run_next=True).forecaster
+    day, horizon = h.test[0], 5
+    refs = range(5, len(day) - horizon - 2, 7)
+    queries = [(day.activities[: r + int(head)], day.locations[: r + 1]) for r in refs]
+    futures = [[acts[-1]] * (horizon + 2) for acts, _ in queries]
+    theirs = fc.forecast_many(queries, horizon)
+    mine = forecast_known(fc.movements, queries, futures, horizon)
+    assert np.array_equal(mine.departure, theirs.departure)
+    assert np.array_equal(mine.destination, theirs.destination)
+    assert mine.departure[:, 0].sum() > 0
+
+
+def test_a_known_path_is_followed_and_padded_at_the_day_end():
+    """Told what comes next, the forecast follows it: the cup goes to the table in b's first step
+    (a departure at step u belongs to the activity at u - 1)."""
+    from globe.inference.forecast import forecast_known
+
+    mv = MovementModel(run_end=True).fit(TOY_DAYS, OBJECTS)
+    query = (("a",), (("shelf", "shelf"),))
+    now_b = forecast_known(mv, [query], [("a", "b")], 2)  # padded: b, b, b after a
+    stays_a = forecast_known(mv, [query], [("a", "a", "a", "a")], 2)
+    assert now_b.departure[0, 1, 0] > 0.5 > stays_a.departure[0, 1, 0]
+    assert now_b.trees.activity(0) == ({"a": 1.0}, {"b": 1.0}, {"b": 1.0})
+    with pytest.raises(ValueError, match="no activity ahead"):
+        forecast_known(mv, [query], [()], 2)

@@ -62,3 +62,28 @@ def test_ahead_counts_the_share_of_references_with_the_event_and_backs_off():
     assert p[0] == pytest.approx([0.5, 0.0]) and p[1] == pytest.approx([1.0, 0.5])
     assert ahead.proba("work", 900)[1] == pytest.approx([0.0, 0.0], abs=1e-6)  # the activity's level at an unseen hour
     assert ahead.proba("sleep", 0)[1] == pytest.approx([2 / 3, 1 / 3])  # an unseen activity: every reference
+
+
+def test_the_clock_aware_object_model_backs_off_and_tells_day_types_and_pauses_apart():
+    """P(a use within the window) of the clock-aware model: the day type and the time since the
+    last use are levels under (activity, hour), each shrunk towards the one above; undated days and
+    a model without the clock read the hour and the activity alone, as the baseline does."""
+    import numpy as np
+
+    from globe.models.baselines import minutes_since_use, since_band
+
+    used = np.array([[False], [True], [False], [False]])
+    since = minutes_since_use(used, [600, 610, 640, 800])
+    assert since[:, 0].tolist() == [-1.0, 0.0, 30.0, 190.0]
+    assert since_band(since)[:, 0].tolist() == [0, 1, 2, 3]
+    weekday, weekend = np.ones((4, 1, 1), bool), np.zeros((4, 1, 1), bool)
+    acts, minutes, fresh = ["relax"] * 4, [900] * 4, np.full((4, 1), -1.0)
+    clock = HourActivityAhead(["kettle"], 1, clock=True)
+    clock.add(acts, minutes, weekday, weekday=0, since=fresh).add(acts, minutes, weekend, weekday=6, since=fresh)
+    plain = HourActivityAhead(["kettle"], 1).add(acts, minutes, weekday).add(acts, minutes, weekend)
+    assert plain.proba("relax", 900)[0, 0] == pytest.approx(0.5)
+    assert clock.proba("relax", 900)[0, 0] == pytest.approx(0.5)  # undated: the hour and the activity
+    monday, sunday = clock.proba("relax", 900, 0, fresh[0])[0, 0], clock.proba("relax", 900, 6, fresh[0])[0, 0]
+    assert monday > 0.9 and sunday < 0.1
+    # a pause never seen (just used) leaves the day type's estimate as it is
+    assert clock.proba("relax", 900, 0, np.array([5.0]))[0, 0] == pytest.approx(clock.proba("relax", 900, 0)[0, 0])

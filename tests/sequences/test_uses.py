@@ -9,8 +9,9 @@ from __future__ import annotations
 from globe import assembly
 from globe.config import Deployment, GlobeConfig
 from globe.data.records import Day, is_use_place
-from globe.evaluation.lookahead import RelocationCounts, forecast_days, relocation_counts, true_first_locations
+from globe.evaluation.lookahead import forecast_days
 from globe.evaluation.online import day_observations, replay
+from globe.evaluation.relocation import RelocationCounts, relocation_counts, true_first_locations
 from globe.sequences.movements import extract_movements, moved_objects, moved_steps
 from globe.sequences.runs import activity_runs
 from globe.session import build_session

@@ -8,7 +8,10 @@ its threshold follows from the configured costs.
 
 Both tables have a baseline row beside the models (``hour_activity``): objects by the clock and
 the activity alone (:func:`~globe.evaluation.lookahead.evaluate_moves_baseline`,
-:func:`~globe.evaluation.fetch.evaluate_uses_baseline`), counted on the same training days.
+:func:`~globe.evaluation.fetch.evaluate_uses_baseline`), counted on the same training days; and
+an oracle row (``oracle``, not deployable): the movement model told the true activity ahead
+(:func:`~globe.evaluation.lookahead.evaluate_oracle`,
+:func:`~globe.evaluation.fetch.evaluate_oracle_fetch`), so the gap that is the activity's shows.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from globe.evaluation.fetch import (
     FETCH_COLUMNS,
     FetchEvaluation,
     evaluate_fetch,
+    evaluate_oracle_fetch,
     evaluate_uses_baseline,
     fetch_rows,
     fit_uses_baseline,
@@ -33,7 +37,9 @@ from globe.evaluation.fetch import (
 )
 from globe.evaluation.lookahead import (
     BASELINE,
+    CLOCK,
     LOOKAHEAD_COLUMNS,
+    ORACLE,
     LookaheadResult,
     choose_settings,
     evaluate_lookahead,
@@ -48,7 +54,7 @@ from globe.evaluation.selection import Memo, SearchKey
 from globe.evaluation.tuning import tuned_models
 from globe.session import build_session
 
-TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0, BASELINE: 0.5}
+TASK_COST = {"routine": 5.0, "ngram": 1.3, "persistence": 1.0, BASELINE: 0.5, ORACLE: 0.5}
 """Rough relative cost of one household's lookahead per method (the routine model's CV costs most):
 the parallel run starts the longest first."""
 
@@ -65,11 +71,12 @@ def method_models(method: str, household: Household, config: GlobeConfig, memo: 
 
 
 def lookahead_methods(config: GlobeConfig) -> list[str]:
-    """The lookahead's rows: ``lookahead.methods`` and the object baseline (after persistence, else
-    first), so no table of models goes without the rule they must beat."""
-    methods = [m for m in config.lookahead.methods if m != BASELINE]
+    """The lookahead's rows: ``lookahead.methods``, the object baseline (after persistence, else
+    first), so no table of models goes without the rule they must beat, and the oracle last, so
+    none goes without what perfect activity knowledge would give."""
+    methods = [m for m in config.lookahead.methods if m not in (BASELINE, ORACLE)]
     at = methods.index("persistence") + 1 if "persistence" in methods else 0
-    return [*methods[:at], BASELINE, *methods[at:]]
+    return [*methods[:at], BASELINE, *methods[at:], ORACLE]
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,6 +110,8 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
         look = None
         if method == BASELINE:
             look = evaluate_moves_baseline(h, config)
+        elif method == ORACLE:
+            look = evaluate_lookahead(h, config, config.models, ORACLE, memo)
         elif method is not None:
             look = evaluate_lookahead(h, config, method_models(method, h, config, memo), method, memo)
         fetch = _fetch(h, config, memo, look) if method in (None, policy_method) else ()
@@ -117,15 +126,17 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
         look += [result] if result is not None else []
         fetch += evaluations
     order = {h.name: i for i, h in enumerate(homes)}
-    fetch.sort(key=lambda e: (e.method == BASELINE, order[e.household]))
+    fetch.sort(key=lambda e: ((BASELINE, ORACLE).index(e.method) + 1 if e.method in (BASELINE, ORACLE) else 0,
+                              order[e.household]))
     return AnticipationResult(tuple(look), tuple(fetch), config, step)
 
 
 def _fetch(h: Household, config: GlobeConfig, memo: Memo,
-           same: LookaheadResult | None) -> tuple[FetchEvaluation, FetchEvaluation]:
+           same: LookaheadResult | None) -> tuple[FetchEvaluation, ...]:
     """The fetch policy on ``h``'s test days: replayed through a session of the policy's method,
     whose movement model has the settings the lookahead of that method chose on training days
-    (``same``, when it ran); then the baseline's fetches at the same steps by the same rule."""
+    (``same``, when it ran; where that chose the clock-aware object model, its uses' candidates);
+    then the baseline's and the oracle's fetches at the same steps by the same rule."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
         run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
@@ -136,9 +147,15 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo,
     session = build_session(h, config, deployment, None, learn=False)
     replayed = replay_test_days(session, h, h.test)
     policy = session.policy
+    ratios = config.policy.curve_ratios
     baseline = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps)
-    return (evaluate_fetch(session, h, h.test, config.policy.curve_ratios, config.policy.method, replayed),
-            evaluate_uses_baseline(baseline, policy, h.test, replayed, h.name, config.policy.curve_ratios))
+    if same is not None and same.objects == CLOCK:
+        clock = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps, clock=True)
+        mine = evaluate_uses_baseline(clock, policy, h.test, replayed, h.name, ratios, config.policy.method)
+    else:
+        mine = evaluate_fetch(session, h, h.test, ratios, config.policy.method, replayed)
+    return (mine, evaluate_uses_baseline(baseline, policy, h.test, replayed, h.name, ratios),
+            evaluate_oracle_fetch(policy, h.test, replayed, h.name, ratios))
 
 
 def _ratio(config: GlobeConfig) -> float:
@@ -161,17 +178,18 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope:
                        "run_end": p["run_end"], "run_memory": p["run_memory"], "run_next": p["run_next"],
                        "horizon_min": step * (p["horizon"] + 1), "threshold": p["threshold"], "cv_f1": round(s, 4),
                        "chosen": (p["run_end"], p["run_memory"], p["run_next"]) == (r.run_end, r.run_memory, r.run_next)
-                       and p["threshold"] == r.thresholds[p["horizon"]]}
+                       and p.get("objects", r.objects) == r.objects and p["threshold"] == r.thresholds[p["horizon"]],
+                       "objects": p.get("objects", r.objects)}
                       for r in result.lookahead for p, s in r.selection.scores],
                      ["method", "household", "run_end", "run_memory", "run_next", "horizon_min", "threshold", "cv_f1",
-                      "chosen"])
+                      "chosen", "objects"])
     timing = [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4)} for r in result.lookahead]
     report.write_csv(paths["lookahead_timing.csv"], timing, ["method", "household", "train_s"])
     save_figure(lookahead_figure(rows, scope), paths["lookahead.png"])
     frows = fetch_rows(result.fetch, _ratio(result.config))
     report.write_csv(paths["fetch_policy.csv"], frows, list(FETCH_COLUMNS))
     save_figure(fetch_curve_figure(frows), paths["fetch_policy.png"])
-    lrows = lead_time_rows([ev for ev in result.fetch if ev.method != BASELINE])
+    lrows = lead_time_rows([ev for ev in result.fetch if ev.method not in (BASELINE, ORACLE)])
     report.write_csv(paths["fetch_lead_times.csv"], lrows, ["household", "lead_min", "uses"])
     save_figure(lead_time_figure(lrows), paths["fetch_lead_times.png"])
     return list(paths.values())

@@ -25,7 +25,7 @@ from globe.config import GlobeConfig
 from globe.errors import DataError
 from globe.evaluation.methods import METHODS
 from globe.evaluation.published import TABLE1, TABLE1_MEAN_ONLY
-from globe.models.baselines import HOUR_ACTIVITY
+from globe.models.baselines import HOUR_ACTIVITY, ORACLE, ORACLE_LABEL
 
 MARKER = re.compile(r"(<!-- globe:table (?P<name>[a-z0-9_]+) -->\n)(?P<body>.*?)(<!-- /globe:table -->)", re.S)
 
@@ -68,7 +68,9 @@ def markdown(header: Sequence[str], rows: Iterable[Sequence[str]], right: int = 
 
 
 def _label(method: str) -> str:
-    """A method as the tables name it (a baseline says so)."""
+    """A method as the tables name it (a baseline says so, and so does the oracle)."""
+    if method == ORACLE:
+        return ORACLE_LABEL
     return METHODS[method].shown if method in METHODS else method
 
 
@@ -199,13 +201,16 @@ def lookahead(results: Path) -> str:
 
 
 def lookahead_selection(results: Path) -> str:
-    """The movement model's variant and the change threshold per horizon that cross-validation chose."""
+    """The movement model's variant (and the clock-aware object model where it won) and the change
+    threshold per horizon that cross-validation chose."""
     rows = [r for r in read_rows(results, "lookahead_selection.csv") if r["chosen"] == "True"]
     body = []
     for key in dict.fromkeys((r["method"], r["household"]) for r in rows):
         mine = [r for r in rows if (r["method"], r["household"]) == key]
         first = mine[0]
         variant = ", ".join(name for name in ("run_end", "run_memory", "run_next") if first[name] == "True") or "plain"
+        if first.get("objects") == "clock":
+            variant += "; objects: clock-aware model"
         thresholds = " ".join(r["threshold"] for r in mine)
         body.append([_label(key[0]), key[1], variant, thresholds])
     return markdown(["model", "household", "movement model", "thresholds (10..60 min)"], body, right=99)
@@ -213,16 +218,17 @@ def lookahead_selection(results: Path) -> str:
 
 def fetch_policy(results: Path) -> str:
     """The fetch policy at the configured costs per household, and over all households along the cost
-    ratio; then the baseline's fetches at the configured costs."""
+    ratio; then the baseline's and the oracle's fetches at the configured costs."""
     rows = read_rows(results, "fetch_policy.csv")
 
     def cells(r: dict[str, str]) -> list[str]:
         return [_label(r.get("method") or ""), r["household"], r["cost_ratio"], _f(r["threshold"]), r["fetches"],
                 _f(r["precision"]), _f(r["recall"]), _f(r["median_lead_min"], 0)]
 
-    body = [cells(r) for r in rows if r.get("method") != HOUR_ACTIVITY
+    body = [cells(r) for r in rows if r.get("method") not in (HOUR_ACTIVITY, ORACLE)
             and (r["configured"] == "True" or r["household"] == "all")]
-    body += [cells(r) for r in rows if r.get("method") == HOUR_ACTIVITY and r["configured"] == "True"]
+    body += [cells(r) for other in (HOUR_ACTIVITY, ORACLE) for r in rows
+             if r.get("method") == other and r["configured"] == "True"]
     return markdown(["model", "household", "costs useless : missed", "fetch when P >", "fetches", "precision",
                      "recall", "median lead (min)"], body, right=2)
 

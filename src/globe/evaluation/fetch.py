@@ -15,20 +15,26 @@ configured costs that is exactly what the session decided.
 Beside it, the object baseline (:data:`BASELINE`): the same days, steps and rule, its candidates
 P(o is used within the lead window | the activity at t, the clock slot) counted on training days
 (:class:`~globe.models.baselines.HourActivityAhead`), so the table shows what a robot would get
-from the clock and the activity alone.
+from the clock and the activity alone; and the oracle (:data:`ORACLE`): the same steps and rule,
+its candidates from the policy's own movement model told the true activity of every step of the
+lead window (:func:`~globe.inference.forecast.forecast_known`), what perfect activity knowledge
+would give. Where the lookahead's cross-validation chose the clock-aware object model for the
+policy's method, the policy's row takes its candidates from that model's uses (same rule).
 """
 
 from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, replace
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from globe.data.records import Day, Household
+from globe.evaluation.lookahead import ORACLE, since_use
 from globe.evaluation.online import add_report, day_observations, replay, replay_dates
 from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, expected_value, follow_fetches
+from globe.inference.forecast import forecast_known
 from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead
 from globe.sequences.movements import moved_objects
 from globe.session import HouseholdSession
@@ -115,10 +121,12 @@ def _curve(policy: FetchPolicy, replayed: Sequence[ReplayedDay],
     return tuple(curve)
 
 
-def fit_uses_baseline(days: Sequence[Day], objects: Sequence[str], min_lead: int, window: int) -> HourActivityAhead:
+def fit_uses_baseline(days: Sequence[Day], objects: Sequence[str], min_lead: int, window: int,
+                      clock: bool = False) -> HourActivityAhead:
     """P(o is used at a step u with ``min_lead`` <= u - t <= ``window`` | the activity at t, the
-    clock slot of t), counted at every step t of ``days`` (a use: :func:`moved_objects`)."""
-    ahead = HourActivityAhead(objects, 1)
+    clock slot of t), counted at every step t of ``days`` (a use: :func:`moved_objects`); with
+    ``clock``, the clock-aware object model (also the day type and the time since o's last use)."""
+    ahead = HourActivityAhead(objects, 1, clock=clock)
     lo = max(1, min_lead)
     for day in days:
         used = np.array([[o in moved for o in objects] for moved in moved_objects(day, objects)], dtype=bool)
@@ -126,33 +134,64 @@ def fit_uses_baseline(days: Sequence[Day], objects: Sequence[str], min_lead: int
         within = np.zeros((n, 1, len(objects)), dtype=bool)
         for t in range(n):
             within[t, 0] = used[t + lo: t + window + 1].any(axis=0)
-        ahead.add(day.activities, day.minutes, within)
+        ahead.add(day.activities, day.minutes, within, None, day.weekday, since_use(day, objects) if clock else None)
     return ahead
 
 
-def evaluate_uses_baseline(baseline: HourActivityAhead, policy: FetchPolicy, days: Sequence[Day],
-                           replayed: Sequence[ReplayedDay], household: str, ratios: Sequence[float]
-                           ) -> FetchEvaluation:
-    """The baseline row: at each step the session decided (of ``replayed``, ``days`` replayed), the
-    baseline's candidates instead of the forecaster's, followed by ``policy``'s rule (its costs:
-    the configured report; each of ``ratios``: the curve)."""
+Candidates = Callable[[Day, Sequence[int]], Sequence[tuple[FetchCandidate, ...]]]
+"""``candidates(day, rows)``: the candidate fetches after each of ``rows`` (steps of ``day``)."""
+
+
+def evaluate_candidates(candidates_at: Candidates, policy: FetchPolicy, days: Sequence[Day],
+                        replayed: Sequence[ReplayedDay], household: str, ratios: Sequence[float], method: str
+                        ) -> FetchEvaluation:
+    """A row of other candidates than the session's: at each step the session decided (of
+    ``replayed``, ``days`` replayed), ``candidates_at``'s instead, followed by ``policy``'s rule
+    (its costs: the configured report; each of ``ratios``: the curve)."""
     mine = []
     for day, seen in zip(days, replayed):
         row = {m: t for t, m in enumerate(day.minutes)}
-        candidates: list[tuple[FetchCandidate, ...]] = []
-        for minute, theirs in zip(seen.minutes, seen.candidates):
-            r = row.get(minute)
-            if not theirs or r is None:  # the session decided nothing here (the day's last step)
-                candidates.append(())
-                continue
-            p = baseline.proba(day.activities[r], minute)[0]
-            value = expected_value(p, policy.cost_useless, policy.cost_missed)
-            order = sorted(range(len(p)), key=lambda j: (-p[j], baseline.objects[j]))
-            candidates.append(tuple(FetchCandidate(baseline.objects[j], float(p[j]), None, float(value[j]))
-                                    for j in order))
+        asked = [(i, row[minute]) for i, (minute, theirs) in enumerate(zip(seen.minutes, seen.candidates))
+                 if theirs and minute in row]  # else the session decided nothing here (the day's last step)
+        candidates: list[tuple[FetchCandidate, ...]] = [()] * len(seen.candidates)
+        for (i, _), found in zip(asked, candidates_at(day, [r for _, r in asked]) if asked else ()):
+            candidates[i] = tuple(found)
         mine.append(replace(seen, candidates=tuple(candidates)))
     reports = [follow_policy(policy, day) for day in mine]
-    return FetchEvaluation(household, pooled(reports), _curve(policy, mine, ratios), BASELINE)
+    return FetchEvaluation(household, pooled(reports), _curve(policy, mine, ratios), method)
+
+
+def evaluate_uses_baseline(baseline: HourActivityAhead, policy: FetchPolicy, days: Sequence[Day],
+                           replayed: Sequence[ReplayedDay], household: str, ratios: Sequence[float],
+                           method: str = BASELINE) -> FetchEvaluation:
+    """The baseline row (or, for the clock-aware model chosen for ``method``, that method's row):
+    :func:`evaluate_candidates` of P(a use within the lead window) by ``baseline``."""
+    def candidates_at(day: Day, rows: Sequence[int]) -> list[tuple[FetchCandidate, ...]]:
+        since = since_use(day, baseline.objects) if baseline.clock else None
+        out = []
+        for r in rows:
+            p = baseline.proba(day.activities[r], day.minutes[r], day.weekday,
+                               None if since is None else since[r])[0]
+            value = expected_value(p, policy.cost_useless, policy.cost_missed)
+            order = sorted(range(len(p)), key=lambda j: (-p[j], baseline.objects[j]))
+            out.append(tuple(FetchCandidate(baseline.objects[j], float(p[j]), None, float(value[j])) for j in order))
+        return out
+
+    return evaluate_candidates(candidates_at, policy, days, replayed, household, ratios, method)
+
+
+def evaluate_oracle_fetch(policy: FetchPolicy, days: Sequence[Day], replayed: Sequence[ReplayedDay], household: str,
+                          ratios: Sequence[float]) -> FetchEvaluation:
+    """The oracle row: :func:`evaluate_candidates` of ``policy``'s own movement model told the true
+    activities of steps t..t+window (:func:`~globe.inference.forecast.forecast_known`)."""
+    movements, window = policy.forecaster.movements, policy.window_steps
+
+    def candidates_at(day: Day, rows: Sequence[int]) -> list[tuple[FetchCandidate, ...]]:
+        fcs = forecast_known(movements, [(day.activities[: r + 1], day.locations[: r + 1]) for r in rows],
+                             [day.activities[r: r + window + 1] for r in rows], window - 1)
+        return [tuple(policy.candidates_from(fcs[q])) for q in range(len(rows))]
+
+    return evaluate_candidates(candidates_at, policy, days, replayed, household, ratios, ORACLE)
 
 
 FETCH_COLUMNS = ("method", "household", "cost_ratio", "threshold", "fetches", "precision", "recall", "median_lead_min",

@@ -14,7 +14,16 @@ being put back, which no one needs foreseen.
 A change is predicted when the forecaster's P(first new place = its best guess) reaches a
 threshold (one per horizon); the thresholds and whether movement hazards know that an activity
 ends (and then what moved earlier in its run, and which activity starts) are chosen by
-cross-validation on training days (the listed first values win ties).
+cross-validation on training days (the listed first values win ties). For GLOBE's routine model
+the same cross-validation also offers the clock-aware object model
+(:class:`~globe.models.baselines.HourActivityAhead` with ``clock=True``: P(an object's first move
+within each horizon | the activity, the hour, the day type, the time since its last use)) in place
+of the movement model's forecast; ``lookahead_selection.csv`` says which won (``objects``).
+
+Beside the models, two rows that are no model: the object baseline (:data:`BASELINE`, the hour
+and the activity alone) and the *oracle* (:data:`ORACLE`), the movement model told the true
+activity of every step up to the horizon, so only where objects go is predicted: not deployable,
+it shows what perfect activity knowledge would give and so how much of a gap is the activity's.
 """
 
 from __future__ import annotations
@@ -27,225 +36,55 @@ import numpy as np
 
 from globe import assembly
 from globe.config import GlobeConfig, LookaheadConfig, ModelConfig
-from globe.data.records import Day, Household, is_use_place
+from globe.data.records import Day, Household
+from globe.evaluation.relocation import (
+    LookaheadRun,
+    RelocationCounts,
+    _coded,
+    _in_use,
+    reference_queries,
+    reference_steps,
+    score_arrays,
+    score_forecasts,
+)
 from globe.evaluation.selection import DataKey, FitKey, Fold, Memo, SearchKey, Selection, best_of
 from globe.evaluation.tuning import data_folds, fold_days
-from globe.inference.forecast import Forecaster, Forecasts
+from globe.inference.forecast import Forecaster, Forecasts, forecast_known
 from globe.inference.movements import MovementModel
-from globe.models.base import ActivityModelBase
-from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead, HourActivityBaseline, mode
+from globe.models.baselines import (
+    HOUR_ACTIVITY,
+    ORACLE,
+    HourActivityAhead,
+    HourActivityBaseline,
+    minutes_since_use,
+    mode,
+)
+from globe.sequences.movements import moved_objects
 
 
-@dataclass(frozen=True, slots=True)
-class RelocationCounts:
-    """Pooled counts of the relocation metric; precision, recall and F1 from them."""
-
-    correct: int = 0
-    predicted: int = 0
-    true: int = 0
-
-    def __add__(self, other: "RelocationCounts") -> "RelocationCounts":
-        return RelocationCounts(self.correct + other.correct, self.predicted + other.predicted, self.true + other.true)
-
-    @property
-    def precision(self) -> float:
-        return self.correct / self.predicted if self.predicted else 0.0
-
-    @property
-    def recall(self) -> float:
-        return self.correct / self.true if self.true else 0.0
-
-    @property
-    def f1(self) -> float:
-        p, r = self.precision, self.recall
-        return 2 * p * r / (p + r) if p + r > 0 else 0.0
-
-
-def true_first_locations(locations: Sequence[Sequence[str]], r: int, s: int) -> list[str | None]:
-    """Per object, its first location other than the one at step r within steps r+1..r+1+s
-    (None: it stays put throughout, or it is in use at r and can only be put back first)."""
-    here = locations[r]
-    out: list[str | None] = []
-    for j, loc in enumerate(here):
-        out.append(None if is_use_place(loc) else next(
-            (locations[u][j] for u in range(r + 1, min(r + 2 + s, len(locations))) if locations[u][j] != loc), None))
-    return out
-
-
-def relocation_counts(true: Sequence[str | None], predicted: Sequence[str | None]) -> RelocationCounts:
-    """Count one set of pairs: ``true``/``predicted`` first new location per pair (None = no change)."""
-    if len(true) != len(predicted):
-        raise ValueError(f"{len(true)} true and {len(predicted)} predicted pairs")
-    correct = sum(1 for t, p in zip(true, predicted) if t is not None and p is not None and t == p)
-    return RelocationCounts(correct, sum(p is not None for p in predicted), sum(t is not None for t in true))
-
-
-@dataclass(slots=True)
-class HorizonPairs:
-    """Every (reference step x object) pair of one horizon: the probability of the predicted
-    first new place, whether that place is the true one, and whether a change happened. A
-    threshold turns them into :class:`RelocationCounts` without forecasting again."""
-
-    probability: list[np.ndarray] = field(default_factory=list)
-    hit: list[np.ndarray] = field(default_factory=list)
-    true: list[np.ndarray] = field(default_factory=list)
-
-    def counts(self, threshold: float) -> RelocationCounts:
-        if not self.probability:
-            return RelocationCounts()
-        p, hit, true = np.concatenate(self.probability), np.concatenate(self.hit), np.concatenate(self.true)
-        predicted = (p >= threshold) & (p > 0)
-        return RelocationCounts(int((predicted & hit).sum()), int(predicted.sum()), int(true.sum()))
-
-
-@dataclass(slots=True)
-class LookaheadRun:
-    """The pairs of every horizon and the activity accuracy at r+s, over some days."""
-
-    horizons: int
-    pairs: list[HorizonPairs]
-    activity_correct: np.ndarray
-    activity_total: np.ndarray
-
-    @classmethod
-    def empty(cls, horizons: int) -> "LookaheadRun":
-        return cls(horizons, [HorizonPairs() for _ in range(horizons)], np.zeros(horizons, int),
-                   np.zeros(horizons, int))
-
-    def f1s(self, threshold: float) -> list[float]:
-        return [p.counts(threshold).f1 for p in self.pairs]
-
-    def activity_accuracy(self) -> list[float]:
-        return [c / t if t else 0.0 for c, t in zip(self.activity_correct, self.activity_total)]
-
-
-def reference_steps(day: Day, horizons: int, first: int, last: int | None, stride: int = 1) -> range:
-    """r = first..last (every ``stride``-th), cut so that r + horizons stays inside the day."""
-    end = len(day) - 1 - horizons
-    return range(max(first, 1), (end if last is None else min(last, end)) + 1, stride)
-
-
-def reference_queries(days: Sequence[Day], horizons: int, first: int = 1, last: int | None = None,
-                      stride: int = 1) -> list[tuple[Day, int]]:
-    """Every (day, reference step r) scored, in order."""
-    return [(day, r) for day in days for r in reference_steps(day, horizons, first, last, stride)]
-
-
-def score_forecasts(run: LookaheadRun, forecasts: Forecasts, refs: Sequence[tuple[Day, int]], model: ActivityModelBase,
-                    location_rows: dict) -> None:
-    """Add the pairs of ``forecasts`` (one per reference of ``refs``) to ``run``. ``location_rows``
-    caches each day's location indices (of the forecaster's movement model)."""
-    best, prob = forecasts.first_locations(run.horizons)
-    top = top_activities(forecasts.trees.activity_matrix(), forecasts.trees.names, model, run.horizons)
-    score_arrays(run, refs, best, prob, top, forecasts.trees.names, forecasts.locations, location_rows)
-
-
-def score_arrays(run: LookaheadRun, refs: Sequence[tuple[Day, int]], best: np.ndarray, prob: np.ndarray,
-                 top: np.ndarray, names: Sequence[str], locations: tuple[str, ...], location_rows: dict) -> None:
-    """Add pairs to ``run``: per reference, horizon and object the predicted first new place
-    (``best``, location indices of ``locations``) and its probability, and the top activity
-    per horizon (``top``: ids of ``names``, -1 for none)."""
-    horizons = run.horizons
-    if not refs:
-        return
-    coded = [_locations_of(location_rows, locations, day) for day, _ in refs]
-    future = np.stack([ids[r + 1: r + 1 + horizons] for (_, r), (ids, _) in zip(refs, coded)])
-    here = np.stack([ids[r] for (_, r), (ids, _) in zip(refs, coded)])
-    window = future != here[:, None, :]  # (refs, horizons, objects): somewhere else than at r
-    # an object in use at r can only be put back first: no use to foresee (sequences.movements)
-    in_use = {id(day): _in_use(day) for day in {id(day): day for day, _ in refs}.values()}
-    free = ~np.stack([in_use[id(day)][r] for day, r in refs])
-    moved_any = window.any(axis=1) & free
-    first_step = window.argmax(axis=1)
-    later = np.stack([index[r + 1: r + 1 + horizons] for (_, r), (_, index) in zip(refs, coded)])
-    true_loc = np.take_along_axis(later, first_step[:, None, :], axis=1)[:, 0, :]
-    for s in range(horizons):
-        true = moved_any & (first_step <= s)
-        pairs = run.pairs[s]
-        pairs.probability.append(np.where(free, prob[:, s], 0.0).ravel())
-        pairs.hit.append((true & (best[:, s] == true_loc)).ravel())
-        pairs.true.append(true.ravel())
-        run.activity_total[s] += len(refs)
-        run.activity_correct[s] += sum(1 for (day, r), a in zip(refs, top[:, s].tolist())
-                                       if a >= 0 and names[a] == day.activities[r + s])
-
-
-_CODED: dict[int, tuple[Day, np.ndarray, list[str]]] = {}
-
-
-def _coded(day: Day) -> tuple[np.ndarray, list[str]]:
-    """(steps x objects) ids of ``day``'s places (one per distinct name) and the names (memoised)."""
-    hit = _CODED.get(id(day))
-    if hit is not None and hit[0] is day:
-        return hit[1], hit[2]
-    if len(_CODED) > 4096:
-        _CODED.clear()
-    names: dict[str, int] = {}
-    rows: dict[tuple[str, ...], list[int]] = {}
-    ids = np.array([rows.get(row) or rows.setdefault(row, [names.setdefault(x, len(names)) for x in row])
-                    for row in day.locations], dtype=int).reshape(len(day), -1)
-    _CODED[id(day)] = (day, ids, list(names))
-    return ids, list(names)
-
-
-_IN_USE: dict[int, tuple[Day, np.ndarray]] = {}
-
-
-def _in_use(day: Day) -> np.ndarray:
-    """(steps x objects): whether each object is at a use place (:func:`is_use_place`; memoised
-    as :func:`_coded` is: every threshold and fold of a search scores the same days)."""
-    hit = _IN_USE.get(id(day))
-    if hit is not None and hit[0] is day:
-        return hit[1]
-    if len(_IN_USE) > 4096:
-        _IN_USE.clear()
-    ids, names = _coded(day)
-    mask = np.array([is_use_place(x) for x in names], dtype=bool)[ids]
-    _IN_USE[id(day)] = (day, mask)
-    return mask
-
-
-def _locations_of(cache: dict, locations: tuple[str, ...], day: Day) -> tuple[np.ndarray, np.ndarray]:
-    """(steps x objects) of ``day``: an id per distinct place name, and the movement model's
-    location index (places it never saw share one)."""
-    out = cache.get(day.name)
-    if out is None:
-        ids, names = _coded(day)
-        index = {x: i for i, x in enumerate(locations)}
-        unknown = len(locations) - 1
-        inv = np.array([index.get(x, unknown) for x in names], dtype=int)
-        out = cache[day.name] = (ids, inv[ids])
-    return out
-
-
-def top_activities(dense: np.ndarray, names: Sequence[str], model: ActivityModelBase, horizons: int) -> np.ndarray:
-    """(queries x horizons): the id of ``model.ranked(...)[0]`` of each activity distribution
-    of ``dense`` (queries x steps x names; most probable, ties: training frequency, then name),
-    -1 when empty."""
-    dense = dense[:, :horizons]
-    frequency = getattr(model, "frequency_", {})
-    tiebreak = np.empty(len(names), dtype=int)
-    order = sorted(range(len(names)), key=lambda i: (-frequency.get(names[i], 0), str(names[i])))
-    tiebreak[order] = np.arange(len(names))
-    top = dense.max(axis=2, initial=0.0)
-    candidate = (dense == top[..., None]) & (dense > 0)
-    score = np.where(candidate, tiebreak[None, None, :], len(names))
-    out = score.argmin(axis=2) if len(names) else np.zeros(dense.shape[:2], dtype=int)
-    return np.where(candidate.any(axis=2), out, -1)
-
-
-def forecast_days(forecaster: Forecaster, days: Sequence[Day], horizons: int, first: int = 1, last: int | None = None,
-                  stride: int = 1, chunk: int = 256) -> LookaheadRun:
-    """Forecast every reference step of ``days`` and collect the pairs of each horizon."""
+def forecast_days(forecaster: Forecaster | MovementModel, days: Sequence[Day], horizons: int, first: int = 1,
+                  last: int | None = None, stride: int = 1, chunk: int = 256) -> LookaheadRun:
+    """Forecast every reference step of ``days`` and collect the pairs of each horizon. A movement
+    model alone forecasts as the oracle does (:func:`oracle_forecasts`)."""
     run = LookaheadRun.empty(horizons)
     refs = reference_queries(days, horizons, first, last, stride)
     rows: dict = {}
     for lo in range(0, len(refs), chunk):
         part = refs[lo: lo + chunk]
+        if isinstance(forecaster, MovementModel):
+            score_forecasts(run, oracle_forecasts(forecaster, part, horizons), part, None, rows)
+            continue
         fcs = forecaster.forecast_many([(day.activities[:r], day.locations[: r + 1]) for day, r in part], horizons - 1,
                                        weekdays=[day.weekday for day, _ in part])
         score_forecasts(run, fcs, part, forecaster.activity, rows)
     return run
+
+
+def oracle_forecasts(movements: MovementModel, refs: Sequence[tuple[Day, int]], horizons: int) -> Forecasts:
+    """The oracle's forecasts at ``refs``: ``movements`` told the true activities a_r..a_{r+horizons}
+    (:func:`~globe.inference.forecast.forecast_known`)."""
+    return forecast_known(movements, [(day.activities[:r], day.locations[: r + 1]) for day, r in refs],
+                          [day.activities[r: r + horizons + 1] for day, r in refs], horizons - 1)
 
 
 Setting = tuple[bool, bool, bool]  # the movement model's (run_end, run_memory, run_next)
@@ -285,25 +124,37 @@ def movements_on(household: Household, la: LookaheadConfig, fold: Fold | None, s
     return memo.get(key, lambda: assembly.movement_model(la, step_minutes, *setting).fit(days, household.objects))
 
 
-def cv_key(household: Household, config: GlobeConfig, models: ModelConfig, setting: Setting) -> SearchKey:
-    """What the held-out pairs of one movement setting depend on."""
+def cv_key(household: Household, config: GlobeConfig, models: ModelConfig, setting: Setting,
+           oracle: bool = False) -> SearchKey:
+    """What the held-out pairs of one movement setting depend on (the oracle's: not the activity model)."""
+    if oracle:
+        return SearchKey("lookahead-oracle-cv", DataKey.of(household), (config.lookahead, setting), None,
+                         config.selection.folds, None)
     return SearchKey("lookahead-cv", DataKey.of(household), (config.lookahead, setting), models, config.selection.folds,
                      None)
 
 
 def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[Setting],
-            memo: Memo) -> dict[Setting, LookaheadRun]:
+            memo: Memo, oracle: bool = False) -> dict[Setting, LookaheadRun]:
     """Pairs of every held-out *training* day (contiguous folds, every ``cv_stride``-th reference)
     for each movement setting (run end, run memory, next activity): each fold's activity model is
-    fitted once and its activity paths are shared by every setting. Kept in ``memo``."""
+    fitted once and its activity paths are shared by every setting (the ``oracle`` follows the
+    true activities instead: :func:`oracle_forecasts`). Kept in ``memo``."""
     la, horizons = config.lookahead, assembly.lookahead_steps(config, household)
-    todo = [s for s in dict.fromkeys(settings) if cv_key(household, config, models, s) not in memo]
+    todo = [s for s in dict.fromkeys(settings) if cv_key(household, config, models, s, oracle) not in memo]
     runs: dict[Setting, list[LookaheadRun]] = {setting: [] for setting in todo}
     for fold in data_folds(household, config.selection.folds) if todo else ():
         train, held_out = fold_days(household, fold)
         step = assembly.step_minutes(household, config)
-        activity = assembly.fitted_activity_model(models, step, train)
         refs = reference_queries(held_out, horizons, la.first_reference, la.last_reference, la.cv_stride)
+        if oracle:
+            for setting in todo:
+                run = LookaheadRun.empty(horizons)
+                mv = movements_on(household, la, fold, setting, memo, step)
+                score_forecasts(run, oracle_forecasts(mv, refs, horizons), refs, None, {})
+                runs[setting].append(run)
+            continue
+        activity = assembly.fitted_activity_model(models, step, train)
         queries = [(day.activities[:r], day.locations[: r + 1]) for day, r in refs]
         weekdays = [day.weekday for day, _ in refs]
         trees = None
@@ -316,39 +167,60 @@ def cv_runs(household: Household, config: GlobeConfig, models: ModelConfig, sett
             score_forecasts(run, forecasts, refs, activity, {})
             runs[setting].append(run)
     for setting in todo:
-        memo.put(cv_key(household, config, models, setting), pool(runs[setting], horizons))
-    return {s: memo.get(cv_key(household, config, models, s), lambda: None) for s in settings}  # type: ignore[misc]
+        memo.put(cv_key(household, config, models, setting, oracle), pool(runs[setting], horizons))
+    return {s: memo.get(cv_key(household, config, models, s, oracle), lambda: None)  # type: ignore[misc]
+            for s in settings}
+
+
+MOVEMENTS, CLOCK = "movements", "clock"
+"""Where a lookahead row's objects come from: the movement model's forecast, or the clock-aware
+object model (:class:`~globe.models.baselines.HourActivityAhead`, ``clock=True``)."""
 
 
 def choose_settings(household: Household, config: GlobeConfig, models: ModelConfig, memo: Memo,
-                    run_ends: Sequence[bool] | None = None) -> Selection:
+                    run_ends: Sequence[bool] | None = None, oracle: bool = False,
+                    objects: Sequence[str] = (MOVEMENTS,)) -> Selection:
     """The movement model's settings (run end of ``run_ends``, default ``lookahead.run_end``;
     run memory of ``lookahead.run_memory`` and the next activity of ``lookahead.run_next``, both
-    only with the run end) and a change threshold per horizon, by F1 on held-out *training* days.
-    The setting with the best mean over horizons of each horizon's best F1 wins, then each
+    only with the run end) and a change threshold per horizon, by F1 on held-out *training* days
+    (of the ``oracle``'s forecasts, told the true activity, when asked). With :data:`CLOCK` in
+    ``objects`` the clock-aware object model is a candidate too, after every setting.
+    The candidate with the best mean over horizons of each horizon's best F1 wins, then each
     horizon takes its best threshold; ties go to the first listed values (the simpler model, the
     higher threshold).
-    ``best``: ``{"run_end": bool, "run_memory": bool, "run_next": bool, "thresholds": (one per horizon)}``."""
+    ``best``: ``{"run_end": bool, "run_memory": bool, "run_next": bool, "thresholds": (one per horizon)}``
+    and, where the clock-aware model was offered, ``"objects"`` (:data:`MOVEMENTS` or :data:`CLOCK`)."""
     la = config.lookahead
     settings = _settings(config, run_ends)
-    key = SearchKey("lookahead", DataKey.of(household), (la, tuple(settings)), models, config.selection.folds, None)
-    return memo.get(key, _choose, household, config, models, settings, memo)
+    offered = tuple(objects) if objects != (MOVEMENTS,) else ()
+    key = SearchKey("lookahead-oracle" if oracle else "lookahead", DataKey.of(household),
+                    (la, tuple(settings), *((offered,) if offered else ())), None if oracle else models,
+                    config.selection.folds, None)
+    return memo.get(key, _choose, household, config, models, settings, memo, oracle, offered)
 
 
 def _choose(household: Household, config: GlobeConfig, models: ModelConfig, settings: Sequence[Setting],
-            memo: Memo) -> Selection:
+            memo: Memo, oracle: bool = False, offered: Sequence[str] = ()) -> Selection:
     la = config.lookahead
     started = time.perf_counter()
-    pooled_runs = cv_runs(household, config, models, settings, memo)
+    pooled_runs = cv_runs(household, config, models, settings, memo, oracle)
     scores: list[tuple[dict, float]] = []
     per_setting: list[tuple[dict, float]] = []
-    for setting in settings:
-        named = dict(zip(SETTING_KEYS, setting))
-        per = threshold_f1s(pooled_runs[setting], la.thresholds)
+
+    def offer(named: dict, run: LookaheadRun | None) -> None:
+        assert run is not None
+        per = threshold_f1s(run, la.thresholds)
         scores.extend(({**named, "horizon": s, "threshold": t}, f)
                       for s, row in enumerate(per) for t, f in zip(la.thresholds, row))
         best = float(np.mean([max(row) for row in per]))
         per_setting.append(({**named, "thresholds": best_thresholds(per, la.thresholds)}, best))
+
+    objects = {"objects": MOVEMENTS} if offered else {}
+    for setting in settings:
+        offer({**dict(zip(SETTING_KEYS, setting)), **objects}, pooled_runs[setting])
+    if CLOCK in offered:  # with the movement setting that won: the forecaster's activity and fetch session keep it
+        movement = {k: v for k, v in best_of(per_setting).items() if k in SETTING_KEYS}
+        offer({**movement, "objects": CLOCK}, moves_baseline_cv(household, config, clock=True))
     return Selection(best_of(per_setting), scores, time.perf_counter() - started)
 
 
@@ -379,27 +251,63 @@ class LookaheadResult:
     run_memory: bool = False
     run_next: bool = False
     forecaster: Forecaster | None = field(default=None, compare=False, repr=False)  # fitted on every training day
+    objects: str = "movements"  # whose objects were scored: the movement model's forecast, the clock-aware
+    # model (CLOCK) or, for the baseline row, the baseline's
 
 
 # The training time reported is the best of this many fits (as timeit): what it costs, not the machine's noise.
 TIMING_FITS = 3
 
 
+CLOCK_OFFERED_TO = ("routine",)
+"""The lookahead methods whose cross-validation is offered the clock-aware object model: GLOBE's
+own (persistence and the n-gram stay the paper's comparisons)."""
+
+
 def evaluate_lookahead(household: Household, config: GlobeConfig, models: ModelConfig, method: str,
                        memo: Memo) -> LookaheadResult:
-    """Choose the settings on training days, fit on all of them, score the test days."""
+    """Choose the settings on training days, fit on all of them, score the test days (the
+    objects of the clock-aware model where cross-validation chose it, the activity ahead still
+    the forecaster's)."""
     la = config.lookahead
-    chosen = choose_settings(household, config, models, memo)
+    if method == ORACLE:
+        return evaluate_oracle(household, config, memo)
+    offered = (MOVEMENTS, CLOCK) if method in CLOCK_OFFERED_TO else (MOVEMENTS,)
+    chosen = choose_settings(household, config, models, memo, objects=offered)
     run_end, run_memory, run_next = setting_of(chosen.best)
     fits = [assembly.forecaster(household, config, models=models, run_end=run_end, run_memory=run_memory,
                                 run_next=run_next) for _ in range(TIMING_FITS)]
     fitted = fits[0]
-    run = forecast_days(fitted.forecaster, household.test, assembly.lookahead_steps(config, household),
-                        la.first_reference, la.last_reference)
+    horizons = assembly.lookahead_steps(config, household)
+    run = forecast_days(fitted.forecaster, household.test, horizons, la.first_reference, la.last_reference)
+    train_s = min(f.train_s for f in fits)
+    if chosen.best.get("objects") == CLOCK:
+        started = time.perf_counter()
+        clock = fit_moves_baseline(household.train, household.objects, horizons, la, clock=True)
+        train_s += time.perf_counter() - started
+        run.pairs = baseline_days(clock, household.test, horizons, la.first_reference, la.last_reference).pairs
     ts = tuple(float(t) for t in chosen.best["thresholds"])
     return LookaheadResult(method, household.name, ts, tuple(p.counts(t) for p, t in zip(run.pairs, ts)),
-                           tuple(run.activity_accuracy()), min(f.train_s for f in fits), chosen, run_end, run_memory,
-                           run_next, fitted.forecaster)
+                           tuple(run.activity_accuracy()), train_s, chosen, run_end, run_memory,
+                           run_next, fitted.forecaster, str(chosen.best.get("objects", MOVEMENTS)))
+
+
+def evaluate_oracle(household: Household, config: GlobeConfig, memo: Memo) -> LookaheadResult:
+    """The oracle row: its movement setting and thresholds chosen by F1 on held-out training days
+    (its own forecasts there, told the true activities), the movement model fitted on every
+    training day, the test days scored (its activity accuracy is 1 by construction)."""
+    la = config.lookahead
+    chosen = choose_settings(household, config, config.models, memo, oracle=True)
+    setting = setting_of(chosen.best)
+    step = assembly.step_minutes(household, config)
+    started = time.perf_counter()
+    movements = assembly.movement_model(la, step, *setting).fit(household.train, household.objects)
+    train_s = time.perf_counter() - started
+    run = forecast_days(movements, household.test, assembly.lookahead_steps(config, household), la.first_reference,
+                        la.last_reference)
+    ts = tuple(float(t) for t in chosen.best["thresholds"])
+    return LookaheadResult(ORACLE, household.name, ts, tuple(p.counts(t) for p, t in zip(run.pairs, ts)),
+                           tuple(run.activity_accuracy()), train_s, chosen, *setting)
 
 
 LOOKAHEAD_COLUMNS = ("method", "household", "horizon_min", "precision", "recall", "f1", "activity_accuracy")
@@ -461,18 +369,26 @@ def first_moves(day: Day, rs: Sequence[int], horizons: int) -> np.ndarray:
     return moved[:, None, :] & (first[:, None, :] <= np.arange(horizons)[None, :, None])
 
 
-def fit_moves_baseline(days: Sequence[Day], objects: Sequence[str], horizons: int, la: LookaheadConfig
-                       ) -> MovesBaseline:
-    """:class:`MovesBaseline` on ``days`` (every reference step the lookahead would score)."""
+def since_use(day: Day, objects: Sequence[str]) -> np.ndarray:
+    """(steps x objects): minutes since each object's last use that day, at each step
+    (:func:`~globe.models.baselines.minutes_since_use` of the uses :func:`moved_objects` counts)."""
+    used = np.array([[o in moved for o in objects] for moved in moved_objects(day, objects)], dtype=bool)
+    return minutes_since_use(used.reshape(len(day), len(objects)), day.minutes)
+
+
+def fit_moves_baseline(days: Sequence[Day], objects: Sequence[str], horizons: int, la: LookaheadConfig,
+                       clock: bool = False) -> MovesBaseline:
+    """:class:`MovesBaseline` on ``days`` (every reference step the lookahead would score); with
+    ``clock``, its first moves by the clock-aware object model (day type, time since last use)."""
     from collections import Counter
 
-    moves = HourActivityAhead(objects, horizons)
+    moves = HourActivityAhead(objects, horizons, clock=clock)
     goes: dict[tuple[int, str], Counter[str]] = {}
     seen: set[str] = set()
     for day in days:
         rs = list(reference_steps(day, horizons, la.first_reference, la.last_reference))
         moves.add([day.activities[r - 1] for r in rs], [day.minutes[r - 1] for r in rs], first_moves(day, rs, horizons),
-                  ~_in_use(day)[rs])
+                  ~_in_use(day)[rs], day.weekday, since_use(day, objects)[rs] if clock else None)
         ids, names = _coded(day)
         seen.update(names)
         for t, j in zip(*np.nonzero(ids[1:] != ids[:-1])):
@@ -506,6 +422,7 @@ def baseline_days(baseline: MovesBaseline, days: Sequence[Day], horizons: int, f
     best = np.zeros((len(refs), horizons, n_obj), dtype=int)
     prob = np.zeros((len(refs), horizons, n_obj))
     top = np.full((len(refs), horizons), -1, dtype=int)
+    since = {id(day): since_use(day, baseline.moves.objects) for day in days} if baseline.moves.clock else {}
     for q, (day, r) in enumerate(refs):
         current, minute = day.activities[r - 1], day.minutes[r - 1]
         here = day.locations[r]
@@ -513,7 +430,7 @@ def baseline_days(baseline: MovesBaseline, days: Sequence[Day], horizons: int, f
             place, share = baseline.places.get((j, here[j])) or baseline.anywhere.get(j, (UNKNOWN_PLACE, 0.0))
             best[q, :, j] = index[place]
             prob[q, :, j] = share
-        prob[q] *= baseline.moves.proba(current, minute)
+        prob[q] *= baseline.moves.proba(current, minute, day.weekday, since[id(day)][r] if since else None)
         for s in range(horizons):
             said = mode(baseline.activity.proba(current, minute, s + 1))
             top[q, s] = codes.get(said, -1) if said is not None else -1
@@ -521,18 +438,24 @@ def baseline_days(baseline: MovesBaseline, days: Sequence[Day], horizons: int, f
     return run
 
 
-def evaluate_moves_baseline(household: Household, config: GlobeConfig) -> LookaheadResult:
-    """The baseline row: its change threshold per horizon chosen by F1 on held-out training days
-    (contiguous folds, every ``cv_stride``-th reference, as the models'), then counted on every
-    training day and scored on the test days."""
+def moves_baseline_cv(household: Household, config: GlobeConfig, clock: bool = False) -> LookaheadRun:
+    """The pairs of the object baseline (or, with ``clock``, the clock-aware object model) on
+    held-out training days: contiguous folds, every ``cv_stride``-th reference, as the models'."""
     la, horizons = config.lookahead, assembly.lookahead_steps(config, household)
-    started = time.perf_counter()
     runs = []
     for fold in data_folds(household, config.selection.folds):
         train, held_out = fold_days(household, fold)
-        fitted = fit_moves_baseline(train, household.objects, horizons, la)
+        fitted = fit_moves_baseline(train, household.objects, horizons, la, clock)
         runs.append(baseline_days(fitted, held_out, horizons, la.first_reference, la.last_reference, la.cv_stride))
-    per = threshold_f1s(pool(runs, horizons), la.thresholds)
+    return pool(runs, horizons)
+
+
+def evaluate_moves_baseline(household: Household, config: GlobeConfig) -> LookaheadResult:
+    """The baseline row: its change threshold per horizon chosen by F1 on held-out training days
+    (:func:`moves_baseline_cv`), then counted on every training day and scored on the test days."""
+    la, horizons = config.lookahead, assembly.lookahead_steps(config, household)
+    started = time.perf_counter()
+    per = threshold_f1s(moves_baseline_cv(household, config), la.thresholds)
     thresholds = best_thresholds(per, la.thresholds)
     plain = dict.fromkeys(SETTING_KEYS, False)
     selection = Selection({**plain, "thresholds": thresholds},
@@ -545,4 +468,4 @@ def evaluate_moves_baseline(household: Household, config: GlobeConfig) -> Lookah
     run = baseline_days(fitted, household.test, horizons, la.first_reference, la.last_reference)
     return LookaheadResult(BASELINE, household.name, thresholds,
                            tuple(p.counts(t) for p, t in zip(run.pairs, thresholds)), tuple(run.activity_accuracy()),
-                           train_s, selection, False, False, False)
+                           train_s, selection, False, False, False, objects=BASELINE)

@@ -41,7 +41,7 @@ from globe.config import FilterConfig, GlobeConfig, ModelConfig
 from globe.data.records import Day, Household
 from globe.errors import ConfigError
 from globe.evaluation import lookahead as lk
-from globe.evaluation import report
+from globe.evaluation import relocation, report
 from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
@@ -279,7 +279,7 @@ def filtered_references(setup: FilterSetup, fcfg: FilterConfig, days: Sequence[D
     """:class:`Reference` of every reference step of ``days`` (filtered all at once), in order."""
     flt = assembly.activity_filter(setup.activity, setup.emission, fcfg)
     moved = [moved_objects(day, setup.household.objects) for day in days]
-    steps = [set(lk.reference_steps(day, horizons, first, last, stride)) for day in days]
+    steps = [set(relocation.reference_steps(day, horizons, first, last, stride)) for day in days]
     found: list[list[Reference]] = [[] for _ in days]
     belief = flt.start(len(days), weekdays=[d.weekday for d in days])
     for t in range(max((len(d) for d in days), default=0)):
@@ -309,13 +309,13 @@ def _reference(day: Day, r: int, peek: Belief, before: Belief, q: int, most: int
 
 def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterConfig, days: Sequence[Day],
                        masks: dict[str, list[bool]], horizons: int, first: int = 1, last: int | None = None,
-                       chunk: int = 512, stride: int = 1) -> lk.LookaheadRun:
+                       chunk: int = 512, stride: int = 1) -> relocation.LookaheadRun:
     """The lookahead's pairs when labels are partly hidden: the forecast at reference r mixes
     ``forecaster``'s forecasts from the filter's most probable histories
     (:func:`filtered_references`), weighted by their posterior. With every label visible it is
     the plain forecast. ``forecaster`` must forecast with the filter's activity model (its paths
     start from the filter's states)."""
-    run = lk.LookaheadRun.empty(horizons)
+    run = relocation.LookaheadRun.empty(horizons)
     refs = filtered_references(setup, fcfg, days, masks, horizons, first, last, stride)
     rows: dict = {}
     lo = 0
@@ -335,9 +335,9 @@ def filtered_lookahead(forecaster: Forecaster, setup: FilterSetup, fcfg: FilterC
         destination = mix(fcs.destination, owners, ranks, weights, len(part))
         activity = mix(fcs.trees.activity_matrix(), owners, ranks, weights, len(part))
         best, prob = first_locations(destination, fcs.targets, horizons)
-        top = lk.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
+        top = relocation.top_activities(activity, fcs.trees.names, forecaster.activity, horizons)
         scored = [(ref.day, ref.step) for ref in part]
-        lk.score_arrays(run, scored, best, prob, top, fcs.trees.names, fcs.locations, rows)
+        relocation.score_arrays(run, scored, best, prob, top, fcs.trees.names, fcs.locations, rows)
         lo = hi
     return run
 
@@ -381,7 +381,7 @@ def label_share_thresholds(setup: FilterSetup, config: GlobeConfig, memo: Memo,
 
 
 def hidden_cv_run(setup: FilterSetup, config: GlobeConfig, fraction: float, memo: Memo,
-                  setting: tuple[bool, bool, bool]) -> lk.LookaheadRun:
+                  setting: tuple[bool, bool, bool]) -> relocation.LookaheadRun:
     """The lookahead's pairs through the filter on held-out *training* days (contiguous folds,
     every ``cv_stride``-th reference) with ``fraction`` of their labels visible; each fold's
     activity model, movement model (of ``setting``: run end, run memory, next activity) and

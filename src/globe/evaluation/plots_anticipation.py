@@ -16,7 +16,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter  # noqa: E402
 
 from globe.evaluation.published import DataScope  # noqa: E402
-from globe.models.baselines import HOUR_ACTIVITY  # noqa: E402
+from globe.models.baselines import HOUR_ACTIVITY, ORACLE, ORACLE_LABEL  # noqa: E402
 
 # SLaTe-PRO's published object-usage F1 on HOMER+ (its own relocation metric, 10-60 minutes ahead)
 SLATE_PRO_OBJECT_F1 = {"without user queries": 0.57, "with user queries": 0.60}
@@ -37,8 +37,9 @@ def lookahead_figure(rows: Sequence[dict], scope: DataScope) -> Figure:
         color = f"C{i}"
         mean = [r for r in rows if r["method"] == method and r["household"] == "mean"]
         baseline = method in ("persistence", HOUR_ACTIVITY)
+        label = ORACLE_LABEL if method == ORACLE else f"baseline: {method}" if baseline else f"ours: {method}"
         ax.plot([r["horizon_min"] for r in mean], [r["f1"] for r in mean], marker="o", color=color,
-                linestyle="--" if baseline else "-", label=f"baseline: {method}" if baseline else f"ours: {method}")
+                linestyle=":" if method == ORACLE else "--" if baseline else "-", label=label)
         for hh in dict.fromkeys(r["household"] for r in rows if r["method"] == method and r["household"] != "mean"):
             mine = [r for r in rows if r["method"] == method and r["household"] == hh]
             ax.plot([r["horizon_min"] for r in mine], [r["f1"] for r in mine], color=color, alpha=0.25, linewidth=0.8)
@@ -58,10 +59,10 @@ def lookahead_figure(rows: Sequence[dict], scope: DataScope) -> Figure:
 def fetch_curve_figure(rows: Sequence[dict], target: tuple[float, float] = (0.40, 0.80)) -> Figure:
     """Fetch precision against recall over the policy's cost ratio, per household and pooled; the
     configured costs are circled and the target region is shaded. A baseline's rows (``method``
-    :data:`~globe.models.baselines.HOUR_ACTIVITY`) are drawn pooled only, dashed and named as the baseline."""
+    :data:`~globe.models.baselines.HOUR_ACTIVITY`) are drawn pooled only, dashed and named as the
+    baseline; the oracle's (:data:`~globe.models.baselines.ORACLE`) pooled only, dotted, named as such."""
     fig, ax = plt.subplots(figsize=(6.0, 4.6))
-    baseline = [r for r in rows if r.get("method") == HOUR_ACTIVITY]
-    policy = [r for r in rows if r.get("method") != HOUR_ACTIVITY]
+    policy = [r for r in rows if r.get("method") not in (HOUR_ACTIVITY, ORACLE)]
     for i, hh in enumerate(dict.fromkeys(r["household"] for r in policy)):
         mine = sorted((r for r in policy if r["household"] == hh), key=lambda r: r["threshold"])
         ax.plot([r["recall"] for r in mine], [r["precision"] for r in mine], marker=".", color=f"C{i}",
@@ -69,13 +70,16 @@ def fetch_curve_figure(rows: Sequence[dict], target: tuple[float, float] = (0.40
         for r in mine:
             if r["configured"]:
                 ax.scatter([r["recall"]], [r["precision"]], s=90, facecolors="none", edgecolors=f"C{i}", zorder=3)
-    pooled = sorted((r for r in baseline if r["household"] == "all"), key=lambda r: r["threshold"])
-    if pooled:
-        ax.plot([r["recall"] for r in pooled], [r["precision"] for r in pooled], marker=".", color="grey",
-                linestyle="--", linewidth=1.5, label="baseline: hour + activity (all households)")
+    for method, color, style, name in ((HOUR_ACTIVITY, "grey", "--", "baseline: hour + activity"),
+                                       (ORACLE, "black", ":", ORACLE_LABEL)):
+        pooled = sorted((r for r in rows if r.get("method") == method and r["household"] == "all"),
+                        key=lambda r: r["threshold"])
+        if pooled:
+            ax.plot([r["recall"] for r in pooled], [r["precision"] for r in pooled], marker=".", color=color,
+                    linestyle=style, linewidth=1.5, label=f"{name} (all households)")
         for r in pooled:
             if r["configured"]:
-                ax.scatter([r["recall"]], [r["precision"]], s=90, facecolors="none", edgecolors="grey", zorder=3)
+                ax.scatter([r["recall"]], [r["precision"]], s=90, facecolors="none", edgecolors=color, zorder=3)
     ax.axvspan(target[0], 1.0, ymin=target[1], ymax=1.0, color="green", alpha=0.08,
                label="target: P >= 0.80 at R >= 0.40")
     ax.set_xlim(0, 1)

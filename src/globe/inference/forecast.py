@@ -20,7 +20,7 @@ import numpy as np
 
 from globe.inference import _propagate
 from globe.inference.movements import MovementModel
-from globe.inference.paths import ActivityPaths, Roots, TreeBatch
+from globe.inference.paths import ActivityPaths, Roots, TreeBatch, known_trees
 from globe.models.base import check_is_fitted
 
 
@@ -215,56 +215,72 @@ class Forecaster:
     def forecast_roots(self, roots: Roots, locations: Sequence[Sequence[Sequence[str]]], horizon: int,
                        trees: TreeBatch | None = None) -> Forecasts:
         """Forecasts from paths starting at ``roots`` (or their ``trees``), each query's places
-        known at steps 0..m (``locations``). The objects that moved since the run under way at m-1
-        began are read from ``roots.duration`` (for hazards that remember them)."""
-        mv = self.movements
-        check_is_fitted(mv)
-        nj, nq = len(mv.objects_), len(locations)
-        memory = mv.hazard_.shape[3] == 2
-        starts = np.array([len(loc) - 1 for loc in locations], dtype=np.int64)
-        src = np.zeros((nq, nj), dtype=np.int64)
-        cells = np.zeros((nq, nj), dtype=np.int64)
-        seen = np.ones((nq, nj), dtype=bool)
-        earlier = np.zeros((nq, nj), dtype=bool)
-        if trees is None:
-            trees = self.trees(roots, horizon)
-        for q, rows in enumerate(locations):
-            m = len(rows) - 1
-            src[q], cells[q], seen[q] = mv.sources(rows[m])
-            begin = _run_start(roots, q, m) if memory else None
-            if begin is not None:  # the objects moved since the run under way began
-                for v in range(begin + 1, m + 1):
-                    if rows[v] != rows[v - 1]:
-                        earlier[q] |= np.array([x != y for x, y in zip(rows[v], rows[v - 1])])
-        translate = mv.activity_codes(trees.names)
-        targets, real, _ = mv.target_table()
-        departure = np.zeros((nq, horizon + 1, nj))
-        destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
-        if nj:  # a home with no object to track has activities to forecast, and nothing to move
-            self._propagate(trees, translate, src, cells, seen, earlier, departure, destination)
-        return Forecasts(starts, mv.objects_, mv.locations_, trees, departure, destination, targets, real)
+        known at steps 0..m (``locations``): :func:`propagate` over this model's paths."""
+        return propagate(self.movements, roots, locations, self.trees(roots, horizon) if trees is None else trees)
 
-    def _propagate(self, trees: TreeBatch, translate: np.ndarray, src: np.ndarray, cells: np.ndarray, seen: np.ndarray,
-                   earlier: np.ndarray, departure: np.ndarray, destination: np.ndarray) -> None:
-        """Fill ``departure`` and ``destination`` level by level over the paths of ``trees``
-        (:mod:`globe.inference._propagate`; every destination row the levels read is filled in
-        first)."""
-        mv = self.movements
-        hazard = mv.hazard_
-        nq, nsteps, nj = departure.shape
-        shape = (*hazard.shape, nj, nq, nsteps)
-        model = (hazard.reshape(-1), mv.object_hazard_, mv.switch_index_, mv.switch_seen_, mv.switch_moved_,
-                 cells, seen, earlier)
-        wanted = [(level.group_act, level.group_query) for level in trees.levels[1:]]
-        index, values = mv.fill_destination_rows(translate, src, wanted)
-        where = (nq, nsteps, nj, destination.shape[3], len(mv.locations_))
-        survive = np.ones((len(trees.levels[0].act) if trees.levels else 0, nj))
-        for i, level in enumerate(trees.levels[1:], start=1):
-            nodes = (level.query, translate[level.up], level.dur_up, level.ends, level.first_up, translate[level.act],
-                     level.parent, level.weight, level.group)
-            after = np.empty((len(level.act), nj))
-            per = np.zeros((len(level.group_query), nj))
-            _propagate.level(shape, float(mv.hazard_shrinkage), model, nodes, survive, after, per, departure, i - 1)
-            _propagate.destinations(where, per, level.group_query, translate[level.group_act], src, index, values,
-                                    destination, i - 1)
-            survive = after
+
+def forecast_known(movements: MovementModel, queries: Sequence[Query], futures: Sequence[Sequence[str]],
+                   horizon: int) -> Forecasts:
+    """Movements forecast along the activities each query is told lie ahead (``futures[q]``: those at
+    steps m..m+horizon+1): the *oracle* that knows the true activity, whose movements alone are
+    predicted (:func:`~globe.inference.paths.known_trees`). What perfect activity knowledge would give."""
+    histories = [a for a, _ in queries]
+    trees, roots = known_trees(histories, [len(loc) - 1 for _, loc in queries], futures, horizon)
+    return propagate(movements, roots, [loc for _, loc in queries], trees)
+
+
+def propagate(mv: MovementModel, roots: Roots, locations: Sequence[Sequence[Sequence[str]]],
+              trees: TreeBatch) -> Forecasts:
+    """The objects' first departures and destinations along the weighted paths of ``trees`` (from
+    ``roots``), each query's places known at steps 0..m (``locations``). The objects that moved
+    since the run under way at m-1 began are read from ``roots.duration`` (for hazards that
+    remember them)."""
+    check_is_fitted(mv)
+    horizon = trees.horizon
+    nj, nq = len(mv.objects_), len(locations)
+    memory = mv.hazard_.shape[3] == 2
+    starts = np.array([len(loc) - 1 for loc in locations], dtype=np.int64)
+    src = np.zeros((nq, nj), dtype=np.int64)
+    cells = np.zeros((nq, nj), dtype=np.int64)
+    seen = np.ones((nq, nj), dtype=bool)
+    earlier = np.zeros((nq, nj), dtype=bool)
+    for q, rows in enumerate(locations):
+        m = len(rows) - 1
+        src[q], cells[q], seen[q] = mv.sources(rows[m])
+        begin = _run_start(roots, q, m) if memory else None
+        if begin is not None:  # the objects moved since the run under way began
+            for v in range(begin + 1, m + 1):
+                if rows[v] != rows[v - 1]:
+                    earlier[q] |= np.array([x != y for x, y in zip(rows[v], rows[v - 1])])
+    translate = mv.activity_codes(trees.names)
+    targets, real, _ = mv.target_table()
+    departure = np.zeros((nq, horizon + 1, nj))
+    destination = np.zeros((nq, horizon + 1, nj, targets.shape[1]))
+    if nj:  # a home with no object to track has activities to forecast, and nothing to move
+        _levels(mv, trees, translate, src, cells, seen, earlier, departure, destination)
+    return Forecasts(starts, mv.objects_, mv.locations_, trees, departure, destination, targets, real)
+
+
+def _levels(mv: MovementModel, trees: TreeBatch, translate: np.ndarray, src: np.ndarray, cells: np.ndarray,
+            seen: np.ndarray, earlier: np.ndarray, departure: np.ndarray, destination: np.ndarray) -> None:
+    """Fill ``departure`` and ``destination`` level by level over the paths of ``trees``
+    (:mod:`globe.inference._propagate`; every destination row the levels read is filled in
+    first)."""
+    hazard = mv.hazard_
+    nq, nsteps, nj = departure.shape
+    shape = (*hazard.shape, nj, nq, nsteps)
+    model = (hazard.reshape(-1), mv.object_hazard_, mv.switch_index_, mv.switch_seen_, mv.switch_moved_,
+             cells, seen, earlier)
+    wanted = [(level.group_act, level.group_query) for level in trees.levels[1:]]
+    index, values = mv.fill_destination_rows(translate, src, wanted)
+    where = (nq, nsteps, nj, destination.shape[3], len(mv.locations_))
+    survive = np.ones((len(trees.levels[0].act) if trees.levels else 0, nj))
+    for i, level in enumerate(trees.levels[1:], start=1):
+        nodes = (level.query, translate[level.up], level.dur_up, level.ends, level.first_up, translate[level.act],
+                 level.parent, level.weight, level.group)
+        after = np.empty((len(level.act), nj))
+        per = np.zeros((len(level.group_query), nj))
+        _propagate.level(shape, float(mv.hazard_shrinkage), model, nodes, survive, after, per, departure, i - 1)
+        _propagate.destinations(where, per, level.group_query, translate[level.group_act], src, index, values,
+                                destination, i - 1)
+        survive = after

@@ -225,3 +225,45 @@ class ActivityPaths:
                                     gkeys // (width + 1), gkeys % (width + 1) - 1))
             up_act, up_dur, up_first, up_node_of = act, dur, first, node_of_entry
         return TreeBatch(nq, horizon, tuple(levels), space.labels)
+
+
+def known_trees(histories: Sequence[Sequence[str]], starts: Sequence[int], futures: Sequence[Sequence[str]],
+                horizon: int) -> tuple[TreeBatch, Roots]:
+    """One path of weight 1 per query: the activities ``futures[q]`` at steps m..m+horizon+1
+    (m = ``starts[q]``; one short of that is padded with its last activity). What the forecaster
+    is told by an *oracle* that knows the true activity ahead, laid out as :meth:`ActivityPaths.trees`
+    lays out a model's paths (codes of a vocabulary of the labels named; ``roots`` carries the
+    run under way at m-1 as :meth:`ActivityPaths.roots` does, without a model's state)."""
+    nq = len(histories)
+    names = Vocabulary(sorted({a for h in histories for a in h} | {a for f in futures for a in f}))
+    prev = np.full(nq, -1, dtype=np.int64)
+    duration = np.full(nq, -1, dtype=np.int64)
+    path = np.zeros((nq, horizon + 2), dtype=np.int64)
+    for q, (h, m, future) in enumerate(zip(histories, starts, futures)):
+        if not future:
+            raise ValueError(f"query {q}: no activity ahead to follow")
+        if 1 <= m <= len(h):
+            a, d = h[m - 1], 0
+            while d < m - 1 and h[m - 2 - d] == a:
+                d += 1
+            prev[q], duration[q] = names.index(a), d
+        codes = names.indices(future[: horizon + 2])
+        path[q] = codes + [codes[-1]] * (horizon + 2 - len(codes))
+    heads = np.array([names.index(h[m]) if len(h) > m else -1 for h, m in zip(histories, starts)], dtype=np.int64)
+    query, ones, same_query = np.arange(nq), np.ones(nq), np.arange(nq)
+    levels: list[TreeLevel] = []
+    up, dur_up, first_up = prev, duration, np.ones(nq, dtype=bool)
+    for i in range(horizon + 2 if nq else 0):
+        act = path[:, i]
+        same = act == up
+        dur = np.where(same, dur_up + 1, 0)
+        first = first_up & same
+        levels.append(TreeLevel(query, act, ones, dur, first, same_query, up, dur_up, first_up, ~same, same_query,
+                                query, up.copy()))
+        up, dur_up, first_up = act, dur, first
+    batch = TreeBatch(nq, horizon, tuple(levels), names)
+    return batch, Roots(_NO_SPACE, np.zeros(nq, dtype=np.int64), prev, duration,
+                        heads if nq and (heads >= 0).all() else None)
+
+
+_NO_SPACE: Any = None  # the roots of known paths belong to no model's state space

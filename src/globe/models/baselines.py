@@ -17,6 +17,14 @@ HOUR_ACTIVITY = "hour_activity"
 """The name of the hour + activity rows in every results table (Table I, the lookahead, the fetch
 policy): the activity and object baselines of this module."""
 
+ORACLE = "oracle"
+"""The name of the oracle rows of the lookahead and the fetch policy: the movement model told the
+true activity of every step ahead (:func:`globe.inference.forecast.forecast_known`). No rule a
+robot can follow: the ceiling perfect activity knowledge gives, shown beside the baselines."""
+
+ORACLE_LABEL = "oracle: true activity (not deployable)"
+"""How tables and plots name the oracle rows."""
+
 
 class PersistenceModel(ActivityModelBase):
     """"The activity stays the same": the floor every activity model must clear.
@@ -293,6 +301,25 @@ class HourActivityObjects:
         return ranked[0] if ranked else None
 
 
+SINCE_MINUTES = (30, 120)
+"""The clock-aware object model's bands of time since an object's last use that day: not yet
+used today, under 30 minutes, under two hours, longer."""
+
+
+def minutes_since_use(used: np.ndarray, minutes: Sequence[int]) -> np.ndarray:
+    """(steps x objects): minutes from each object's last use at or before each step of a day
+    (``used``: steps x objects, bool) to that step's clock minute; -1 before its first use."""
+    steps = np.arange(len(used))[:, None]
+    last = np.maximum.accumulate(np.where(used, steps, -1), axis=0) if len(used) else np.zeros_like(used, dtype=int)
+    clock = np.asarray(minutes, dtype=float)
+    return np.where(last >= 0, clock[:, None] - clock[np.maximum(last, 0)], -1.0)
+
+
+def since_band(since: np.ndarray) -> np.ndarray:
+    """The band of :data:`SINCE_MINUTES` of each minutes-since-use (0: not used yet that day)."""
+    return np.where(since < 0, 0, 1 + np.searchsorted(np.asarray(SINCE_MINUTES), since, side="right"))
+
+
 class HourActivityAhead:
     """P(an object's event within each of ``horizons`` windows | the current activity, the clock
     slot), counted directly from reference steps of training days: the lookahead's and the fetch
@@ -300,47 +327,92 @@ class HourActivityAhead:
     the caller's: :meth:`add` takes the outcomes). The same shrinkage as
     :class:`HourActivityObjects`: (activity, slot) -> activity -> every reference, each level a
     share of the references it counted for that object (one in use is not asked whether it will
-    be taken)."""
+    be taken).
+
+    With ``clock=True`` it is the *clock-aware* object model, two levels deeper: the day type
+    (weekday or weekend, when days are dated), then the time since each object's last use that
+    day (:data:`SINCE_MINUTES`), each shrunk towards the level above with the same small ``k``,
+
+        P(o | a, slot, type, band_o) = (n(a, slot, type, band_o; o) + k P(o | a, slot, type))
+                                       / (refs(a, slot, type, band_o; o) + k)
+
+    so a cell seen a few times moves the estimate a little and an unseen one leaves it as is: a
+    home whose uses follow the hour, the day of the week or a pause after each use is told apart
+    from one whose uses follow the activity alone only when the training days show it."""
 
     def __init__(self, objects: Sequence[str], horizons: int, *, slot_minutes: int = 60,
-                 shrinkage: float = 0.5) -> None:
+                 shrinkage: float = 0.5, clock: bool = False) -> None:
         self.objects = tuple(objects)
         self.horizons = horizons
         self.slot_minutes = slot_minutes
         self.shrinkage = shrinkage
+        self.clock = clock
         self._shape = (horizons, len(self.objects))
         self._events: dict[object, np.ndarray] = {None: np.zeros(self._shape)}
         self._refs: dict[object, np.ndarray] = {None: np.zeros(len(self.objects))}  # per object
-        self._answers: dict[tuple[str, int], np.ndarray] = {}
+        self._answers: dict[tuple, np.ndarray] = {}
+
+    def _keys(self, activity: str, minute: int, weekday: int | None) -> list[object]:
+        """The levels a reference counts in, coarsest first (the day type only for a dated day)."""
+        slot = minute // self.slot_minutes
+        keys: list[object] = [None, activity, (activity, slot)]
+        if self.clock and weekday is not None:
+            keys.append((activity, slot, weekday >= 5))
+        return keys
 
     def add(self, activities: Sequence[str], minutes: Sequence[int], events: np.ndarray,
-            counted: np.ndarray | None = None) -> "HourActivityAhead":
+            counted: np.ndarray | None = None, weekday: int | None = None,
+            since: np.ndarray | None = None) -> "HourActivityAhead":
         """Count references: the activity and clock minute of each, ``events`` (references x
         horizons x objects, bool: the object's event happened within that window) and ``counted``
-        (references x objects: which objects each reference asks about; default all)."""
+        (references x objects: which objects each reference asks about; default all); for the
+        clock-aware model, the day's ``weekday`` (None: undated) and ``since`` (references x
+        objects: :func:`minutes_since_use`)."""
         events = np.asarray(events, dtype=float)
         asked = np.ones((len(events), len(self.objects))) if counted is None else np.asarray(counted, dtype=float)
-        for a, m, ev, c in zip(activities, minutes, events, asked):
-            for key in (None, a, (a, m // self.slot_minutes)):
-                got = self._events.get(key)
-                if got is None:
-                    self._events[key], self._refs[key] = ev.copy(), c.copy()
-                else:
-                    got += ev
-                    self._refs[key] += c
+        bands = since_band(np.asarray(since)) if self.clock and since is not None else None
+        for i, (a, m, ev, c) in enumerate(zip(activities, minutes, events, asked)):
+            keys = self._keys(a, m, weekday)
+            for key in keys:
+                self._count(key, ev, c)
+            if bands is not None:
+                for b in np.unique(bands[i]).tolist():
+                    mine = bands[i] == b
+                    self._count((keys[-1], b), ev * mine, c * mine)
         self._answers.clear()
         return self
 
-    def proba(self, activity: str, minute: int) -> np.ndarray:
-        """(horizons x objects): P(the event within each window). Shared: read only."""
-        slot = minute // self.slot_minutes
-        found = self._answers.get((activity, slot))
+    def _count(self, key: object, events: np.ndarray, refs: np.ndarray) -> None:
+        got = self._events.get(key)
+        if got is None:
+            self._events[key], self._refs[key] = events.copy(), refs.copy()
+        else:
+            got += events
+            self._refs[key] += refs
+
+    def proba(self, activity: str, minute: int, weekday: int | None = None,
+              since: np.ndarray | None = None) -> np.ndarray:
+        """(horizons x objects): P(the event within each window) for ``activity`` under way at
+        clock ``minute`` (the clock-aware model also reads the day's ``weekday`` and each
+        object's minutes ``since`` its last use). Shared: read only."""
+        keys = self._keys(activity, minute, weekday)
+        found = self._answers.get(tuple(keys))
         if found is None:
             k = self.shrinkage
             n = self._refs[None]
             p = np.divide(self._events[None], n, out=np.zeros(self._shape), where=n > 0)
-            for key in (activity, (activity, slot)):
+            for key in keys[1:]:
                 if key in self._refs:
                     p = (self._events[key] + k * p) / (self._refs[key] + k)
-            found = self._answers[(activity, slot)] = p
-        return found
+            found = self._answers[tuple(keys)] = p
+        if not self.clock or since is None:
+            return found
+        bands = since_band(np.asarray(since))
+        out = found.copy()
+        for b in np.unique(bands).tolist():
+            key = (keys[-1], b)
+            if key in self._refs:
+                cols = bands == b
+                out[:, cols] = (self._events[key][:, cols] + self.shrinkage * out[:, cols]) / (self._refs[key][cols]
+                                                                                              + self.shrinkage)
+        return out
