@@ -22,7 +22,7 @@ from typing import Callable, Iterator, Sequence
 from globe.data.records import Day, Household
 from globe.inference.fetch_policy import FetchReport
 from globe.session import Decision, HouseholdSession, Observation
-from globe.session.session import Settled
+from globe.session.records import Settled
 
 
 @dataclass(frozen=True, slots=True)

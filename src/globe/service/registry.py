@@ -40,19 +40,17 @@ from globe.models.io import model_to_dict
 from globe.reasoning.backends.base import LLMBackend
 from globe.service import scoring, timepolicy
 from globe.service.deploying import Selections, choose_recognition
+from globe.service.prediction import prediction
 from globe.service.rebuild import Pending, check_limits, rebuild
 from globe.service.schema import FoundObservation, HouseholdRow
 from globe.service.schemas import (
     FeedbackCounts,
-    FetchOut,
     HouseholdInfo,
     ModelOut,
     ModelSettings,
     ObservationAck,
     OnlineScores,
     Prediction,
-    QuestionOut,
-    RecognisedOut,
     ShadowOut,
     StatsOut,
     check_household_name,
@@ -60,7 +58,7 @@ from globe.service.schemas import (
 from globe.service.store import Store
 from globe.service.stored_days import DayEncoding
 from globe.service.upload import household_from, parse_nodes, sensors_from
-from globe.session import Decision, HouseholdSession, Observation, build_session, session_grid
+from globe.session import HouseholdSession, Observation, build_session, session_grid
 from globe.session.build import deployment_summary, new_activities_rule
 from globe.session.sensing import SensorEvent, settings_to_dict
 
@@ -559,28 +557,6 @@ class Registry:
     def built(self) -> int:
         with self._lock:
             return sum(s.session is not None for s in self._served.values())
-
-
-def prediction(d: Decision, shadow: bool, clock: str | None = None) -> Prediction:
-    """The service's answer for a decision: ``act`` only outside shadow mode (``clock``: the
-    question's step as HH:MM)."""
-    choice = d.choice
-    first = d.fetches[0] if d.fetches else None
-    return Prediction(status=d.status, days_learned=d.days_learned, day=d.day, step=d.step, activity=d.activity,
-                      activity_probability=d.activity_probability, object=choice.obj if choice else None,
-                      object_probability=choice.confidence if choice else 0.0,
-                      llm_consulted=bool(choice and choice.asked), llm_fallback=choice.fallback if choice else None,
-                      act=first is not None and not shadow, fetch_object=first.obj if first else None,
-                      fetch_to=first.to_location if first else None,
-                      fetch_probability=first.probability if first else None,
-                      fetches=[FetchOut(object=c.obj, to=c.to_location, probability=c.probability) for c in d.fetches],
-                      shadow=shadow,
-                      recognised=RecognisedOut(activity=d.recognised[0], probability=d.recognised[1])
-                      if d.recognised else None,
-                      labelled_steps=d.labelled_steps, recognised_steps=d.recognised_steps,
-                      question=None if d.question is None else QuestionOut(
-                          day=d.question.day, step=d.question.step, time=clock or "",
-                          activities=[RecognisedOut(activity=a, probability=p) for a, p in d.question.options]))
 
 
 def _same_observation(found: FoundObservation, time: dt.datetime, activity: str | None, locations: Mapping[str, str],

@@ -16,7 +16,7 @@ from globe.service.schema import SCORE_COLUMNS, DayScore
 from globe.service.schemas import OnlineScores
 from globe.service.store import Store
 from globe.session import HouseholdSession
-from globe.session.session import Settled
+from globe.session.records import Settled
 
 Statement = tuple[str, tuple]
 

@@ -19,7 +19,7 @@ import math
 import sqlite3
 import threading
 import time
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
@@ -42,6 +42,7 @@ from globe.service.schema import (
     TokenRow,
 )
 from globe.service.stored_days import decode_day, encode_day
+from globe.service.writes import Write, inserted_row
 
 log = logging.getLogger(__name__)
 
@@ -50,36 +51,6 @@ _NODE_FIELDS = tuple(f.name for f in fields(Node))
 
 def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat()
-
-
-def _inserted_row(sql: str, cursor: sqlite3.Cursor) -> int:
-    """The row id a plain INSERT added; 0 for any other statement (SQLite's last row id would
-    then be another statement's, perhaps another caller's in the same commit)."""
-    plain = sql.lstrip()[:12].upper() == "INSERT INTO " and "ON CONFLICT" not in sql.upper()
-    return (cursor.lastrowid or 0) if plain and cursor.rowcount == 1 else 0
-
-
-@dataclass(slots=True, eq=False)
-class _Write:
-    """One caller's transaction, queued for the next commit."""
-
-    what: str
-    statements: Sequence[tuple[str, tuple]]
-    household: str | None
-    row: int = 0  # the row id a plain INSERT as first statement added
-    changed: int = 0  # how many rows the first statement changed
-    error: Exception | None = None
-    done: bool = False
-
-    @staticmethod
-    def settle(batch: list[_Write], error: Callable[[_Write], Exception | None],
-               cause: Exception | None = None) -> None:
-        """Settle every write of ``batch`` with its own error (None: committed)."""
-        for w in batch:
-            w.error = error(w)
-            if w.error is not None and cause is not None:
-                w.error.__cause__ = cause
-            w.done = True
 
 
 class Store:
@@ -99,7 +70,7 @@ class Store:
         check_database_file(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
-        self._queue: list[_Write] = []  # writes waiting for the next commit (group commit)
+        self._queue: list[Write] = []  # writes waiting for the next commit (group commit)
         self._queued = threading.Condition(threading.Lock())  # guards the queue and _committing
         self._committing = False
         self._lost: str | None = None  # why writes stopped for good (a file went away), once seen
@@ -212,9 +183,9 @@ class Store:
         log for all instead of one each); each caller returns once its own write is durable."""
         return self._write(what, statements, household).row
 
-    def _write(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> _Write:
+    def _write(self, what: str, statements: Sequence[tuple[str, tuple]], household: str | None = None) -> Write:
         """:meth:`_transaction`, returning the settled write."""
-        write = _Write(what, statements, household)
+        write = Write(what, statements, household)
         with self._queued:
             self._queue.append(write)
             try:
@@ -233,7 +204,7 @@ class Store:
                     self._commit(batch)
             finally:
                 with self._queued:
-                    _Write.settle([w for w in batch if not w.done],
+                    Write.settle([w for w in batch if not w.done],
                                   lambda w: StoreError(f"cannot {w.what}: the commit was interrupted"))
                     self._committing = False
                     self._queued.notify_all()
@@ -241,7 +212,7 @@ class Store:
             raise write.error
         return write
 
-    def _commit(self, batch: list[_Write]) -> None:
+    def _commit(self, batch: list[Write]) -> None:
         """(Under the lock.) ``batch`` in one transaction. A statement that fails (a constraint,
         a value SQLite cannot take) fails only its own write: the batch is rolled back and each
         write committed alone. A failing BEGIN or COMMIT (a full disk, a locked file) fails all."""
@@ -249,7 +220,7 @@ class Store:
             self._writable()
         except StoreUnavailableError as err:
             refused = str(err)
-            return _Write.settle(batch, lambda w: StoreUnavailableError(refused))
+            return Write.settle(batch, lambda w: StoreUnavailableError(refused))
         db = self._db
         try:
             db.execute("BEGIN IMMEDIATE")
@@ -260,7 +231,7 @@ class Store:
                 for i, (sql, params) in enumerate(w.statements):
                     cursor = db.execute(sql, params)
                     if i == 0:
-                        w.row, w.changed = _inserted_row(sql, cursor), cursor.rowcount
+                        w.row, w.changed = inserted_row(sql, cursor), cursor.rowcount
         except Exception as err:  # noqa: BLE001 - whatever one write's statements raise fails that write alone
             if db.in_transaction:  # some errors (a full disk) roll back on their own
                 db.execute("ROLLBACK")
@@ -279,14 +250,14 @@ class Store:
             self._shadows.pop(w.household or "", None)
         self._failed_write = None
         if self._check_files() and not self._files.database_intact():  # the log was lost with this commit in it
-            return _Write.settle(batch, lambda w: StoreUnavailableError(
+            return Write.settle(batch, lambda w: StoreUnavailableError(
                 f"{self._lost}; cannot {w.what} durably (restart the service)"))
-        return _Write.settle(batch, lambda w: None)
+        return Write.settle(batch, lambda w: None)
 
-    def _failed(self, batch: list[_Write], err: Exception) -> None:
+    def _failed(self, batch: list[Write], err: Exception) -> None:
         if isinstance(err, sqlite3.Error):
             self._note_failure(batch[0].what if len(batch) == 1 else f"{len(batch)} writes", err)
-        _Write.settle(batch, lambda w: StoreError(f"cannot {w.what}: {err}"), err)
+        Write.settle(batch, lambda w: StoreError(f"cannot {w.what}: {err}"), err)
 
     def _note_failure(self, what: str, err: sqlite3.Error) -> None:
         """A write that failed for the database's sake (not a constraint): reported by /health."""

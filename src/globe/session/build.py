@@ -15,8 +15,9 @@ from globe.inference.activity_filter import ActivityFilter
 from globe.reasoning.backends.base import LLMBackend
 from globe.recognition.recogniser import RecognitionSettings
 from globe.session.grid import DayGrid, check_grid, household_grid
+from globe.session.records import NewActivities
 from globe.session.sensing import SessionSensors
-from globe.session.session import HouseholdSession, NewActivities
+from globe.session.session import HouseholdSession
 
 
 def session_grid(household: Household, config: GlobeConfig, stored: DayGrid | None = None) -> DayGrid:

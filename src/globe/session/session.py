@@ -45,8 +45,7 @@ import datetime as dt
 import sys
 import threading
 from collections import Counter
-from dataclasses import dataclass
-from typing import Any, Literal, Mapping, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -56,82 +55,28 @@ from globe.data.labels import known_activity
 from globe.data.records import IN_USE_CLASS, Day, Household
 from globe.data.sensors import SensorDay
 from globe.errors import DataError, UnknownLabelError
-from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts, smoothed
+from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
 from globe.inference.emission import MovementEmission
 from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches, left_alone
 from globe.inference.forecast import Forecast, mixture
 from globe.models.base import ActivityModelBase, stay_or_change
-from globe.reasoning.choice import ObjectChoice, ObjectChooser, run_context
-from globe.recognition.asking import DayAsker, worth
-from globe.recognition.recogniser import spread_answers
+from globe.reasoning.choice import ObjectChooser, run_context
+from globe.recognition.asking import DayAsker
 from globe.sequences.movements import Alignment, used_between
 from globe.sequences.runs import activity_runs
 from globe.session.grid import DayGrid
+from globe.session.recognising import SensorSteps
+from globe.session.records import Decision, NewActivities, Observation, Placement, Settled
 from globe.session.sensing import (
-    MAX_OPTIONS,
     Question,
-    SensorEvent,
     SessionSensors,
     seconds_after_midnight,
 )
 
 UTC = dt.timezone.utc
-NewActivities = Literal["refuse", "learn"]
 
 
-@dataclass(frozen=True, slots=True)
-class Observation:
-    time: dt.datetime  # in the household's zone (aware), or its wall time (naive)
-    activity: str | None  # None: unknown at this step
-    locations: Mapping[str, str]  # object -> location (may be partial: the others keep their last place)
-    sensors: Sequence[SensorEvent] = ()  # sensor activations reported with it (a household with sensors)
-
-
-@dataclass(frozen=True, slots=True)
-class Placement:
-    """Where an observation lands: its day, its step on the clock, and whether it opens a new step."""
-
-    day: str
-    step: int
-    new_step: bool
-
-
-@dataclass(frozen=True, slots=True)
-class Decision:
-    """What the session says after the last observed step: the next activity, the object likely
-    needed, and what to fetch now (most likely useful first)."""
-
-    status: str  # "learning" until a first day is learned, then "ready"
-    days_learned: int
-    day: str
-    step: int  # the step predicted: the one after the last observed step
-    activity: str | None
-    activity_probability: float
-    choice: ObjectChoice | None
-    fetches: tuple[FetchCandidate, ...]
-    candidates: tuple[FetchCandidate, ...] = ()  # every candidate fetch (for the evaluation's cost curve)
-    left_alone: frozenset[str] = frozenset()  # objects no fetch could touch (in use, just put back)
-    recognised: tuple[str, float] | None = None  # the activity under way recognised (its step had no label)
-    labelled_steps: int = 0  # today's steps with a label (answers included)
-    recognised_steps: int = 0  # today's steps whose activity was recognised from the sensors (no label)
-    question: Question | None = None  # "what are you doing?" at the last observed step
-
-
-@dataclass(frozen=True, slots=True)
-class Settled:
-    """What one observation settles (:meth:`HouseholdSession.settle`), for the day under way
-    before it (``day``): the step it closes, whether its one-step prediction was right and the
-    label it had, the fetches of the day when it starts a new one, and the one-step prediction of
-    the step it opens (step, activity, probability)."""
-
-    day: str | None
-    scored: tuple[int, bool] | None = None
-    observed: tuple[int, str] | None = None
-    fetches: FetchReport | None = None
-    opened: tuple[int, str, float] | None = None
-
-
-class HouseholdSession:
+class HouseholdSession(SensorSteps):
     """The online loop of one household (see module doc; thread-safe: one lock serialises it)."""
 
     def __init__(self, household: Household, *, activity: ActivityModelBase, chooser: ObjectChooser,
@@ -176,6 +121,7 @@ class HouseholdSession:
         self._sensor_day: SensorDay | None = None  # today's sensor activations, as read (None: to read again)
         self._asker: DayAsker | None = None  # today's questions (a household with sensors and a budget)
         self._question: Question | None = None  # the last question asked today
+        self._recognition: tuple[tuple, list[tuple[str, float] | None]] | None = None  # recognised_today's, by state
         self._open(None)
 
     # -- validation ------------------------------------------------------------------------
@@ -203,20 +149,6 @@ class HouseholdSession:
                 raise UnknownLabelError(f"unknown location {loc[:64]!r} for {obj!r}", field=f"locations.{obj}")
         if obs.sensors:
             self.validate_sensors(obs.sensors)
-
-    def validate_sensors(self, events: Sequence[SensorEvent]) -> None:
-        """Sensor events name the household's sensors and end no earlier than they start."""
-        if self.sensing is None:
-            raise DataError(f"household {self.household.name} has no sensors (create it with its sensors to send "
-                            "sensor events)", field="sensors")
-        for i, event in enumerate(events):
-            if event.sensor not in self.sensing.index:
-                known = ", ".join(s.name for s in self.sensing.sensors[:20])
-                raise UnknownLabelError(f"unknown sensor {event.sensor[:64]!r} (the household's sensors: {known})",
-                                        field=f"sensors[{i}].sensor")
-            if _instant(event.end) < _instant(event.start):
-                raise DataError(f"sensor event ends ({event.end.isoformat()}) before it starts "
-                                f"({event.start.isoformat()})", field=f"sensors[{i}].end")
 
     def activity_label(self, raw: str) -> str:
         """The one label rule (:func:`globe.data.labels.known_activity`): an activity this household
@@ -262,11 +194,15 @@ class HouseholdSession:
                 self._uses.append(frozenset())
         if activity is not None:
             self._labels[step] = activity
+        evidence = step  # the first step whose evidence this observation changes
         if obs.sensors and self.sensing is not None:
             index = self.sensing.index
             self._events += [(index[e.sensor], seconds_after_midnight(e.start, day), seconds_after_midnight(e.end, day))
                              for e in obs.sensors]
             self._sensor_day = None
+            first_day, first = min(self.grid.place(e.start) for e in obs.sensors)
+            if first_day <= day:  # activations reported late are the evidence of the steps they began in
+                evidence = min(step, max(0, first) if first_day == day else 0)
         if obs.locations:
             state = list(self._states[step])
             for obj, loc in obs.locations.items():
@@ -278,27 +214,11 @@ class HouseholdSession:
         self._looked[step] = True
         if step and self._looked[step - 1]:
             self._uses[step] = self.moved(step)
-        self._stale = step if self._stale is None else min(self._stale, step)
+        self._stale = evidence if self._stale is None else min(self._stale, evidence)
         self._last_instant = _instant(obs.time)
         self.observations += 1
         self._consult(step)
         return Placement(day, step, True)
-
-    def _consult(self, step: int) -> None:
-        """Ask the question policy about ``step`` when it has no label (after each observation, so a
-        replay of the same observations asks the same questions)."""
-        if self._asker is None or self._filter is None or self._labels[step] is not None:
-            return
-        belief = self._filtered()
-        if belief is None or belief.step != step:
-            return
-        post = self._filter.posterior(belief)[0]
-        self._worths[step] = float(worth(post))
-        if self._asker(step, post):
-            names = list(self._filter.labels)
-            order = np.argsort(-post, kind="stable")[:MAX_OPTIONS]
-            options = tuple((names[int(i)], float(post[i])) for i in order if post[i] > 0)
-            self._question = Question(self._day or "", step, options)
 
     def _filtered(self) -> Belief | None:
         """The activity filter's belief after the last observed step (None before a first day is
@@ -321,36 +241,6 @@ class HouseholdSession:
                     kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved], likelihood=like))
             self._beliefs, self._stale = kept, None
         return self._beliefs[-1]
-
-    def _today_events(self) -> SensorDay:
-        """Today's sensor activations so far (seconds after today's midnight)."""
-        if self._sensor_day is None:
-            self._sensor_day = SensorDay.of(self._day or "", self._events)
-        return self._sensor_day
-
-    def recognised(self) -> tuple[str, float] | None:
-        """The activity under way at the last observed step and its probability, recognised from
-        the sensors (and movements) where the step has no label; None otherwise."""
-        if self.sensing is None or not self._labels or self._labels[-1] is not None:
-            return None
-        belief = self._filtered()
-        if self._filter is None or belief is None or belief.step < 0:
-            return None
-        post = self._filter.posterior(belief)[0]
-        best = int(np.argmax(post))
-        return self._filter.labels[best], float(post[best])
-
-    def question(self) -> Question | None:
-        """The question asked at the last observed step, while it has no answer (None: none)."""
-        q = self._question
-        if q is None or q.day != self._day or q.step != len(self._labels) - 1 or self._labels[q.step] is not None:
-            return None
-        return q
-
-    def step_counts(self) -> tuple[int, int]:
-        """(today's labelled steps, today's steps recognised from the sensors) up to the last observed."""
-        labelled = sum(a is not None for a in self._labels)
-        return labelled, (len(self._labels) - labelled if self.sensing is not None and self._filter is not None else 0)
 
     def moved(self, step: int) -> frozenset[str]:
         """The objects used at ``step``: its place differs from the step before's, and it was not
@@ -604,6 +494,8 @@ class HouseholdSession:
         self._sensor_day = None
         self._asker = None
         self._question = None
+        self._asked: list[int] = []  # today's steps asked about
+        self._recognition = None
         self._worths: dict[int, float] = {}  # per unlabelled step, the worth of asking there
         if self.days_learned > 0:
             self._filter = ActivityFilter(self.activity_model, self.emission, max_hypotheses=self.max_hypotheses,
@@ -621,23 +513,6 @@ class HouseholdSession:
         labelled = sum(a is not None for a in self._labels)
         if self.learning and len(self._labels) >= 2 and 2 * labelled >= len(self._labels):
             self.learn([self.current_day()])
-
-    def _learn_sensors(self) -> None:
-        """The sensor emission counts the finished day's labelled steps, each label spread over the
-        stretch read (with hindsight) as one activity; its worths of asking join the reference."""
-        sensing = self.sensing
-        if sensing is None or not self._labels:
-            return
-        if self._worths:
-            sensing.add_reference([self._worths[t] for t in sorted(self._worths)])
-        if all(a is None for a in self._labels):
-            return
-        labels: list[str | None] = list(self._labels)
-        belief = self._filtered() if None in labels else None
-        if belief is not None and self._filter is not None and belief.step == len(labels) - 1:
-            labels = spread_answers(smoothed(self._filter, belief)[0].argmax(axis=1).tolist(), labels)
-        minutes = [self.grid.minute(t) for t in range(len(labels))]
-        sensing.learn([sensing.features(self._today_events(), minutes)], [labels])
 
     def learn(self, days: Sequence[Day]) -> None:
         """Add whole days to every model (the same counts as training on them from the start)."""
