@@ -191,3 +191,31 @@ def test_the_live_part_refreshes_without_reloading_the_page(driver, service, hou
     assert driver.execute_script("return window.loadedOnce") == 42
     assert "household A" in driver.find_element(By.CLASS_NAME, "who").text
     no_console_errors(driver)
+
+
+def test_a_household_with_sensors_shows_recognition_and_fits_a_phone(driver, service):
+    """The recognised lane, the recognised column and today's counts still fit a 390 px phone."""
+    import httpx
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support import expected_conditions as ec
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    from tests.service.test_sensor_households import create_body, observations
+    from tests.simulated_sensors import sensor_home
+
+    home = sensor_home(days=6, test=2, step=10)
+    day = home[0].test[0]
+    auth = {"Authorization": f"Bearer {service.admin}"}
+    r = httpx.post(service.url + "/households", json=create_body(home), headers=auth, timeout=60)
+    assert r.status_code == 201, r.text
+    for t, obs in enumerate(observations(home, day, BASE + dt.timedelta(days=2), 20)):
+        body = {**obs, "activity": day.activities[t]} if t % 4 == 0 else obs
+        assert httpx.post(service.url + "/households/S/observations", json=body, headers=auth).status_code == 201
+    log_in(driver, service.url, service.admin)
+    WebDriverWait(driver, 10).until(ec.url_contains("/dashboard/households"))
+    driver.get(service.url + "/dashboard/households/S")
+    WebDriverWait(driver, 10).until(ec.presence_of_element_located((By.ID, "recognition")))
+    assert "Steps recognised" in driver.find_element(By.ID, "recognition").text
+    assert "Sensors" in driver.find_element(By.ID, "recent-steps").text
+    no_console_errors(driver)
+    shoot(driver, "today-sensors")

@@ -1,6 +1,7 @@
 """What GLOBE publishes for Home Assistant and how it reads Home Assistant's states, without a
 broker: the discovery payload against the documented schema, the entities' states rendered from
-a prediction, statestream messages (good, unknown, malformed), and the [mqtt] section's checks."""
+a prediction, statestream messages (good, unknown, malformed), binary sensors' on/off turned into
+sensor activations, questions and answers' topics, and the [mqtt] section's checks."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from globe.errors import ConfigError
 from globe.service.mqtt import payloads
 from globe.service.mqtt.bridge import broker_address
 from globe.service.mqtt.statestream import MalformedMessage, StateBook, decode_state
-from globe.service.schemas import Prediction
+from globe.service.schemas import Prediction, QuestionOut, RecognisedOut
 from tests.service.ha_discovery_schema import discovery_problems, entity_states
 
 MAPPED = MqttConfig.model_validate({
@@ -169,12 +170,83 @@ def test_the_home_assistant_page_shows_valid_yaml_toml_and_globe_commands():
             assert config.mqtt.enabled and config.mqtt.households
         else:
             assert all(line.startswith("globe ") for line in body.strip().splitlines())
-    payload = payloads.discovery_payload(MqttConfig(), "home")
+    payload = payloads.discovery_payload(MqttConfig(), "home", sensors=True)  # every entity, a home with sensors
     slug = lambda s: re.sub(r"[^a-z0-9]+", "_", s.lower()).strip("_")  # noqa: E731
     made = {f"{c['platform']}.{slug(payload['device']['name'] + ' ' + c['name'])}"
             for c in payload["components"].values()}
     named = set(re.findall(r"`((?:binary_sensor|sensor|event)\.globe_home_\w+)`", text))
     assert named == made
+
+
+SENSED = MqttConfig.model_validate({"households": {
+    "home": {"sensors": {"binary_sensor.kitchen_motion": "M_kitchen", "binary_sensor.fridge_door": "C_fridge"}},
+    "flat": {"sensors": ["binary_sensor.hall_motion"]},  # entity ids as the household's sensor names
+}})
+
+
+def topic(entity: str) -> str:
+    return f"homeassistant/{entity.replace('.', '/')}/state"
+
+
+def test_binary_sensors_on_and_off_become_activations_taken_once():
+    book = StateBook(SENSED)
+    assert topic("binary_sensor.hall_motion") in book.topics()
+    assert book.receive(topic("binary_sensor.kitchen_motion"), b"on", now=100.0) == 1
+    assert book.snapshot("home").seen and book.snapshot("home").activity is None
+    book.receive(topic("binary_sensor.kitchen_motion"), b"on", now=101.0)  # no change
+    book.receive(topic("binary_sensor.kitchen_motion"), b"off", now=130.0)
+    book.receive(topic("binary_sensor.fridge_door"), b"off", now=140.0)  # off never seen on: a firing
+    book.receive(topic("binary_sensor.fridge_door"), b"unavailable", now=141.0)  # no state of a sensor
+    taken = book.take_activations("home")
+    assert [(a.sensor, a.start, a.end) for a in taken] == [("M_kitchen", 100.0, 130.0), ("C_fridge", 140.0, 140.0)]
+    assert book.take_activations("home") == [] and book.take_activations("flat") == []
+    # a switch-on observed before its switch-off: a firing at once, then the whole activation
+    book.receive(topic("binary_sensor.kitchen_motion"), b"on", now=200.0)
+    assert [(a.start, a.end) for a in book.take_activations("home")] == [(200.0, 200.0)]
+    book.receive(topic("binary_sensor.kitchen_motion"), b"off", now=260.0)
+    assert [(a.start, a.end) for a in book.take_activations("home")] == [(200.0, 260.0)]
+    # a retained state (sent on subscribing, of unknown age) says where the sensor stands, no change
+    book.receive(topic("binary_sensor.hall_motion"), b"on", now=300.0, retained=True)
+    assert book.take_activations("flat") == []
+    book.receive(topic("binary_sensor.hall_motion"), b"off", now=360.0)
+    assert [(a.sensor, a.start, a.end) for a in book.take_activations("flat")] == [
+        ("binary_sensor.hall_motion", 300.0, 360.0)]
+    book.receive(topic("binary_sensor.hall_motion"), b"off", now=400.0, retained=True)
+    assert book.take_activations("flat") == []
+
+
+def test_pending_activations_are_bounded():
+    from globe.service.mqtt.statestream import MAX_PENDING_EVENTS
+
+    book = StateBook(SENSED)
+    for i in range(MAX_PENDING_EVENTS + 5):
+        book.receive(topic("binary_sensor.fridge_door"), b"off", now=float(i))
+    kept = book.take_activations("home")
+    assert len(kept) == MAX_PENDING_EVENTS and kept[0].start == 5.0  # the oldest went first
+
+
+def test_a_household_with_sensors_has_the_recognised_activity_and_a_question_event():
+    config = MqttConfig()
+    payload = json.loads(payloads.encode(payloads.discovery_payload(config, "home", sensors=True)))
+    assert discovery_problems(payloads.discovery_topic(config, "home"), payload) == []
+    assert set(payload["components"]) == set(payloads.COMPONENTS) | set(payloads.SENSOR_COMPONENTS)
+    assert payload["components"]["question"]["state_topic"] == "globe/home/question"
+    asked = prediction(recognised=RecognisedOut(activity="breakfast", probability=0.625), labelled_steps=3,
+                       recognised_steps=40, question=QuestionOut(day="2026-11-24", step=29, time="10:50", activities=[
+                           RecognisedOut(activity="breakfast", probability=0.625),
+                           RecognisedOut(activity="lunch", probability=0.25)]))
+    state = json.loads(payloads.state_payload(asked))
+    value, attributes = entity_states(payload, state)["recognised"]
+    assert value == "breakfast" and attributes == {"probability": 0.625, "labelled_steps": 3, "recognised_steps": 40}
+    assert entity_states(payload, json.loads(payloads.state_payload(prediction())))["recognised"][0] == "None"
+    event = json.loads(payloads.question_event(config, "home", asked) or "")
+    assert event == {"event_type": "question", "household": "home", "activities": ["breakfast", "lunch"],
+                     "probabilities": [0.625, 0.25], "day": "2026-11-24", "step": 29, "time": "10:50",
+                     "answer_topic": "globe/home/answer"}
+    assert payloads.question_event(config, "home", prediction()) is None
+    assert payloads.answer_household(config, "globe/flat.2/answer") == "flat.2"
+    assert payloads.answer_household(config, "globe/home/state") is None
+    assert payloads.answer_household(config, "globe//answer") is None
 
 
 def test_a_missing_broker_program_skips_here_and_fails_in_ci(monkeypatch, tmp_path):

@@ -35,7 +35,8 @@ class MqttHousehold(_Section):
     """The Home Assistant entities one household learns from (through ``mqtt_statestream``)."""
 
     activity: str | None = Field(
-        None, pattern=_ENTITY_ID, description="entity whose state is the person's activity, e.g. input_select.activity",
+        None, pattern=_ENTITY_ID, description="entity whose state is the person's activity, e.g. input_select.activity "
+        "(optional: a household with sensors has its activity recognised from them where none is given)",
     )
     activities: dict[str, str] = Field(
         {}, description="activity entity state -> GLOBE activity label (states not listed are used as they are)",
@@ -43,6 +44,19 @@ class MqttHousehold(_Section):
     objects: dict[Annotated[str, Field(pattern=_ENTITY_ID)], MqttObject] = Field(
         {}, description="entity id -> the object it follows and where each of its states puts it",
     )
+    sensors: dict[Annotated[str, Field(pattern=_ENTITY_ID)], Annotated[str, Field(min_length=1)]] = Field(
+        {}, description="on/off entity (a binary_sensor) -> the household's sensor it is (a list of entity ids: "
+        "each is its own sensor's name, as in a Home Assistant import's sensors.csv); its on..off spells become "
+        "the household's sensor activations",
+    )
+
+    @field_validator("sensors", mode="before")
+    @classmethod
+    def _sensor_list(cls, value: object) -> object:
+        """A list of entity ids names sensors by their entity ids (what the Home Assistant import keeps)."""
+        if isinstance(value, (list, tuple)):
+            return {entity: entity for entity in value}
+        return value
 
 
 class MqttConfig(_Section):

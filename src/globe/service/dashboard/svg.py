@@ -58,6 +58,8 @@ class TimelineStep:
     observed: str | None
     predicted: str | None
     probability: float | None
+    recognised: str | None = None  # read from the home's sensors (a household with sensors)
+    recognised_probability: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,31 +84,38 @@ def day_span(steps_per_day: int, step_minutes: int) -> int:
 
 def timeline(steps: Sequence[TimelineStep], *, day_start: int, step_minutes: int, span: int,
              colour: Mapping[str, str], now: int | None = None, layout: Layout = WIDE) -> str:
-    """Today: the observed activity and, beneath it, GLOBE's prediction for each step made before
-    it (shaded by its probability), over the household's day; ``now`` (a minute) marked."""
+    """Today: the observed activity, the one recognised from the sensors (a lane of its own,
+    "sensors", when any step has one) and, beneath them, GLOBE's prediction for each step made before it (shaded by
+    its probability), over the household's day; ``now`` (a minute) marked."""
     width, x0, lane, top = layout.width, layout.x0, 26.0, 18.0
-    rows = (("observed", top), ("predicted", top + lane + 8))
-    parts = [f'<svg viewBox="0 0 {x0 + width + 16:.0f} {2 * lane + top + 38:.0f}" '
-             'class="chart" role="img" aria-label="today: observed and predicted activity per step">']
-    for name, y in rows:
-        parts.append(f'<text x="{x0 - 6}" y="{y + lane / 2 + 4}" class="lane" text-anchor="end">{name}</text>')
-        parts.append(f'<rect x="{x0}" y="{y}" width="{width}" height="{lane}" class="lane-bg"/>')
+    recognising = any(s.recognised is not None for s in steps)
+    names = ("observed", "sensors", "predicted") if recognising else ("observed", "predicted")
+    y = {name: top + i * (lane + 8) for i, name in enumerate(names)}
+    bottom = top + len(names) * (lane + 8)
+    what = "observed, recognised and predicted" if recognising else "observed and predicted"
+    parts = [f'<svg viewBox="0 0 {x0 + width + 16:.0f} {bottom + 22:.0f}" '
+             f'class="chart" role="img" aria-label="today: {what} activity per step">']
+    for name in names:
+        parts.append(f'<text x="{x0 - 6}" y="{y[name] + lane / 2 + 4}" class="lane" text-anchor="end">{name}</text>')
+        parts.append(f'<rect x="{x0}" y="{y[name]}" width="{width}" height="{lane}" class="lane-bg"/>')
     w = width * step_minutes / span
     for s in steps:
         x = x0 + (s.minute - day_start) % 1440 / span * width
         when = _clock(s.minute)
         if s.observed is not None:
-            parts.append(f'<rect x="{x:.1f}" y="{rows[0][1]}" width="{w:.2f}" height="{lane}" '
+            parts.append(f'<rect x="{x:.1f}" y="{y["observed"]}" width="{w:.2f}" height="{lane}" '
                          f'fill="{colour.get(s.observed, UNKNOWN)}">'
                          f'<title>{when} observed {escape(s.observed)}</title></rect>')
-        if s.predicted is not None and s.probability is not None:
-            miss = s.observed is not None and s.observed != s.predicted
+        for lane_name, said, p, verb in (("sensors", s.recognised, s.recognised_probability, "recognised"),
+                                         ("predicted", s.predicted, s.probability, "predicted")):
+            if said is None or p is None or lane_name not in y:
+                continue
+            miss = s.observed is not None and s.observed != said
             mark = ' class="miss"' if miss else ""
-            parts.append(f'<rect x="{x:.1f}" y="{rows[1][1]}" width="{w:.2f}" height="{lane}" '
-                         f'fill="{colour.get(s.predicted, UNKNOWN)}" fill-opacity="{0.25 + 0.75 * s.probability:.2f}"'
-                         f'{mark}><title>{when} predicted {escape(s.predicted)} '
-                         f'(p = {s.probability:.2f}){" - missed" if miss else ""}</title></rect>')
-    bottom = top + 2 * lane + 16
+            parts.append(f'<rect x="{x:.1f}" y="{y[lane_name]}" width="{w:.2f}" height="{lane}" '
+                         f'fill="{colour.get(said, UNKNOWN)}" fill-opacity="{0.25 + 0.75 * p:.2f}"'
+                         f'{mark}><title>{when} {verb} {escape(said)} '
+                         f'(p = {p:.2f}){" - missed" if miss else ""}</title></rect>')
     parts += _hour_ticks(x0, width, day_start, span, top - 4, bottom, layout.tick_minutes)
     if now is not None:
         x = x0 + min((now - day_start) % 1440, span) / span * width

@@ -93,17 +93,22 @@ def status(registry: Registry, name: str, a: HouseholdSession) -> dict[str, Any]
 
 
 def today(registry: Registry, name: str) -> dict[str, Any]:
-    """The "today" page: status, timeline, next hour, fetches with feedback, scores."""
+    """The "today" page: status, timeline (with the activity recognised from the sensors, in a
+    household with sensors), next hour, fetches with feedback, scores."""
     with registry.locked(name) as a:
         colour = _colours(a)
         steps, recent = [], []
+        recognised = a.recognised_today()
         for i, (minute, observed, seen) in enumerate(a.today()):
             predicted = a.step_predictions.get(i)
+            found = recognised[i] if i < len(recognised) else None
             step = svg.TimelineStep(minute, observed if seen else None, predicted[0] if predicted else None,
-                                    predicted[1] if predicted else None)
-            if seen:
+                                    predicted[1] if predicted else None, found[0] if found else None,
+                                    found[1] if found else None)
+            if seen or found is not None:
                 steps.append(step)
             recent.append({"time": _clock(minute), "seen": seen, "observed": step.observed,
+                           "recognised": step.recognised, "recognised_probability": step.recognised_probability,
                            "predicted": step.predicted, "probability": step.probability,
                            "hit": None if step.predicted is None or step.observed is None
                            else step.predicted == step.observed})
@@ -118,13 +123,24 @@ def today(registry: Registry, name: str) -> dict[str, Any]:
             "timeline": {n: svg.timeline(steps, layout=layout, **chart)  # type: ignore[arg-type]
                          for n, layout in (("wide", svg.WIDE), ("narrow", svg.NARROW))},
             "recent": recent[-RECENT_STEPS:][::-1],
-            "legend": _legend(colour, [s.observed for s in steps] + [s.predicted for s in steps]),
+            "legend": _legend(colour, [x for s in steps for x in (s.observed, s.predicted, s.recognised)]),
+            "recognition": _recognition(a),
             "next_activity": top,
             "next_hour": next_hour(registry, a),
             "fetches": fetches_today(registry, name, a),
             "scores": scores,
             "today_score": scores.days[-1] if scores.days and scores.days[-1].day == a.day else None,
         }
+
+
+def _recognition(a: HouseholdSession) -> dict[str, int] | None:
+    """Today's counts for a household with sensors (None without): steps labelled (answers
+    included), steps recognised from the sensors alone, questions asked and answered."""
+    if a.sensing is None:
+        return None
+    labelled, recognised = a.step_counts()
+    asked, answered = a.questions_today()
+    return {"labelled": labelled, "recognised": recognised, "asked": asked, "answered": answered}
 
 
 def _legend(colour: dict[str, str], used: list[str | None]) -> list[tuple[str, str]]:

@@ -3,12 +3,15 @@
 Out: each household is published as a Home Assistant device (:mod:`.payloads`) when the broker
 connects and whenever Home Assistant says ``online`` on its status topic; its state is published
 (retained) after each observation applied, whoever sent it (:meth:`Registry.subscribe`), and after
-a change of shadow mode; each fetch due is one (unretained) message on its fetch topic, sent once.
+a change of shadow mode; each fetch due is one (unretained) message on its fetch topic, sent once,
+and so is each question to the person on its question topic (a household with sensors).
 
 In: the states of the entities mapped in ``[mqtt.households]`` (:mod:`.statestream`) become one
 observation per step of the household, submitted through :meth:`Registry.observe` like a robot's
 HTTP observation (the same validation, the same store), with an id made of the step's time so a
-repeat is idempotent. Observations pause while the broker or Home Assistant is offline (the
+repeat is idempotent; it carries the mapped binary sensors' activations since the one before. An
+answer on a household's answer topic is an observation of that activity at the step under way
+(the one asked about). Observations pause while the broker or Home Assistant is offline (the
 states could be stale).
 
 Nothing here can stop the service: a broker that is down or drops the connection is retried by
@@ -26,13 +29,15 @@ import queue
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from globe.config import GlobeConfig
 from globe.config.mqtt import broker_address
-from globe.errors import GlobeError, MissingExtraError, UnknownHouseholdError
+from globe.errors import DataError, GlobeError, MissingExtraError, UnknownHouseholdError
+from globe.service import timepolicy
 from globe.service.mqtt import payloads
-from globe.service.mqtt.statestream import MalformedMessage, StateBook
+from globe.service.mqtt.statestream import MalformedMessage, StateBook, decode_state
 from globe.service.registry import Registry
 from globe.service.schemas import MqttHealth
 
@@ -45,7 +50,18 @@ log = logging.getLogger(__name__)
 
 QOS = 1
 _ANNOUNCE = "\0announce"  # publisher job: discovery and state of every household
+_ANSWER = "\0answer"  # publisher job: the answers received (in self._answers)
 _STOP = "\0stop"
+
+
+@dataclass(frozen=True, slots=True)
+class _Known:
+    """What a household has that its ``[mqtt.households]`` entry may name."""
+
+    objects: frozenset[str]
+    places: frozenset[str]
+    sensors: frozenset[str]
+    has_sensors: bool
 
 
 class MqttBridge:
@@ -57,6 +73,8 @@ class MqttBridge:
         self.host, self.port, tls = broker_address(self.config.broker)  # checked with the configuration
         self.book = StateBook(self.config, config.service.max_label_length)
         self._fetched: dict[str, tuple[str, int]] = {}  # per household, the step whose fetches were sent (publisher)
+        self._asked: dict[str, tuple[str, int]] = {}  # per household, the step whose question was sent (publisher)
+        self._answers: queue.Queue[tuple[str, bytes, float]] = queue.Queue()  # (household, payload, arrival)
         self._lock = threading.Lock()  # guards the fields below
         self._connected = False
         self._ha_online = True  # until Home Assistant says otherwise on its status topic
@@ -64,7 +82,8 @@ class MqttBridge:
         self._counts = {"malformed": 0, "observations": 0, "rejected": 0, "published": 0}
         self._announced: set[str] = set()
         self._steps: dict[str, int] = {}  # household -> seconds between its observations
-        self._maps: dict[str, tuple[frozenset[str], frozenset[str]]] = {}  # household -> (objects, places)
+        self._maps: dict[str, _Known] = {}  # household -> what it has, for its [mqtt.households] entry
+        self._sensing: dict[str, bool] = {}  # household -> whether it has sensors (its device's components)
         self._problems: dict[str, list[str]] = {}  # household -> what its [mqtt.households] entry names wrong
         self._jobs: queue.Queue[str] = queue.Queue()
         self._stop = threading.Event()
@@ -141,7 +160,8 @@ class MqttBridge:
         with self._lock:
             self._connected = True
         log.info("connected to the MQTT broker %s", self.config.broker)
-        client.subscribe([(self.config.status_topic, QOS)] + [(t, QOS) for t in self.book.topics()])
+        client.subscribe([(self.config.status_topic, QOS), (payloads.answer_topic(self.config, "+"), QOS)]
+                         + [(t, QOS) for t in self.book.topics()])
         client.publish(payloads.availability_topic(self.config), payloads.ONLINE, qos=QOS, retain=True)
         self._jobs.put(_ANNOUNCE)
 
@@ -170,7 +190,13 @@ class MqttBridge:
                 if status == payloads.ONLINE:
                     self._jobs.put(_ANNOUNCE)
                 return
-            self.book.receive(message.topic, bytes(message.payload))
+            answered = payloads.answer_household(self.config, message.topic)
+            if answered is not None:
+                if not message.retain:  # a retained answer is an old one, not the person now
+                    self._answers.put((answered, bytes(message.payload), time.time()))
+                    self._jobs.put(_ANSWER)
+                return
+            self.book.receive(message.topic, bytes(message.payload), now=time.time(), retained=bool(message.retain))
         except MalformedMessage as err:
             self._count("malformed")
             log.warning("MQTT message on %s dropped: %s", message.topic[:200], err)
@@ -194,8 +220,10 @@ class MqttBridge:
             if _STOP in jobs:
                 return
             try:
+                if _ANSWER in jobs:
+                    self._take_answers()
                 names = self._announce() if _ANNOUNCE in jobs else set()
-                for name in sorted(jobs - names - {_ANNOUNCE}):
+                for name in sorted(jobs - names - {_ANNOUNCE, _ANSWER}):
                     self._publish_state(name)
             except Exception:  # noqa: BLE001 - the publisher outlives any failure; each is logged
                 log.exception("publishing to MQTT failed")
@@ -211,11 +239,26 @@ class MqttBridge:
         for gone in sorted(self._announced - names):
             self._remove(gone)
         for name in sorted(names):
-            self._publish(payloads.discovery_topic(self.config, name),
-                          payloads.encode(payloads.discovery_payload(self.config, name)))
-            self._announced.add(name)
+            self._publish_discovery(name)
             self._publish_state(name)
         return names
+
+    def _publish_discovery(self, name: str) -> None:
+        sensors = self._has_sensors(name)
+        self._publish(payloads.discovery_topic(self.config, name),
+                      payloads.encode(payloads.discovery_payload(self.config, name, sensors=sensors)))
+        self._announced.add(name)
+
+    def _has_sensors(self, name: str) -> bool:
+        """Whether the household has sensors (its device then shows the recognised activity and its
+        questions); False while it cannot be built, asked again then."""
+        if name not in self._sensing:
+            try:
+                with self.registry.locked(name) as session:
+                    self._sensing[name] = session.sensing is not None
+            except GlobeError:
+                return False
+        return self._sensing[name]
 
     def _publish_state(self, name: str) -> None:
         if not self.connected:
@@ -230,9 +273,7 @@ class MqttBridge:
             log.warning("MQTT: no state for household %s: %s", name, err)
             return
         if name not in self._announced:  # created since the last announcement
-            self._publish(payloads.discovery_topic(self.config, name),
-                          payloads.encode(payloads.discovery_payload(self.config, name)))
-            self._announced.add(name)
+            self._publish_discovery(name)
         self._publish(payloads.state_topic(self.config, name), payloads.state_payload(prediction))
         self._count("published")
         events = payloads.fetch_events(prediction)
@@ -240,10 +281,16 @@ class MqttBridge:
             self._fetched[name] = (prediction.day, prediction.step)
             for event in events:
                 self.client.publish(payloads.fetch_topic(self.config, name), event, qos=QOS, retain=False)
+        question = payloads.question_event(self.config, name, prediction)
+        asked = prediction.question
+        if question is not None and asked is not None and self._asked.get(name) != (asked.day, asked.step):
+            self._asked[name] = (asked.day, asked.step)  # each question once
+            self.client.publish(payloads.question_topic(self.config, name), question, qos=QOS, retain=False)
 
     def _remove(self, name: str) -> None:
         """An empty retained config removes the device from Home Assistant (and its state)."""
         self._fetched.pop(name, None)
+        self._asked.pop(name, None)
         self._publish(payloads.discovery_topic(self.config, name), "")
         self._publish(payloads.state_topic(self.config, name), "")
         self._announced.discard(name)
@@ -251,6 +298,7 @@ class MqttBridge:
             self._maps.pop(name, None)
             self._problems.pop(name, None)
             self._steps.pop(name, None)
+        self._sensing.pop(name, None)
 
     # -- in: observations from Home Assistant's states ----------------------------------------------
     def _step_loop(self) -> None:
@@ -286,24 +334,35 @@ class MqttBridge:
                 return None
         return self._steps[name]
 
-    def _map(self, name: str) -> tuple[frozenset[str], frozenset[str]] | None:
-        """The household's objects and places (None while it cannot be built); its
-        ``[mqtt.households]`` entry checked against them once: an object it does not have, or a
-        place not on its map, is logged and shown in /health, and that entity's state is left out
-        of the household's observations (once, it refused every observation, activity and all)."""
+    def _map(self, name: str) -> _Known | None:
+        """The household's objects, places and sensors (None while it cannot be built); its
+        ``[mqtt.households]`` entry checked against them once: an object it does not have, a
+        place not on its map or a sensor it does not have is logged and shown in /health, and that
+        entity's state is left out of the household's observations (once, it refused every
+        observation, activity and all)."""
         if name not in self._maps:
             try:
                 with self.registry.locked(name) as session:
-                    found = frozenset(session.household.objects), frozenset(session.household.locations)
+                    sensing = session.sensing
+                    found = _Known(frozenset(session.household.objects), frozenset(session.household.locations),
+                                   frozenset(sensing.index) if sensing is not None else frozenset(),
+                                   sensing is not None)
             except GlobeError:
                 return None
             entry, problems = self.config.households.get(name), []
             for entity, mapped in (entry.objects.items() if entry is not None else ()):
-                if mapped.object not in found[0]:
+                if mapped.object not in found.objects:
                     problems.append(f"{name}: {entity} follows {mapped.object!r}, not an object of the household")
                 problems += [f"{name}: {entity} state {state!r} puts {mapped.object} at {place!r}, not a place of "
                              "the household's map" for state, place in mapped.locations.items()
-                             if place not in found[1]]
+                             if place not in found.places]
+            mapped_sensors = entry.sensors.items() if entry is not None else ()
+            if mapped_sensors and not found.has_sensors:
+                problems.append(f"{name}: sensors are mapped, but the household has none (create it with its "
+                                "sensors)")
+            else:
+                problems += [f"{name}: {entity} is sensor {sensor!r}, not a sensor of the household"
+                             for entity, sensor in mapped_sensors if sensor not in found.sensors]
             for problem in problems:
                 log.warning("MQTT: [mqtt.households.%s]: %s (that state is left out of its observations)", name,
                             problem)
@@ -312,7 +371,8 @@ class MqttBridge:
         return self._maps[name]
 
     def _observe(self, name: str, instant: int) -> None:
-        """One observation of the household at ``instant`` (epoch seconds) from the latest states."""
+        """One observation of the household at ``instant`` (epoch seconds) from the latest states,
+        with the sensor activations seen since the one before."""
         snap = self.book.snapshot(name)
         with self._lock:
             live = self._connected and self._ha_online
@@ -321,16 +381,65 @@ class MqttBridge:
         known = self._map(name)
         if known is None:
             return
-        locations = {obj: place for obj, place in snap.locations.items() if obj in known[0] and place in known[1]}
-        when = dt.datetime.fromtimestamp(instant, dt.timezone.utc)
+        locations = {obj: place for obj, place in snap.locations.items()
+                     if obj in known.objects and place in known.places}
+        sensors = [(a.sensor, _utc(a.start), _utc(a.end)) for a in self.book.take_activations(name)
+                   if a.sensor in known.sensors]
+        when = _utc(instant)
         try:
             self.registry.observe(name, time=when, activity=snap.activity, locations=locations,
-                                  client_id=f"ha-{when:%Y%m%dT%H%M%SZ}")
+                                  client_id=f"ha-{when:%Y%m%dT%H%M%SZ}", sensors=sensors)
         except GlobeError as err:
             self._count("rejected")
             log.warning("MQTT: observation of household %s at %s refused: %s", name, when.isoformat(), err)
             return
         self._count("observations")
+
+    # -- in: answers to questions ---------------------------------------------------------------------
+    def _take_answers(self) -> None:
+        while True:
+            try:
+                name, payload, arrived = self._answers.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                self._answer(name, payload, arrived)
+            except Exception:  # noqa: BLE001 - one answer's failure never stops the publisher
+                self._count("rejected")
+                log.exception("MQTT: the answer for household %s failed", name)
+
+    def _answer(self, name: str, payload: bytes, arrived: float) -> None:
+        """An answer (the activity, plain text) is the label of the step under way, the one a
+        question asks about: an observation at its arrival, through the same path as any. One
+        arriving after that step was left (the next step observed) is logged and left out: the
+        person may be doing something else by then."""
+        try:
+            text = decode_state(payload, self.book.max_label_length)
+        except MalformedMessage as err:
+            self._count("malformed")
+            log.warning("MQTT: answer for household %s dropped: %s", name, err)
+            return
+        entry = self.config.households.get(name)
+        activity = entry.activities.get(text, text) if entry is not None else text
+        when = _utc(arrived)
+        try:
+            with self.registry.locked(name) as session:
+                zone = timepolicy.zone(self.registry.row(name).timezone)
+                place = session.placement(when.astimezone(zone))
+                if place.new_step:
+                    raise DataError(f"the answer {activity[:64]!r} came after the step it answers (its next "
+                                     "step was not observed yet, or was left)")
+            self.registry.observe(name, time=when, activity=activity, locations={},
+                                  client_id=f"ha-answer-{when:%Y%m%dT%H%M%S.%fZ}")
+        except GlobeError as err:
+            self._count("rejected")
+            log.warning("MQTT: answer for household %s refused: %s", name, err)
+            return
+        self._count("observations")
+
+
+def _utc(instant: float) -> dt.datetime:
+    return dt.datetime.fromtimestamp(instant, dt.timezone.utc)
 
 
 __all__ = ["MqttBridge", "broker_address"]

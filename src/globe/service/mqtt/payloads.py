@@ -9,7 +9,12 @@ the household's one retained state message (the prediction as ``GET .../predicti
 through a value template, and is available while GLOBE's status topic says ``online``. Each fetch
 the robot should make is also one message on the household's fetch topic, read by an event entity:
 an automation triggered by it runs once per fetch, also when two fetches follow each other (a state
-that stays ``on`` would trigger only the first)."""
+that stays ``on`` would trigger only the first).
+
+A household with sensors also has the activity recognised from them (a sensor reading the same
+state message) and a *Question* event entity: each "what are you doing?" the household asks is one
+message on its question topic, with the likely activities; the answer comes back as the activity's
+name, plain text, on its answer topic (as a Home Assistant ``select`` is commanded with an option)."""
 
 from __future__ import annotations
 
@@ -50,6 +55,25 @@ def fetch_topic(config: MqttConfig, household: str) -> str:
     return f"{config.topic_prefix}/{household}/fetch"
 
 
+def question_topic(config: MqttConfig, household: str) -> str:
+    """One message per question to the person (never retained: a question is an event)."""
+    return f"{config.topic_prefix}/{household}/question"
+
+
+def answer_topic(config: MqttConfig, household: str) -> str:
+    """Where Home Assistant sends the answer: the activity, plain text."""
+    return f"{config.topic_prefix}/{household}/answer"
+
+
+def answer_household(config: MqttConfig, topic: str) -> str | None:
+    """The household an answer topic names (None: not an answer topic)."""
+    head, tail = f"{config.topic_prefix}/", "/answer"
+    if not topic.startswith(head) or not topic.endswith(tail):
+        return None
+    name = topic[len(head):-len(tail)]
+    return name if name and "/" not in name else None
+
+
 def discovery_topic(config: MqttConfig, household: str) -> str:
     return f"{config.discovery_prefix}/device/{object_id(household)}/config"
 
@@ -88,10 +112,16 @@ FETCH_EVENT = "fetch_request"
 COMPONENTS = (*_COMPONENTS, FETCH_EVENT)
 """The component keys of a household's device (``fetch_request``, the event an automation sends the
 robot by; ``fetch``, the binary sensor saying a fetch is due now)."""
+RECOGNISED = "recognised"
+QUESTION_EVENT = "question"
+SENSOR_COMPONENTS = (RECOGNISED, QUESTION_EVENT)
+"""The components a household with sensors adds: the activity recognised from its sensors, and
+the event of each question to the person."""
 
 
-def discovery_payload(config: MqttConfig, household: str) -> dict[str, Any]:
-    """The household as one Home Assistant device (published retained on :func:`discovery_topic`)."""
+def discovery_payload(config: MqttConfig, household: str, sensors: bool = False) -> dict[str, Any]:
+    """The household as one Home Assistant device (published retained on :func:`discovery_topic`);
+    ``sensors``: it has sensors, so its activity is recognised and it may ask questions."""
     ident = object_id(household)
     topic = state_topic(config, household)
     components: dict[str, dict[str, Any]] = {}
@@ -104,6 +134,17 @@ def discovery_payload(config: MqttConfig, household: str) -> dict[str, Any]:
     components[FETCH_EVENT] = {"platform": "event", "name": "Fetch request", "unique_id": f"{ident}_{FETCH_EVENT}",
                                "state_topic": fetch_topic(config, household), "event_types": ["fetch"],
                                "icon": "mdi:robot-excited"}
+    if sensors:
+        components[RECOGNISED] = {
+            "platform": "sensor", "name": "Recognised activity", "unique_id": f"{ident}_{RECOGNISED}",
+            "state_topic": topic, "json_attributes_topic": topic, "icon": "mdi:motion-sensor",
+            "value_template": "{{ value_json.recognised.activity if value_json.recognised else none }}",
+            "json_attributes_template": '{{ {"probability": value_json.recognised.probability if '
+                                        'value_json.recognised else none, "labelled_steps": value_json.labelled_steps, '
+                                        '"recognised_steps": value_json.recognised_steps} | tojson }}'}
+        components[QUESTION_EVENT] = {"platform": "event", "name": "Question", "unique_id": f"{ident}_{QUESTION_EVENT}",
+                                      "state_topic": question_topic(config, household), "event_types": ["question"],
+                                      "icon": "mdi:chat-question"}
     return {
         "device": {"identifiers": [ident], "name": f"GLOBE {household}", "manufacturer": "GLOBE",
                    "model": "Household assistant", "sw_version": __version__},
@@ -129,9 +170,26 @@ def fetch_events(prediction: Prediction) -> list[str]:
                     "day": prediction.day, "step": prediction.step}) for f in prediction.fetches]
 
 
+def question_event(config: MqttConfig, household: str, prediction: Prediction) -> str | None:
+    """The question topic's message for a prediction that asks one (else None): the likely
+    activities, most probable first (``activities``, with ``probabilities`` in the same order),
+    the step asked about (``day``, ``step``, ``time``) and where the answer goes
+    (``answer_topic``, so one automation serves every household). Its keys besides
+    ``event_type`` are the event's attributes."""
+    q = prediction.question
+    if q is None:
+        return None
+    return encode({"event_type": "question", "household": household,
+                   "activities": [a.activity for a in q.activities],
+                   "probabilities": [round(a.probability, 4) for a in q.activities], "day": q.day, "step": q.step,
+                   "time": q.time, "answer_topic": answer_topic(config, household)})
+
+
 def encode(payload: dict[str, Any]) -> str:
     return json.dumps(payload, separators=(",", ":"), ensure_ascii=False)
 
 
 __all__ = ["COMPONENTS", "ONLINE", "OFFLINE", "object_id", "availability_topic", "state_topic", "fetch_topic",
-           "discovery_topic", "discovery_payload", "state_payload", "fetch_events", "encode", "FETCH_EVENT"]
+           "discovery_topic", "discovery_payload", "state_payload", "fetch_events", "encode", "FETCH_EVENT",
+           "RECOGNISED", "QUESTION_EVENT", "SENSOR_COMPONENTS", "question_topic", "answer_topic", "answer_household",
+           "question_event"]

@@ -1,6 +1,7 @@
 """Home Assistant's states, as its ``mqtt_statestream`` integration publishes them
 (``<base_topic>/<domain>/<object_id>/state``, the payload the state string), turned into what one
-observation of a household says: the latest activity and the latest known place of each object.
+observation of a household says: the latest activity, the latest known place of each object, and
+the sensor activations since the observation before (a mapped binary sensor's on..off spells).
 
 Pure bookkeeping, no MQTT: :class:`StateBook` is fed (topic, payload) pairs and read once per step
 by the bridge (:mod:`globe.service.mqtt.bridge`), which submits the observation."""
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 from dataclasses import dataclass, field
 
 from globe.config import MqttConfig
@@ -18,6 +20,9 @@ UNKNOWN_STATES = frozenset({"", "unknown", "unavailable", "none"})
 """States Home Assistant reports when it does not know: the activity is then unknown (null), an
 object stays where it was last seen."""
 MAX_PAYLOAD_BYTES = 1024
+MAX_PENDING_EVENTS = 10_000
+"""Sensor activations kept for a household's next observation, at most (the oldest go first: a
+household that cannot be observed for long must not grow the service's memory without bound)."""
 
 
 class MalformedMessage(ValueError):
@@ -27,11 +32,23 @@ class MalformedMessage(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class Role:
-    """What one entity tells one household: its activity (``obj`` None) or where ``obj`` is."""
+    """What one entity tells one household: its activity (``obj`` and ``sensor`` None), where
+    ``obj`` is, or when ``sensor`` (one of the household's sensors) is on."""
 
     household: str
     entity: str
     obj: str | None = None
+    sensor: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Activation:
+    """One sensor activation seen over MQTT: the household's sensor, and when it went on and off
+    (epoch seconds; a firing, seen only as one change, has ``end == start``)."""
+
+    sensor: str
+    start: float
+    end: float
 
 
 @dataclass(slots=True)
@@ -86,24 +103,36 @@ class StateBook:
                 self.roles.setdefault(entity_topic(config, entities.activity), []).append(Role(name, entities.activity))
             for entity, mapped in entities.objects.items():
                 self.roles.setdefault(entity_topic(config, entity), []).append(Role(name, entity, mapped.object))
+            for entity, sensor in entities.sensors.items():
+                self.roles.setdefault(entity_topic(config, entity), []).append(Role(name, entity, sensor=sensor))
         self._snapshots = {name: Snapshot() for name in config.households}
+        self._on: dict[tuple[str, str], float] = {}  # (household, entity) -> since when it is on
+        self._fired: dict[tuple[str, str], int] = {}  # (household, entity) -> its pending firing at switch-on
+        self._pending: dict[str, list[Activation]] = {name: [] for name in config.households}
         self._lock = threading.Lock()
 
     def topics(self) -> list[str]:
         """The statestream topics to subscribe to."""
         return sorted(self.roles)
 
-    def receive(self, topic: str, payload: bytes) -> int:
-        """Record one statestream message; returns how many households it changed. Raises
-        :class:`MalformedMessage` (and records nothing) for a payload that is not a state."""
+    def receive(self, topic: str, payload: bytes, now: float | None = None, retained: bool = False) -> int:
+        """Record one statestream message (``now``: when it arrived, epoch seconds; ``retained``:
+        the broker's stored state sent on subscribing, a state of unknown age rather than a
+        change); returns how many households it changed. Raises :class:`MalformedMessage` (and
+        records nothing) for a payload that is not a state."""
         roles = self.roles.get(topic, ())
         if not roles:
             return 0
         state = decode_state(payload, self.max_label_length)
+        now = time.time() if now is None else now
         updates: list[tuple[Role, str | None]] = []
         for role in roles:
             entities = self.config.households[role.household]
-            if role.obj is None:
+            if role.sensor is not None:
+                switch = state.lower()
+                if switch in ("on", "off"):
+                    updates.append((role, switch))
+            elif role.obj is None:
                 activity = None if state.lower() in UNKNOWN_STATES else entities.activities.get(state, state)
                 if activity is not None:
                     try:
@@ -119,11 +148,54 @@ class StateBook:
             for role, value in updates:
                 snap = self._snapshots[role.household]
                 snap.seen = True
-                if role.obj is None:
+                if role.sensor is not None:
+                    self._switch(role, value == "on", now, retained)
+                elif role.obj is None:
                     snap.activity = value
                 elif value is not None:
                     snap.locations[role.obj] = value
         return len(updates)
+
+    def _switch(self, role: Role, on: bool, now: float, retained: bool) -> None:
+        """A binary sensor's state (under the lock): a switch-on is sent at once as a firing (its
+        change is evidence now) and the whole activation when it switches off; an off never seen
+        on is a firing. A retained state only says where the sensor stands (since when is not known)."""
+        key = (role.household, role.entity)
+        pending = self._pending[role.household]
+        since = self._on.get(key)
+        if on:
+            if since is None:
+                self._on[key] = now
+                if not retained:
+                    self._fired[key] = len(pending)
+                    self._add(role.household, Activation(role.sensor or "", now, now))
+            return
+        if since is None and retained:
+            return
+        self._on.pop(key, None)
+        fired = self._fired.pop(key, None)
+        activation = Activation(role.sensor or "", now if since is None else since, now)
+        if fired is not None and fired < len(pending) and pending[fired].start == activation.start \
+                and pending[fired].sensor == activation.sensor:
+            pending[fired] = activation  # its switch-on not observed yet: one activation, not two
+        else:
+            self._add(role.household, activation)
+
+    def _add(self, household: str, activation: Activation) -> None:
+        pending = self._pending[household]
+        pending.append(activation)
+        if len(pending) > MAX_PENDING_EVENTS:
+            drop = len(pending) - MAX_PENDING_EVENTS
+            del pending[:drop]
+            self._fired = {k: i - (drop if k[0] == household else 0) for k, i in self._fired.items()
+                           if k[0] != household or i >= drop}
+
+    def take_activations(self, household: str) -> list[Activation]:
+        """The household's sensor activations since the last call, for its next observation."""
+        with self._lock:
+            found, self._pending[household] = self._pending[household], []
+            self._fired = {k: i for k, i in self._fired.items() if k[0] != household}
+            return found
 
     def snapshot(self, household: str) -> Snapshot:
         """A copy of what the household's entities said last."""
@@ -132,4 +204,5 @@ class StateBook:
             return Snapshot(snap.activity, dict(snap.locations), snap.seen)
 
 
-__all__ = ["StateBook", "Snapshot", "Role", "MalformedMessage", "entity_topic", "decode_state", "UNKNOWN_STATES"]
+__all__ = ["StateBook", "Snapshot", "Role", "Activation", "MalformedMessage", "entity_topic", "decode_state",
+           "UNKNOWN_STATES", "MAX_PENDING_EVENTS"]
