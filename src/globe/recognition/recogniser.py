@@ -17,7 +17,7 @@ posterior; whether that helps is for cross-validation to say (:mod:`globe.recogn
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Literal, Sequence
 
 import numpy as np
 
@@ -139,32 +139,10 @@ class Recogniser:
         rows = self._run(days, answers, "smooth" if smooth else "filter")
         return [[names[i] for i in r.argmax(axis=1).tolist()] for r in rows]
 
-    def _run(self, days: Sequence[Day], answers: Answers | None, mode: str) -> list[np.ndarray]:
-        if not days:
-            return []
-        flt = self.filter_
-        belief = flt.start(len(days), weekdays=[d.weekday for d in days])
-        width = len(flt.labels)
-        likes = [self.emission_.likelihoods(self.features(d), list(flt.labels)) for d in days]
-        steps = max(len(d) for d in days)
-        out = [np.zeros((len(d), width)) for d in days]
-        for t in range(steps):
-            like = np.ones((len(days), width))
-            for q, lk in enumerate(likes):
-                if t < len(lk):
-                    like[q, : lk.shape[1]] = lk[t]
-            said = None if answers is None else [a[t] if t < len(a) else None for a in answers]
-            belief = flt.update(belief, t, said, likelihood=like)
-            if mode != "smooth":
-                post = flt.posterior(belief) if mode == "filter" else flt.predictive(belief)
-                for q, day in enumerate(days):
-                    if t < len(day):
-                        out[q][t, : post.shape[1]] = post[q]
-        if mode == "smooth":
-            full = smoothed(flt, belief)
-            for q, day in enumerate(days):
-                out[q] = full[q, : len(day)]
-        return out
+    def _run(self, days: Sequence[Day], answers: Answers | None, mode: Mode) -> list[np.ndarray]:
+        labels = list(self.filter_.labels)
+        likes = [self.emission_.likelihoods(self.features(d), labels) for d in days]
+        return run_days(self.filter_, likes, [d.weekday for d in days], answers, mode)
 
     def filter_asking(self, day: Day, ask: Callable[[int, np.ndarray], bool],
                       answer: Callable[[int], str | None]) -> tuple[np.ndarray, list[str | None]]:
@@ -214,3 +192,34 @@ def spread_answers(best: Sequence[int], said: Sequence[str | None]) -> list[str 
             if said[i] is None:
                 spread[i] = answer
     return spread
+
+
+Mode = Literal["filter", "smooth", "predictive"]
+
+
+def run_days(flt: ActivityFilter, likelihoods: Sequence[np.ndarray], weekdays: Sequence[int | None],
+             answers: Answers | None = None, mode: Mode = "filter") -> list[np.ndarray]:
+    """Run ``flt`` over days at once, each step taking in that day's sensor ``likelihoods`` (steps x
+    ``flt.labels``) and its answer, if any. Per day, (steps x ``flt.labels``): P(a_t | up to t)
+    (``filter``), P(a_t | the whole day) (``smooth``) or P(a_{t+1} | up to t) (``predictive``)."""
+    if not likelihoods:
+        return []
+    belief = flt.start(len(likelihoods), weekdays=list(weekdays))
+    width = len(flt.labels)
+    out = [np.zeros((len(lk), width)) for lk in likelihoods]
+    for t in range(max(len(lk) for lk in likelihoods)):
+        like = np.ones((len(likelihoods), width))
+        for q, lk in enumerate(likelihoods):
+            if t < len(lk):
+                like[q, : lk.shape[1]] = lk[t]
+        said = None if answers is None else [a[t] if t < len(a) else None for a in answers]
+        belief = flt.update(belief, t, said, likelihood=like)
+        if mode != "smooth":
+            post = flt.posterior(belief) if mode == "filter" else flt.predictive(belief)
+            for q, lk in enumerate(likelihoods):
+                if t < len(lk):
+                    out[q][t, : post.shape[1]] = post[q]
+    if mode == "smooth":
+        full = smoothed(flt, belief)
+        out = [full[q, : len(lk)] for q, lk in enumerate(likelihoods)]
+    return out

@@ -9,7 +9,6 @@ shares the session's state and lock; the session's one activity filter does the 
 
 from __future__ import annotations
 
-import datetime as dt
 from typing import Sequence
 
 import numpy as np
@@ -21,6 +20,7 @@ from globe.inference.activity_filter import ActivityFilter, Belief, smoothed
 from globe.recognition.asking import DayAsker, worth
 from globe.recognition.recogniser import spread_answers
 from globe.session.grid import DayGrid
+from globe.session.records import instant
 from globe.session.sensing import MAX_OPTIONS, Question, SensorEvent, SessionSensors
 
 
@@ -60,7 +60,7 @@ class SensorSteps:
                 known = ", ".join(s.name for s in self.sensing.sensors[:20])
                 raise UnknownLabelError(f"unknown sensor {event.sensor[:64]!r} (the household's sensors: {known})",
                                         field=f"sensors[{i}].sensor")
-            if _instant(event.end) < _instant(event.start):
+            if instant(event.end) < instant(event.start):
                 raise DataError(f"sensor event ends ({event.end.isoformat()}) before it starts "
                                 f"({event.start.isoformat()})", field=f"sensors[{i}].end")
 
@@ -125,12 +125,13 @@ class SensorSteps:
         after = {b.step: b for b in self._beliefs}
         features = sensing.features(self._today_events(), [self.grid.minute(t) for t in range(n)])
         labels = list(flt.labels)
+        likes = sensing.likelihoods(features, labels)
         out: list[tuple[str, float] | None] = []
         for t in range(n):
             found, before = after.get(t), after.get(t - 1)
             if found is not None and self._labels[t] is not None and before is not None:
                 moved = self._uses[t] if t and self._looked[t] and self._looked[t - 1] else None
-                found = flt.update(before, t, [None], [moved], likelihood=sensing.likelihood(features[t], labels))
+                found = flt.update(before, t, [None], [moved], likelihood=likes[t][None, :])
             if found is None:
                 out.append(None)
                 continue
@@ -161,8 +162,3 @@ class SensorSteps:
             labels = spread_answers(smoothed(self._filter, belief)[0].argmax(axis=1).tolist(), labels)
         minutes = [self.grid.minute(t) for t in range(len(labels))]
         sensing.learn([sensing.features(self._today_events(), minutes)], [labels])
-
-
-def _instant(time: dt.datetime) -> dt.datetime:
-    """The UTC instant of ``time`` (naive = UTC)."""
-    return time.astimezone(dt.timezone.utc) if time.tzinfo else time.replace(tzinfo=dt.timezone.utc)

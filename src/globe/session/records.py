@@ -14,6 +14,11 @@ from globe.session.sensing import Question, SensorEvent
 NewActivities = Literal["refuse", "learn"]
 
 
+def instant(time: dt.datetime) -> dt.datetime:
+    """The UTC instant of ``time`` (naive = UTC, for library callers without a zone)."""
+    return time.astimezone(dt.timezone.utc) if time.tzinfo else time.replace(tzinfo=dt.timezone.utc)
+
+
 @dataclass(frozen=True, slots=True)
 class Observation:
     time: dt.datetime  # in the household's zone (aware), or its wall time (naive)

@@ -26,7 +26,7 @@ from globe.inference.activity_filter import ActivityFilter
 from globe.recognition.asking import QuestionPolicy, worth
 from globe.recognition.emission import SensorEmission
 from globe.recognition.features import Layout, step_features
-from globe.recognition.recogniser import RecognitionSettings
+from globe.recognition.recogniser import RecognitionSettings, run_days
 
 MAX_OPTIONS = 5
 """The likely activities a question offers, at most."""
@@ -96,9 +96,10 @@ class SessionSensors:
         """(steps x columns) features of the steps starting at ``minutes``."""
         return step_features(self.layout, day, minutes, self.step_minutes)
 
-    def likelihood(self, row: np.ndarray, labels: Sequence[str]) -> np.ndarray:
-        """(1 x ``labels``): the likelihood of one step's features under each activity (at most 1)."""
-        return self.emission.likelihoods(row[None, :], labels)
+    def likelihoods(self, features: np.ndarray, labels: Sequence[str]) -> np.ndarray:
+        """(steps x ``labels``): the likelihood of each step's features under each activity (at
+        most 1; every step of a stretch at once, one array operation)."""
+        return self.emission.likelihoods(features, labels)
 
     def learn(self, features: Sequence[np.ndarray], labels: Sequence[Sequence[str | None]]) -> None:
         """Count days' features against their labels (None: an unlabelled step) into the emission."""
@@ -129,21 +130,10 @@ class SessionSensors:
         recorded = [(d, e) for d, e in recorded if e is not None and len(d)]
         if not recorded or self.budget <= 0:
             return
-        belief = flt.start(len(recorded), weekdays=[d.weekday for d, _ in recorded])
         labels = list(flt.labels)
         likes = [self.emission.likelihoods(self.features(e, d.minutes), labels) for d, e in recorded]
-        out: list[list[float]] = [[] for _ in recorded]
-        for t in range(max(len(d) for d, _ in recorded)):
-            like = np.ones((len(recorded), len(labels)))
-            for q, lk in enumerate(likes):
-                if t < len(lk):
-                    like[q] = lk[t]
-            belief = flt.update(belief, t, None, likelihood=like)
-            post = flt.posterior(belief)
-            for q, (d, _) in enumerate(recorded):
-                if t < len(d):
-                    out[q].append(float(worth(post[q])))
-        self.add_reference([w for day in out for w in day])
+        posteriors = run_days(flt, likes, [d.weekday for d, _ in recorded])
+        self.add_reference(np.concatenate([worth(p) for p in posteriors]))
 
 
 def seconds_after_midnight(time: dt.datetime, day: str) -> float:

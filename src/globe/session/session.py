@@ -66,14 +66,13 @@ from globe.sequences.movements import Alignment, used_between
 from globe.sequences.runs import activity_runs
 from globe.session.grid import DayGrid
 from globe.session.recognising import SensorSteps
-from globe.session.records import Decision, NewActivities, Observation, Placement, Settled
+from globe.session.records import Decision, NewActivities, Observation, Placement, Settled, instant
 from globe.session.sensing import (
     Question,
     SessionSensors,
     seconds_after_midnight,
 )
 
-UTC = dt.timezone.utc
 
 
 class HouseholdSession(SensorSteps):
@@ -132,8 +131,8 @@ class HouseholdSession(SensorSteps):
 
     def validate_time(self, obs: Observation) -> None:
         """The check of :meth:`validate` that depends on the observations before: times increase."""
-        instant = _instant(obs.time)
-        if self._last_instant is not None and instant <= self._last_instant:
+        when = instant(obs.time)
+        if self._last_instant is not None and when <= self._last_instant:
             raise DataError(f"time {obs.time.isoformat()} is not after the last observation "
                             f"{self._last_instant.isoformat()}", field="time")
 
@@ -215,7 +214,7 @@ class HouseholdSession(SensorSteps):
         if step and self._looked[step - 1]:
             self._uses[step] = self.moved(step)
         self._stale = evidence if self._stale is None else min(self._stale, evidence)
-        self._last_instant = _instant(obs.time)
+        self._last_instant = instant(obs.time)
         self.observations += 1
         self._consult(step)
         return Placement(day, step, True)
@@ -232,12 +231,17 @@ class HouseholdSession(SensorSteps):
             sensing = self.sensing
             features = None if sensing is None else sensing.features(
                 self._today_events(), [self.grid.minute(t) for t in range(self._stale, len(self._labels))])
+            labels: list[str] = []
+            likes = None
             for t in range(self._stale, len(self._labels)):
                 if self._looked[t] or features is not None:  # the sensors watched every step
                     moved = self._uses[t] if t and self._looked[t] and self._looked[t - 1] else None
                     like = None
                     if features is not None and sensing is not None:
-                        like = sensing.likelihood(features[t - self._stale], list(self._filter.labels))
+                        if likes is None or len(labels) != len(self._filter.labels):  # (again when a label is new)
+                            labels = list(self._filter.labels)
+                            likes = sensing.likelihoods(features, labels)
+                        like = likes[t - self._stale][None, :]
                     kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved], likelihood=like))
             self._beliefs, self._stale = kept, None
         return self._beliefs[-1]
@@ -531,11 +535,6 @@ class HouseholdSession(SensorSteps):
                 "activities_known": len(getattr(self.activity_model, "classes_", ())),
                 "training_days": len(getattr(self.activity_model, "training_data_", ())),
                 "llm_fallbacks": dict(self.fallbacks)}
-
-
-def _instant(time: dt.datetime) -> dt.datetime:
-    """The UTC instant of ``time`` (naive = UTC, for library callers without a zone)."""
-    return time.astimezone(UTC) if time.tzinfo else time.replace(tzinfo=UTC)
 
 
 def _nearest_labels(labels: Sequence[str | None]) -> tuple[str, ...]:
