@@ -74,7 +74,6 @@ from globe.session.sensing import (
 )
 
 
-
 class HouseholdSession(SensorSteps):
     """The online loop of one household (see module doc; thread-safe: one lock serialises it)."""
 
