@@ -39,7 +39,7 @@ from globe.evaluation.metrics import f1
 from globe.evaluation.selection import best_beyond_noise, folds
 from globe.models.base import ActivityModelBase
 from globe.recognition.asking import DayAsker, QuestionPolicy, random_steps, worth
-from globe.recognition.features import REPRESENTATIONS
+from globe.recognition.features import REPRESENTATIONS, Layout, step_features
 from globe.recognition.recogniser import Recogniser, RecognitionSettings
 
 LEARNING_DAYS = (1, 3, 7, 14, None)
@@ -142,8 +142,10 @@ def fit_recogniser(labelled: Sequence[Day], sensors: SensorData, step_minutes: i
 
 def learning_curve(household: Household, sensors: SensorData, step_minutes: int,
                    counts: Sequence[int | None] = LEARNING_DAYS,
-                   options: Sequence[RecognitionSettings] | None = None) -> list[dict[str, Any]]:
-    """One row per number of labelled days (see module doc): online and smoothed accuracies."""
+                   options: Sequence[RecognitionSettings] | None = None,
+                   fitted: Recogniser | None = None) -> list[dict[str, Any]]:
+    """One row per number of labelled days (see module doc): online and smoothed accuracies
+    (``fitted``: the recogniser of every training day, when the caller has it already)."""
     rows = []
     train = list(household.train)
     for k in counts:
@@ -151,7 +153,8 @@ def learning_curve(household: Household, sensors: SensorData, step_minutes: int,
         if k is not None and k > len(train):
             continue
         labelled, unlabelled = train[len(train) - n:], train[: len(train) - n]
-        recogniser = fit_recogniser(labelled, sensors, step_minutes, unlabelled, options)
+        recogniser = (fitted if fitted is not None and n == len(train)
+                      else fit_recogniser(labelled, sensors, step_minutes, unlabelled, options))
         online, hindsight = _score(recogniser, household.test), _score(recogniser, household.test, smooth=True)
         rows.append({"labelled_days": n, **online.row(),
                      "smoothed_time_slice_accuracy": round(hindsight.time_slice, 4),
@@ -263,11 +266,11 @@ def crf_scores(household: Household, sensors: SensorData, step_minutes: int, lab
     except ImportError:
         return None
     labelled = list(household.train if labelled is None else labelled)
-    layout = Recogniser(RecognitionSettings(features=features)).fit(labelled[:1], sensors, step_minutes).layout_
-    recogniser = Recogniser(RecognitionSettings(features=features)).fit(labelled[:1], sensors, step_minutes)
+    layout = Layout.of(sensors.sensors, features)
 
     def seq(day: Day) -> list[dict[str, Any]]:
-        return _crf_features(recogniser.features(day), layout.names, day.minutes)
+        x = step_features(layout, sensors.of(day.name), day.minutes, step_minutes)
+        return _crf_features(x, layout.names, day.minutes)
     crf = sklearn_crfsuite.CRF(algorithm="lbfgs", max_iterations=100, all_possible_transitions=True)
     crf.fit([seq(d) for d in labelled], [list(d.activities) for d in labelled])
     predicted = crf.predict([seq(d) for d in household.test])
@@ -299,14 +302,14 @@ def recognition_report(household: Household, sensors: SensorData, step_minutes: 
         if progress:
             progress(f"{household.name}: {text}")
     say("the learning curve (settings chosen by cross-validation at each point)")
-    learning = learning_curve(household, sensors, step_minutes, counts)
+    recogniser = fit_recogniser(list(household.train), sensors, step_minutes)
+    learning = learning_curve(household, sensors, step_minutes, counts, fitted=recogniser)
     asking: list[dict[str, Any]] = []
     if len(household.train) > asking_from:
         say(f"the asking curve ({asking_from} labelled days, {', '.join(map(str, budgets))} questions a day)")
         asking = asking_curve(household, sensors, step_minutes, labelled_days=asking_from, budgets=budgets)
     say("the CRF row")
     crf = crf_scores(household, sensors, step_minutes)
-    recogniser = fit_recogniser(list(household.train), sensors, step_minutes)
     predicted = recogniser.predict(household.test)
     scores = recognition_scores(_flat(household.test), [a for p in predicted for a in p])
     say("the end-to-end effect")
