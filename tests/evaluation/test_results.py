@@ -32,7 +32,8 @@ def test_results_folder_traces_every_number(households, tmp_path):
     table1 = (tmp_path / "table1.md").read_text()
     assert "household B test days" in table1 and "HOMER+" not in table1 and "published" not in table1
     assert json.loads((tmp_path / "data.json").read_text()) == {"title": "household B", "households": ["B"],
-                                                               "homer_plus": False, "uses": "every relocation"}
+                                                               "homer_plus": False, "uses": "every relocation",
+                                                               "activities": "annotated"}
 
 
 def test_published_figures_stand_beside_homer_plus_only(households):
@@ -70,7 +71,8 @@ def test_a_home_of_ones_own_gets_plain_names_and_its_columns_once(tmp_path):
     for cells in headers:
         assert len(cells) == len(set(cells)), cells
     assert json.loads((tmp_path / "data.json").read_text()) == {"title": "household Clock", "households": ["Clock"],
-                                                               "homer_plus": False, "uses": DEPARTURES}
+                                                               "homer_plus": False, "uses": DEPARTURES,
+                                                               "activities": "annotated"}
 
 
 def test_homer_plus_tables_keep_the_papers_layout():

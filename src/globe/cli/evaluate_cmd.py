@@ -122,11 +122,17 @@ def evaluate(
     objects_ahead: Annotated[bool, typer.Option(
         "--objects-ahead/--no-objects-ahead", help="also the lookahead and fetch-policy tables, for the homes with "
         "objects (forecast with the listed methods among persistence, ngram and routine)")] = True,
+    activities: Annotated[str, typer.Option(
+        "--activities", help="what the models are shown of the test days: the 'annotated' activities, or those "
+        "'recognised' online from the home's sensors (scored against the annotation either way)")] = "annotated",
 ) -> None:
     """Evaluate chosen methods on the test days and write a results folder: Table I, the activity
     ahead, and for homes with objects the objects ahead and the fetch policy."""
     from globe.evaluation import main_job
+    from globe.evaluation.recognised import ACTIVITIES
 
+    if activities not in ACTIVITIES:
+        raise typer.BadParameter(f"{activities!r} is not one of {', '.join(ACTIVITIES)}", param_hint="'--activities'")
     cfg = resolve(config, gate__threshold=threshold, llm__backend=backend)
     names = main_job.check_methods([m.strip() for m in methods.split(",") if m.strip()])
     hs = households_from(cfg, data, households)
@@ -135,7 +141,8 @@ def evaluate(
     with stage_display() as show:
         stages.progress = show
         results = main_job.evaluate(cfg, hs, names, out_dir, main_job.backend_for(cfg, names), stages,
-                                    objects_ahead=objects_ahead)
+                                    objects_ahead=objects_ahead, activities=activities)
+    print_recognition(out_dir)
     print_table1(results)
     print_activity_anticipation(out_dir)
     if (out_dir / "lookahead.csv").is_file() and any(s["stage"].startswith("anticipation") for s in stages.times):
@@ -200,6 +207,20 @@ def robustness(
         _, res = main_job.robustness(cfg, hs, noise_dir, out_dir, main_job.backend_for(cfg), stages)
     print_robustness(res)
     console.print(f"results in {out_dir}", markup=False)
+
+
+def print_recognition(out_dir: Path) -> None:
+    """How well the test days' activities were recognised (``recognition.csv``), when they were."""
+    import csv
+
+    path = out_dir / "recognition.csv"
+    if not path.is_file():
+        return
+    with path.open(newline="", encoding="utf-8") as fh:
+        for r in csv.DictReader(fh):
+            out.print(f"{r['household']}: test-day activities recognised from the sensors online, time-slice accuracy "
+                      f"{float(r['time_slice_accuracy']):.3f}, class accuracy {float(r['class_accuracy']):.3f} "
+                      f"(settings chosen on training days: {r['settings']})", markup=False)
 
 
 def print_activity_anticipation(out_dir: Path) -> None:

@@ -55,9 +55,17 @@ class Day:
     locations: tuple[tuple[str, ...], ...]  # [step][object column]
     source: str = ""
     covering: tuple[str, ...] | None = None  # per step: the activity covering most of it (imported logs), if known
+    observed: tuple[str, ...] | None = None  # per step: the activity as GLOBE saw it (recognised), if not annotated
 
     def __len__(self) -> int:
         return len(self.minutes)
+
+    @property
+    def seen(self) -> tuple[str, ...]:
+        """The activities a model is shown (:attr:`observed` where set, else the annotation): the
+        evaluation conditions on these and scores against :attr:`activities`, so a day whose
+        activities were recognised from sensors is scored as a live service would be."""
+        return self.activities if self.observed is None else self.observed
 
     @property
     def calendar_date(self) -> date | None:

@@ -6,10 +6,12 @@ training days did most often at that step) and "hour + activity" (the most frequ
 ahead given the current activity and the clock hour, counted per horizon:
 :class:`~globe.models.baselines.HourActivityBaseline`).
 
-The model sees the true activities up to the reference step r and nothing after; every r with
-r + k inside the day is scored. Far ahead, what the person did at that hour on training days can
-say more than where the model's paths lead, so the model is also scored mixed with the time of
-day, ``(1 - w) P_model + w P_time``, with ``w`` chosen per horizon by log loss on held-out
+The model sees the activities up to the reference step r as GLOBE saw them
+(:attr:`~globe.data.records.Day.seen`: the annotation, or the activities recognised from sensors)
+and nothing after; the truth is always the annotation. Every r with r + k inside the day is
+scored. Far ahead, what the person did at that hour on training days can say more than where
+the model's paths lead, so the model is also scored mixed with the time of day,
+``(1 - w) P_model + w P_time``, with ``w`` chosen per horizon by log loss on held-out
 training days (:func:`blend_weights`; ``w = 0`` wins ties). A change event is a step r whose
 activity differs from the one before; its truth is the first later activity that differs from
 a_r (events with none left in the day are not scored).
@@ -116,7 +118,7 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
     ``next_choice`` (:func:`choose_next`), the row of what cross-validation chose."""
     space = state_space(model)
     refs = [(day, r) for day in test for r in range(len(day) - steps)]
-    roots = np.array([space.state(day.activities[: r + 1], day.weekday) for day, r in refs], dtype=np.int64)
+    roots = np.array([space.state(day.seen[: r + 1], day.weekday) for day, r in refs], dtype=np.int64)
     labels = space.labels
     marginals = activity_marginals(space, roots, steps)
     by_step = time_of_day(train)
@@ -137,8 +139,8 @@ def score_anticipation(household: str, model: ActivityModelBase, train: Sequence
             total = row.sum()
             mine = {labels[i]: float(p / total) for i, p in enumerate(row.tolist()) if p > 0} if total > 0 else {}
             tod = at_step(by_step, r + j)
-            dists = {method: mine, PERSISTENCE: {day.activities[r]: 1.0}, TIME_OF_DAY: tod,
-                     HOUR_ACTIVITY: direct.proba(day.activities[r], day.minutes[r], j)}
+            dists = {method: mine, PERSISTENCE: {day.seen[r]: 1.0}, TIME_OF_DAY: tod,
+                     HOUR_ACTIVITY: direct.proba(day.seen[r], day.minutes[r], j)}
             if blend is not None or choices is not None:
                 w = blend[j - 1] if blend is not None else choices[j - 1].weight  # type: ignore[index]
                 dists[f"{method} + time of day"] = mixed = _mix(mine, tod, w)
@@ -171,7 +173,8 @@ def next_activity_hits(space: StateSpace, days: Sequence[Day], by_step: list[dic
                        direct: HourActivityBaseline) -> tuple[int, dict[str, int]]:
     """The change events of ``days`` and how many each rule of :data:`NEXT_CANDIDATES` got right:
     the model's next different activity, the first time-of-day mode after the event that differs,
-    hour + activity's; persistence never expects a change (no hit)."""
+    hour + activity's; persistence never expects a change (no hit). The events and their truth are
+    the annotation's; each rule is told the activities as seen (:attr:`~globe.data.records.Day.seen`)."""
     events = []
     for day in days:
         acts = day.activities
@@ -183,15 +186,15 @@ def next_activity_hits(space: StateSpace, days: Sequence[Day], by_step: list[dic
     hits = dict.fromkeys(NEXT_CANDIDATES, 0)
     if not events:
         return 0, hits
-    roots = np.array([space.state(day.activities[: r + 1], day.weekday) for day, r, _ in events], dtype=np.int64)
-    current = np.array([space.code(day.activities[r]) for day, r, _ in events], dtype=np.int64)
+    roots = np.array([space.state(day.seen[: r + 1], day.weekday) for day, r, _ in events], dtype=np.int64)
+    current = np.array([space.code(day.seen[r]) for day, r, _ in events], dtype=np.int64)
     limits = np.array([len(day) - 1 - r for day, r, _ in events], dtype=np.int64)
     probs = next_different(space, roots, current, limits)
     labels = space.labels
     for q, (day, r, truth) in enumerate(events):
         row = probs[q]
         hits["model"] += _top({labels[i]: float(p) for i, p in enumerate(row.tolist()) if p > 0}) == truth
-        here = day.activities[r]
+        here = day.seen[r]
         modes = (_top(by_step[t]) for t in range(r + 1, min(len(day), len(by_step))))
         hits[TIME_OF_DAY] += next((a for a in modes if a != here), None) == truth
         hits[HOUR_ACTIVITY] += _top(direct.next_proba(here, day.minutes[r])) == truth

@@ -1,8 +1,9 @@
 """Lookahead scored as SLaTe-PRO scores itself: the relocation metric at 10-60 minutes.
 
-At every reference step r of a test day, knowing a_0..a_{r-1} and every object's location up to
-step r, each tracked object gets a prediction for each horizon s = 0..H-1: will it be somewhere
-else than at step r at some step r+1..r+1+s, and if so where will it *first* be. A (reference
+At every reference step r of a test day, knowing a_0..a_{r-1} as seen (the annotation, or the
+activities recognised from sensors: :attr:`~globe.data.records.Day.seen`) and every object's
+location up to step r, each tracked object gets a prediction for each horizon s = 0..H-1: will it
+be somewhere else than at step r at some step r+1..r+1+s, and if so where will it *first* be. A (reference
 step x object) pair is *correct* when a change is predicted, a change happens and the predicted
 first new location is the true one; precision = correct / predicted changes, recall = correct /
 true changes (micro-averaged over pairs pooled over the test days), F1 from those. An object
@@ -74,7 +75,7 @@ def forecast_days(forecaster: Forecaster | MovementModel, days: Sequence[Day], h
         if isinstance(forecaster, MovementModel):
             score_forecasts(run, oracle_forecasts(forecaster, part, horizons), part, None, rows)
             continue
-        fcs = forecaster.forecast_many([(day.activities[:r], day.locations[: r + 1]) for day, r in part], horizons - 1,
+        fcs = forecaster.forecast_many([(day.seen[:r], day.locations[: r + 1]) for day, r in part], horizons - 1,
                                        weekdays=[day.weekday for day, _ in part])
         score_forecasts(run, fcs, part, forecaster.activity, rows)
     return run
@@ -424,7 +425,7 @@ def baseline_days(baseline: MovesBaseline, days: Sequence[Day], horizons: int, f
     top = np.full((len(refs), horizons), -1, dtype=int)
     since = {id(day): since_use(day, baseline.moves.objects) for day in days} if baseline.moves.clock else {}
     for q, (day, r) in enumerate(refs):
-        current, minute = day.activities[r - 1], day.minutes[r - 1]
+        current, minute = day.seen[r - 1], day.minutes[r - 1]
         here = day.locations[r]
         for j in range(n_obj):
             place, share = baseline.places.get((j, here[j])) or baseline.anywhere.get(j, (UNKNOWN_PLACE, 0.0))

@@ -24,7 +24,7 @@ from globe.evaluation import report
 from globe.evaluation.experiments import run_methods
 from globe.evaluation.methods import METHODS, families, with_baselines
 from globe.evaluation.parallel import precompute_selections
-from globe.evaluation.published import DataScope
+from globe.evaluation.recognised import ACTIVITIES, recognise_households, scope_of, write_recognition
 from globe.evaluation.results import Table1Results, write_table1_results
 from globe.evaluation.robustness import RobustnessResults, run_suite
 from globe.evaluation.robustness_results import write_robustness_results
@@ -87,15 +87,27 @@ def backend_for(config: GlobeConfig, methods: Sequence[str] = ()) -> LLMBackend 
 
 def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequence[str], out_dir: Path,
              backend: LLMBackend | None = None, stages: Stages | None = None,
-             memo: Memo | None = None, objects_ahead: bool = False) -> Table1Results:
+             memo: Memo | None = None, objects_ahead: bool = False,
+             activities: str = "annotated") -> Table1Results:
     """Table I rows for ``methods`` and the baselines (:func:`~globe.evaluation.methods.with_baselines`)
     on each household's test days and the activity ahead, written to ``out_dir``; with
     ``objects_ahead``, also the lookahead and fetch-policy tables of the households with objects
     (:func:`object_anticipation`, forecasting with those of ``methods`` it can, beside the
-    baselines). ``memo`` (cross-validation results and fits) is filled and reused."""
+    baselines). ``memo`` (cross-validation results and fits) is filled and reused. With
+    ``activities="recognised"`` the models are shown the test days' activities as recognised
+    from each home's sensors (:mod:`globe.evaluation.recognised`; ``recognition.csv`` says how
+    well), every score still against the annotation."""
     methods = check_methods(methods)
     stages = stages or Stages(out_dir)
     memo = Memo() if memo is None else memo
+    if activities not in ACTIVITIES:
+        raise ConfigError(f"unknown activities {activities!r}; expected {' or '.join(ACTIVITIES)}")
+    (out_dir / "recognition.csv").unlink(missing_ok=True)  # a folder written before says nothing stale
+    if activities == "recognised":
+        with stages.stage("recognition: the test days' activities from the sensors (settings by cross-validation)"):
+            recognised = recognise_households(config, households)
+            households = [r.household for r in recognised]
+            write_recognition(out_dir, recognised)
     needed = families([m for m in methods if backend is not None or not METHODS[m].needs_llm])
     if needed:
         with stages.stage("table1: model selection (cross-validation, in parallel)"):
@@ -108,10 +120,10 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
         from globe.evaluation.activity_anticipation import run_activity_anticipation, write_activity_anticipation
 
         scores = run_activity_anticipation(config, households, memo)
-        scope = DataScope.of(households)
+        scope = scope_of(households)
         write_activity_anticipation(out_dir, scores, f"{scope.title} test days: the activity ahead")
     with stages.stage("table1: write results"):
-        written = write_table1_results(out_dir, runs, config, scope)
+        written = write_table1_results(out_dir, runs, config, scope, activities)
     with_objects = [h for h in households if h.objects and h.test]
     ahead = lookahead_config(config, methods) if objects_ahead and with_objects else None
     if ahead is not None:
@@ -141,7 +153,7 @@ def robustness(config: GlobeConfig, households: Sequence[Household], noise_dir: 
     with stages.stage("robustness suite"):
         res = run_suite(config, households, noise_dir, backend, progress=stages.note, memo=memo,
                         loaded=written)
-        write_robustness_results(out_dir, res, config.noise, DataScope.of(households))
+        write_robustness_results(out_dir, res, config.noise, scope_of(households))
     return summary, res
 
 
@@ -170,7 +182,7 @@ def object_anticipation(config: GlobeConfig, households: Sequence[Household], ou
     stages = stages or Stages(out_dir)
     with stages.stage("anticipation: lookahead and fetch policy"):
         ahead = run_anticipation(config, households, progress=stages.note, memo=memo)
-        write_anticipation_results(out_dir, ahead, DataScope.of(households))
+        write_anticipation_results(out_dir, ahead, scope_of(households))
     return ahead
 
 

@@ -1,19 +1,21 @@
 """The evaluation protocol: test days -> per-prediction records (metrics come later, from these).
 
-Activity: at every step t = 1..T-1 of each test day, predict a_t from the true a_0..a_{t-1}.
+Activity: at every step t = 1..T-1 of each test day, predict a_t from a_0..a_{t-1} as seen
+(:attr:`~globe.data.records.Day.seen`: the annotation, or the activities recognised from sensors
+where the day carries them), scored against the annotation.
 Object: at every movement event, predict the object from the *predicted* activity of the
 event's activity step and the objects already moved in the current (true) activity run; that
 context is reset when the predicted activity differs from the true one. Candidates are O(â).
 ``oracle=True`` conditions on the true activity instead. A predictor or chooser that reads the
-clock (the hour + activity baselines) is told the day (``scan_day``) and each movement's minute
-(``ranking_at``).
+clock (the hour + activity baselines) is told the day as seen (``scan_day``) and each movement's
+minute (``ranking_at``).
 """
 
 from __future__ import annotations
 
 import copy
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Protocol, Sequence, runtime_checkable
 
 from globe.data.records import Day, Household
@@ -110,6 +112,12 @@ class Evaluation:
     prefetch_s: float = 0.0  # the LLM's batched scoring of every question asked (then read from the cache)
 
 
+def seen_day(day: Day) -> Day:
+    """``day`` with its activities as seen (:attr:`~globe.data.records.Day.seen`): what a predictor
+    that reads the whole day is shown (the day itself when nothing else was observed)."""
+    return day if day.observed is None else replace(day, activities=day.observed, observed=None)
+
+
 def _top(model: ActivityPredictor | DayPredictor, distribution: dict[str, float], current: str | None = None,
          stay_margin: float = 1.0) -> str:
     best = stay_or_change(model.top(distribution), distribution, current, stay_margin)
@@ -155,10 +163,10 @@ def evaluate_days(
     queries: list[_Query] = []
     started = time.perf_counter()
     for day in days:
-        acts = day.activities
-        dists = activity_model.scan_day(day) if isinstance(activity_model, DayPredictor) else \
-            activity_model.scan_proba(acts, day.weekday)
-        predicted = [_top(activity_model, d, acts[t - 1] if t else None, stay_margin) for t, d in enumerate(dists)]
+        acts, seen = day.activities, day.seen
+        dists = activity_model.scan_day(seen_day(day)) if isinstance(activity_model, DayPredictor) else \
+            activity_model.scan_proba(seen, day.weekday)
+        predicted = [_top(activity_model, d, seen[t - 1] if t else None, stay_margin) for t, d in enumerate(dists)]
         for t in range(1, len(acts)):
             act_records.append(ActivityRecord(household=household.name, day=day.name, step=t, previous=acts[t - 1],
                                               true=acts[t], predicted=predicted[t],

@@ -24,11 +24,13 @@ class Table1Results:
 
 
 def write_table1_results(out_dir: Path, runs: Sequence[MethodRun], config: GlobeConfig,
-                         scope: DataScope) -> Table1Results:
-    """Everything a reader needs to trace each number back to the predictions behind it."""
+                         scope: DataScope, activities: str = "annotated") -> Table1Results:
+    """Everything a reader needs to trace each number back to the predictions behind it
+    (``data.json`` also says which ``activities`` the models were shown on the test days:
+    annotated, or recognised from sensors)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     report.write_json(out_dir / "config.json", config.model_dump(mode="json"))
-    report.write_json(out_dir / "data.json", scope.as_dict())
+    report.write_json(out_dir / "data.json", {**scope.as_dict(), "activities": activities})
     built: dict[str, dict] = {}
     for run in runs:
         built.setdefault(run.method, {})[run.household] = run.built

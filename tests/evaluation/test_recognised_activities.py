@@ -1,0 +1,175 @@
+"""``globe evaluate --activities recognised``: the models are shown the test days' activities as
+recognised from the home's sensors, and still scored against the annotation."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import pytest
+
+from globe.config import GlobeConfig
+from globe.data.csv_logs import load_household, write_day, write_nodes
+from globe.data.records import Day, Household
+from globe.data.sensors import write_sensor_data
+from globe.errors import ConfigError
+from globe.evaluation import main_job
+from globe.evaluation.activity_anticipation import score_anticipation
+from globe.evaluation.methods import METHODS
+from globe.evaluation.metrics import records_f1
+from globe.evaluation.protocol import evaluate_days, seen_day
+from globe.evaluation.recognised import recognise_households, recognise_test_days, scope_of, sensors_of
+from globe.evaluation.selection import Memo
+from globe.recognition.recogniser import RecognitionSettings
+from tests.simulated_sensors import sensor_home
+
+FAST = [RecognitionSettings()]  # one candidate: the settings' cross-validation is tested in tests/recognition
+QUICK = {"selection": {"folds": 2, "routine_orders": [2], "time_weights": [0.0], "stay_margins": [1.0],
+                       "clock_slots": [60], "clock_floors": [0.0], "clock_shrinkages": [2.0],
+                       "clock_day_types": ["none"]},
+         "lookahead": {"thresholds": [0.3], "run_memory": [False], "run_next": [False]}}
+"""Small cross-validation grids: these tests are about what the models are shown, not what is chosen."""
+
+
+def _folder(root, days=8, test=2):
+    home, sensors = sensor_home(days=days, test=test, step=10, seed=3)
+    folder = root / "Sensors"
+    write_nodes(folder / "nodes.csv", home.nodes)
+    for split, split_days in (("train", home.train), ("test", home.test)):
+        for day in split_days:
+            write_day(folder / split / f"{day.name}.csv", day, home.objects)
+    write_sensor_data(folder, sensors)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory) -> Household:
+    root = tmp_path_factory.mktemp("homes")
+    _folder(root)
+    return load_household(root, "Sensors")
+
+
+def _wrong(day: Day) -> Day:
+    """``day`` seen through a recogniser that is always wrong (each step shown the next step's
+    activity of another name)."""
+    names = sorted(set(day.activities))
+    return replace(day, observed=tuple(names[(names.index(a) + 1) % len(names)] for a in day.activities))
+
+
+def test_a_day_is_seen_as_observed_else_as_annotated(imported):
+    day = imported.test[0]
+    assert day.observed is None and day.seen == day.activities and seen_day(day) is day
+    wrong = _wrong(day)
+    assert wrong.seen == wrong.observed != wrong.activities
+    assert seen_day(wrong).activities == wrong.observed and seen_day(wrong).observed is None
+
+
+@pytest.mark.parametrize("method", ["ngram", "hour_activity"])  # a history model, and one told the whole day
+def test_the_model_sees_the_observed_history_and_is_scored_on_the_annotation(imported, method):
+    prepared = METHODS[method].prepare(imported, GlobeConfig(), None, Memo())
+    days = list(imported.test)
+
+    def run(test):
+        return evaluate_days(imported, test, prepared.activity, prepared.chooser, stay_margin=prepared.stay_margin)
+
+    plain, echoed, misled = run(days), run([replace(d, observed=d.activities) for d in days]), run(
+        [_wrong(d) for d in days])
+    assert [r.as_row() for r in echoed.activity] == [r.as_row() for r in plain.activity]
+    assert [r.as_row() for r in echoed.objects] == [r.as_row() for r in plain.objects]
+    # the truth (activity, previous activity, object runs) is the annotation's whatever the model was shown
+    assert [(r.true, r.previous) for r in misled.activity] == [(r.true, r.previous) for r in plain.activity]
+    assert [(r.true, r.true_activity) for r in misled.objects] == [(r.true, r.true_activity) for r in plain.objects]
+    assert [r.predicted_activity for r in misled.objects] != [r.predicted_activity for r in plain.objects]
+    assert records_f1(misled.activity, "weighted") < records_f1(plain.activity, "weighted") - 0.15
+    if method == "ngram":  # the activity ahead: the same references and truth, a misled model does worse
+        misled_days = [_wrong(d) for d in days]
+        ahead = [score_anticipation("S", prepared.activity, imported.train, test, 3, 10)
+                 for test in (days, misled_days)]
+        first = [[h for h in s.horizons if h.method == "model" and h.steps == 1][0] for s in ahead]
+        assert first[0].references == first[1].references
+        assert first[1].accuracy < first[0].accuracy - 0.3
+        assert ahead[0].next_activity["model"][0] == ahead[1].next_activity["model"][0]  # the same change events
+
+
+def test_recognised_test_days_carry_the_recognisers_activities(imported):
+    done = recognise_test_days(imported, sensors_of(imported, 10), 10, FAST)
+    home = done.household
+    assert home.train == imported.train  # the models learn from the annotation
+    assert [d.activities for d in home.test] == [d.activities for d in imported.test]
+    assert all(d.observed is not None and len(d.observed) == len(d) for d in home.test)
+    right = sum(a == b for d in home.test for a, b in zip(d.activities, d.observed or ()))
+    steps = sum(len(d) for d in home.test)
+    assert done.scores.time_slice == pytest.approx(right / steps)
+    assert 0.5 < done.scores.time_slice < 1.0  # recognised, imperfectly
+    assert done.row()["steps"] == steps and json.loads(done.row()["settings"])["features"] == ["change", "last"]
+    assert "recognised from sensors" in scope_of([home]).title and "recognised" not in scope_of([imported]).title
+
+
+def test_a_home_without_sensors_is_a_clear_error(tmp_path, imported):
+    bare = replace(imported, source=str(tmp_path))
+    with pytest.raises(ConfigError, match=f"household Sensors has no sensor data.*no sensors.csv in {tmp_path}"):
+        recognise_households(GlobeConfig(), [bare])
+
+
+def _rows(path):
+    with path.open(newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _quick() -> GlobeConfig:
+    return GlobeConfig().with_overrides({f"{part}.{k}": v for part, values in QUICK.items() for k, v in values.items()})
+
+
+def test_evaluate_with_recognised_activities_writes_both_and_scores_the_annotation(tmp_path, imported, monkeypatch):
+    monkeypatch.setattr("globe.evaluation.recognition.candidates", lambda: FAST)
+    config = _quick()
+    memo = Memo()  # the training days are the same: one cross-validation for both runs
+    folders = {a: tmp_path / a for a in ("annotated", "recognised")}
+    for activities, out in folders.items():
+        main_job.evaluate(config, [imported], ["ngram"], out, None, memo=memo, objects_ahead=True,
+                          activities=activities)
+    data = {a: json.loads((out / "data.json").read_text(encoding="utf-8")) for a, out in folders.items()}
+    assert data["annotated"]["activities"] == "annotated" and data["recognised"]["activities"] == "recognised"
+    assert not (folders["annotated"] / "recognition.csv").exists()
+    [row] = _rows(folders["recognised"] / "recognition.csv")
+    assert row["household"] == "Sensors" and 0 < float(row["class_accuracy"]) <= 1
+    assert "recognised" in (folders["recognised"] / "table1.md").read_text(encoding="utf-8")
+    f1 = {a: {r["method"]: float(r["activity_f1"]) for r in _rows(out / "table1.csv")
+              if r["household"] == "Sensors" and r["average"] == "weighted"} for a, out in folders.items()}
+    assert f1["annotated"]["persistence"] != f1["recognised"]["persistence"]  # shown other activities
+    assert abs(f1["annotated"]["ngram"] - f1["recognised"]["ngram"]) < 0.2
+    for out in folders.values():  # every record's truth is the annotation
+        records = _rows(out / "records" / "ngram_Sensors_activity.csv")
+        truth = [a for d in imported.test for a in d.activities[1:]]
+        assert [r["true"] for r in records] == truth
+    assert all((folders["recognised"] / name).is_file() for name in ("lookahead.csv", "fetch_policy.csv"))
+
+
+def _globe(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "globe", *args], capture_output=True, text=True, timeout=600,
+                          cwd=cwd)
+
+
+def test_the_cli_option_end_to_end(tmp_path):
+    _folder(tmp_path / "data", days=6)
+    toml = tmp_path / "quick.toml"
+    toml.write_text("".join(f"[{part}]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in values.items())
+                            for part, values in QUICK.items()), encoding="utf-8")
+    run = _globe("evaluate", "--data", str(tmp_path / "data"), "--methods", "ngram", "--no-objects-ahead",
+                 "--config", str(toml), "--activities", "recognised", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "Sensors: test-day activities recognised from the sensors online" in run.stdout
+    assert "recognised from sensors" in run.stdout  # the tables' title
+    assert (tmp_path / "out" / "recognition.csv").is_file()
+    bad = _globe("evaluate", "--data", str(tmp_path / "data"), "--activities", "guessed", cwd=tmp_path)
+    assert bad.returncode != 0 and "'guessed' is not one of annotated, recognised" in bad.stderr
+
+
+def test_homer_plus_has_no_sensors_to_recognise_from(tmp_path, homer_root):
+    run = _globe("evaluate", "--data", str(homer_root), "--households", "A", "--methods", "ngram",
+                 "--activities", "recognised", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert run.returncode != 0
+    assert "household A has no sensor data" in run.stderr and "HOMER+ has none" in run.stderr
