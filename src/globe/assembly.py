@@ -266,13 +266,22 @@ def forecaster_over(activity: ActivityModelBase, movements: MovementModel, looka
                       max_paths=lookahead.max_paths)
 
 
-def fetch_policy(forecaster: Forecaster, policy: PolicyConfig, step_minutes: int) -> "FetchPolicy":
-    """The robot's fetch decision over ``forecaster`` with the ``policy`` costs and lead times."""
+def fetch_policy(forecaster: Forecaster, policy: PolicyConfig, step_minutes: int,
+                 uses_days: Sequence[Day] | None = None) -> "FetchPolicy":
+    """The robot's fetch decision over ``forecaster`` with the ``policy`` costs and lead times;
+    with ``uses_days`` (where cross-validation chose the clock-aware uses model:
+    ``Deployment.fetch_objects``), its candidates from that model counted on those days
+    (:func:`~globe.models.baselines.fit_uses_ahead`) instead of the forecast."""
     from globe.inference.fetch_policy import FetchPolicy
+    from globe.models.baselines import fit_uses_ahead
 
     lead, window = lead_steps(policy, step_minutes)
+    uses = None
+    if uses_days is not None:
+        uses = fit_uses_ahead(uses_days, forecaster.movements.objects_, lead, window, clock=True)
     return FetchPolicy(forecaster, cost_useless=policy.cost_useless, cost_missed=policy.cost_missed,
-                       min_lead_steps=lead, window_steps=window, max_fetches_per_step=policy.max_fetches_per_step)
+                       min_lead_steps=lead, window_steps=window, max_fetches_per_step=policy.max_fetches_per_step,
+                       uses=uses)
 
 
 def lead_steps(policy: PolicyConfig, step_minutes: int) -> tuple[int, int]:

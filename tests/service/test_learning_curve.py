@@ -11,8 +11,9 @@ from globe.assembly import fit_household
 from globe.errors import DataError
 from globe.evaluation.metrics import f1
 from globe.evaluation.protocol import evaluate_days
+from globe.models.baselines import HourActivityBaseline, mode
 from globe.reasoning.choice import ObjectChooser
-from globe.service.learning_curve import CurvePoint, curve_point, learning_curve, mean_rows, table_rows
+from globe.service.learning_curve import NO_PREDICTION, CurvePoint, curve_point, learning_curve, mean_rows, table_rows
 
 
 def _point(household: str, k: int, activity: float | None, fetch_precision: float) -> CurvePoint:
@@ -28,7 +29,8 @@ def test_mean_rows_average_each_checkpoint_over_households_skipping_missing_scor
     assert means[5]["activity_f1"] == pytest.approx(0.9)  # A had nothing to score: it does not pull the mean down
     rows = table_rows(points)
     assert [r["household"] for r in rows] == ["A", "B", "A", "B", "mean", "mean"]
-    assert list(rows[0]) == ["household", "days_learned", "activity_f1", "object_f1", "fetch_precision", "fetch_recall"]
+    assert list(rows[0]) == ["household", "days_learned", "activity_f1", "object_f1", "fetch_precision", "fetch_recall",
+                             "persistence_f1", "hour_activity_f1"]
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +66,12 @@ def test_curve_point_through_the_service_matches_the_offline_protocol(service, h
     assert point.activity_steps == len(offline.activity) == sum(len(d) - 1 for d in small.test)
     expected = f1([r.true for r in offline.activity], [r.predicted for r in offline.activity])
     assert point.activity_f1 == pytest.approx(expected)
+    steps = [(d, t) for d in small.test for t in range(1, len(d))]  # the baselines: the same steps
+    truth = [d.activities[t] for d, t in steps]
+    assert point.persistence_f1 == pytest.approx(f1(truth, [d.activities[t - 1] for d, t in steps]))
+    rule = HourActivityBaseline(1).fit(small.train[:2])  # each test day in its own household: 2 days learned
+    said = [mode(rule.proba(d.activities[t - 1], d.minutes[t - 1], 1)) or NO_PREDICTION for d, t in steps]
+    assert point.hour_activity_f1 == pytest.approx(f1(truth, said))
     assert point.object_events == len(offline.objects)
     streamed = sum(len(d) for d in small.train[:2])  # into each test day's own household
     assert point.observations == len(small.test) * streamed + sum(len(d) for d in small.test)

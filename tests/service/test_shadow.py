@@ -178,7 +178,7 @@ def test_a_schema_3_database_migrates_with_its_households_acting(tmp_path, house
                 "2026-01-01T00:00:00+00:00", "UTC"))
     db.close()
     store = Store(path)
-    assert store.version == SCHEMA_VERSION == 8
+    assert store.version == SCHEMA_VERSION == 9
     assert store.household("B").shadow is False and store.shadow("B") is False  # it acted before: it still does
     store.add_household(h.__class__("C", h.nodes, h.objects, (), (), ""), "UTC", [])
     assert store.household("C").shadow is True  # a new home starts in shadow

@@ -406,6 +406,9 @@ class Deployment(_Section):
     run_end: bool = Field(True, description="the movement model's hazards know that an activity ends")
     run_memory: bool = Field(False, description="... and what moved earlier in the run")
     run_next: bool = Field(False, description="... and which activity starts")
+    fetch_objects: Literal["movements", "clock"] = Field(
+        "movements", description="where the fetch policy's candidates come from: the movement forecast, or the "
+        "clock-aware uses model where cross-validation chose it")
     emission_weight: float = Field(0.5, ge=0.0, le=10.0, description="the activity filter's movement evidence")
     emission_previous_share: float = Field(1.0, ge=0.0, le=1.0)
     emission_boundary: bool = True

@@ -39,6 +39,7 @@ from globe.evaluation.lookahead import (
     BASELINE,
     CLOCK,
     LOOKAHEAD_COLUMNS,
+    MOVEMENTS,
     ORACLE,
     LookaheadResult,
     choose_settings,
@@ -135,25 +136,24 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo,
            same: LookaheadResult | None) -> tuple[FetchEvaluation, ...]:
     """The fetch policy on ``h``'s test days: replayed through a session of the policy's method,
     whose movement model has the settings the lookahead of that method chose on training days
-    (``same``, when it ran; where that chose the clock-aware object model, its uses' candidates);
+    (``same``, when it ran; where that chose the clock-aware object model, the session's fetch
+    policy takes its candidates from that model's uses: ``Deployment.fetch_objects``);
     then the baseline's and the oracle's fetches at the same steps by the same rule."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
         run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
     else:
         run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
+    fetch_objects = CLOCK if same is not None and same.objects == CLOCK else MOVEMENTS
     deployment = Deployment.configured(config).model_copy(update={
-        "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next})
+        "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next,
+        "fetch_objects": fetch_objects})
     session = build_session(h, config, deployment, None, learn=False)
     replayed = replay_test_days(session, h, h.test)
     policy = session.policy
     ratios = config.policy.curve_ratios
     baseline = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps)
-    if same is not None and same.objects == CLOCK:
-        clock = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps, clock=True)
-        mine = evaluate_uses_baseline(clock, policy, h.test, replayed, h.name, ratios, config.policy.method)
-    else:
-        mine = evaluate_fetch(session, h, h.test, ratios, config.policy.method, replayed)
+    mine = evaluate_fetch(session, h, h.test, ratios, config.policy.method, replayed)
     return (mine, evaluate_uses_baseline(baseline, policy, h.test, replayed, h.name, ratios),
             evaluate_oracle_fetch(policy, h.test, replayed, h.name, ratios))
 

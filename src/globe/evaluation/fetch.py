@@ -19,7 +19,9 @@ from the clock and the activity alone; and the oracle (:data:`ORACLE`): the same
 its candidates from the policy's own movement model told the true activity of every step of the
 lead window (:func:`~globe.inference.forecast.forecast_known`), what perfect activity knowledge
 would give. Where the lookahead's cross-validation chose the clock-aware object model for the
-policy's method, the policy's row takes its candidates from that model's uses (same rule).
+policy's method, the session is built with that model as its fetch policy's candidates
+(``Deployment.fetch_objects``, as the service builds such a home's), so that row too is what the
+session decided.
 """
 
 from __future__ import annotations
@@ -28,15 +30,12 @@ import datetime as dt
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
-import numpy as np
-
 from globe.data.records import Day, Household
-from globe.evaluation.lookahead import ORACLE, since_use
+from globe.evaluation.lookahead import ORACLE
 from globe.evaluation.online import add_report, day_observations, replay, replay_dates
-from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, expected_value, follow_fetches
-from globe.inference.forecast import forecast_known
-from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead
-from globe.sequences.movements import moved_objects
+from globe.inference.fetch_policy import FetchCandidate, FetchContext, FetchPolicy, FetchReport, follow_fetches
+from globe.inference.forecast import Forecast, forecast_known
+from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead, fit_uses_ahead, minutes_since_use, used_matrix
 from globe.session import HouseholdSession
 
 BASELINE = HOUR_ACTIVITY
@@ -111,9 +110,7 @@ def _curve(policy: FetchPolicy, replayed: Sequence[ReplayedDay],
     """``policy`` at each cost ratio over the candidates of ``replayed``."""
     curve = []
     for ratio in ratios:
-        variant = FetchPolicy(policy.forecaster, cost_useless=ratio, cost_missed=1.0,
-                              min_lead_steps=policy.min_lead_steps, window_steps=policy.window_steps,
-                              max_fetches_per_step=policy.max_fetches_per_step)
+        variant = policy.with_costs(ratio, 1.0)
         report = FetchReport()
         for day in replayed:
             follow_policy(variant, day, report)
@@ -123,19 +120,9 @@ def _curve(policy: FetchPolicy, replayed: Sequence[ReplayedDay],
 
 def fit_uses_baseline(days: Sequence[Day], objects: Sequence[str], min_lead: int, window: int,
                       clock: bool = False) -> HourActivityAhead:
-    """P(o is used at a step u with ``min_lead`` <= u - t <= ``window`` | the activity at t, the
-    clock slot of t), counted at every step t of ``days`` (a use: :func:`moved_objects`); with
-    ``clock``, the clock-aware object model (also the day type and the time since o's last use)."""
-    ahead = HourActivityAhead(objects, 1, clock=clock)
-    lo = max(1, min_lead)
-    for day in days:
-        used = np.array([[o in moved for o in objects] for moved in moved_objects(day, objects)], dtype=bool)
-        n = len(day)
-        within = np.zeros((n, 1, len(objects)), dtype=bool)
-        for t in range(n):
-            within[t, 0] = used[t + lo: t + window + 1].any(axis=0)
-        ahead.add(day.activities, day.minutes, within, None, day.weekday, since_use(day, objects) if clock else None)
-    return ahead
+    """The baseline's P(a use within the lead window) on ``days``: :func:`~globe.models.baselines.fit_uses_ahead`
+    (with ``clock``, the clock-aware model a session fetches by where cross-validation chose it)."""
+    return fit_uses_ahead(days, objects, min_lead, window, clock=clock)
 
 
 Candidates = Callable[[Day, Sequence[int]], Sequence[tuple[FetchCandidate, ...]]]
@@ -164,20 +151,20 @@ def evaluate_candidates(candidates_at: Candidates, policy: FetchPolicy, days: Se
 def evaluate_uses_baseline(baseline: HourActivityAhead, policy: FetchPolicy, days: Sequence[Day],
                            replayed: Sequence[ReplayedDay], household: str, ratios: Sequence[float],
                            method: str = BASELINE) -> FetchEvaluation:
-    """The baseline row (or, for the clock-aware model chosen for ``method``, that method's row):
-    :func:`evaluate_candidates` of P(a use within the lead window) by ``baseline``."""
+    """The baseline row: :func:`evaluate_candidates` of P(a use within the lead window) by
+    ``baseline``, read as a session's policy reads its uses model
+    (:meth:`~globe.inference.fetch_policy.FetchPolicy.candidates_from_uses`)."""
     def candidates_at(day: Day, rows: Sequence[int]) -> list[tuple[FetchCandidate, ...]]:
-        since = since_use(day, baseline.objects) if baseline.clock else None
-        out = []
-        for r in rows:
-            p = baseline.proba(day.activities[r], day.minutes[r], day.weekday,
-                               None if since is None else since[r])[0]
-            value = expected_value(p, policy.cost_useless, policy.cost_missed)
-            order = sorted(range(len(p)), key=lambda j: (-p[j], baseline.objects[j]))
-            out.append(tuple(FetchCandidate(baseline.objects[j], float(p[j]), None, float(value[j])) for j in order))
-        return out
+        since = minutes_since_use(used_matrix(day, baseline.objects), day.minutes)
+        return [tuple(policy.candidates_from_uses(baseline, FetchContext(day.seen[r], day.minutes[r], day.weekday,
+                                                                         since[r], _no_forecast)))
+                for r in rows]
 
     return evaluate_candidates(candidates_at, policy, days, replayed, household, ratios, method)
+
+
+def _no_forecast(horizon: int) -> Forecast:
+    raise AssertionError("the uses baseline reads no forecast")
 
 
 def evaluate_oracle_fetch(policy: FetchPolicy, days: Sequence[Day], replayed: Sequence[ReplayedDay], household: str,

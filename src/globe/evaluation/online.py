@@ -5,7 +5,8 @@ it (an observation at the step's wall-clock time, with the step's activity unles
 and every object's place), and the session's decision after it is kept: the next activity, the
 object, the fetches. The scores are the service's online scores, by the session's own rule
 (:meth:`~globe.session.HouseholdSession.settle`): the one-step activity accuracy of the steps
-closed, and each finished day's fetch precision and recall. A replay may start at any hour and
+closed, with persistence's and hour + activity's over the same steps, and each finished day's
+fetch precision and recall. A replay may start at any hour and
 skip steps (nobody watching), so what a robot starting at 18:00 gets is scored as it gets it.
 
 The models learn each finished day when the session does (``learn=True``, as a deployed robot);
@@ -37,20 +38,38 @@ class StepRecord:
 @dataclass(slots=True)
 class OnlineScores:
     """The service's online scores, summed over days: one-step predictions scored and right,
-    and the fetches of the days closed."""
+    beside persistence's and hour + activity's right at the same steps (the rules the model must
+    beat, :meth:`~globe.session.HouseholdSession.settle`), and the fetches of the days closed."""
 
     predictions: int = 0
     correct: int = 0
     fetch: FetchReport = field(default_factory=FetchReport)
+    baseline_predictions: int = 0  # the scored steps the baselines were scored at too
+    persistence_correct: int = 0
+    hour_activity_correct: int = 0
 
     @property
     def accuracy(self) -> float | None:
         return self.correct / self.predictions if self.predictions else None
 
+    @property
+    def persistence_accuracy(self) -> float | None:
+        """Persistence's one-step accuracy over the same scored steps."""
+        return self.persistence_correct / self.baseline_predictions if self.baseline_predictions else None
+
+    @property
+    def hour_activity_accuracy(self) -> float | None:
+        """Hour + current activity's one-step accuracy over the same scored steps."""
+        return self.hour_activity_correct / self.baseline_predictions if self.baseline_predictions else None
+
     def add(self, settled: Settled) -> None:
         if settled.scored is not None:
             self.predictions += 1
             self.correct += settled.scored[1]
+            if settled.baselines is not None:
+                self.baseline_predictions += 1
+                self.persistence_correct += settled.baselines[0]
+                self.hour_activity_correct += settled.baselines[1]
         if settled.fetches is not None:
             add_report(self.fetch, settled.fetches)
 
@@ -84,7 +103,7 @@ def day_observations(household: Household, day: Day, date: dt.date, *, rows: Seq
     object's place."""
     midnight = dt.datetime.combine(date, dt.time())
     for t in range(len(day)) if rows is None else rows:
-        label = day.activities[t] if visible is None or visible(t) else None
+        label = day.seen[t] if visible is None or visible(t) else None  # as GLOBE saw it (recognised, if so)
         yield t, Observation(midnight + dt.timedelta(minutes=day.minutes[t]), label,
                              dict(zip(household.objects, day.locations[t])))
 

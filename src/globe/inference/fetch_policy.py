@@ -10,7 +10,12 @@ fetch c_u and of a need the robot missed c_m,
     E[fetch] - E[no fetch] = p * c_m - (1 - p) * c_u > 0   <=>   p > c_u / (c_u + c_m),
 
 so the robot team sets two costs, not a bare threshold. Probabilities come from the
-:class:`~globe.inference.forecast.Forecaster`, which propagates the activity distribution ahead.
+:class:`~globe.inference.forecast.Forecaster`, which propagates the activity distribution ahead,
+or, where the household's cross-validation chose it (a home whose uses follow the clock), from a
+uses model (``uses``: :class:`~globe.models.baselines.HourActivityAhead`, P(a use within the lead
+window | the activity, the clock slot, the day type, the time since each object's last use)). The
+policy owns that choice, so the session that serves a home and the evaluation that scores it
+fetch from the same candidates (:meth:`FetchPolicy.candidates_at`).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np
 
 from globe.data.records import Day
 from globe.inference.forecast import Forecast, Forecaster
+from globe.models.baselines import HourActivityAhead, fit_uses_ahead
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,12 +46,27 @@ def expected_value(probability: np.ndarray, cost_useless: float, cost_missed: fl
     return probability * cost_missed - (1.0 - probability) * cost_useless
 
 
+@dataclass(frozen=True, slots=True)
+class FetchContext:
+    """What the candidates of a step may be read from: the activity under way at the step, its
+    clock minute, the day's weekday (None: undated), the minutes since each object's last use
+    that day (-1: not used yet; :func:`~globe.models.baselines.minutes_since_use`) and the
+    forecast ``horizon`` steps ahead (asked only by the movement candidates: it costs most)."""
+
+    activity: str
+    minute: int
+    weekday: int | None
+    since: np.ndarray
+    forecast: Callable[[int], Forecast]
+
+
 class FetchPolicy:
     """Per step, which objects to fetch now (see module doc). Call :meth:`decide` after each
     observation with the day's activities and object locations so far."""
 
     def __init__(self, forecaster: Forecaster, *, cost_useless: float = 3.0, cost_missed: float = 1.0,
-                 min_lead_steps: int = 1, window_steps: int = 6, max_fetches_per_step: int = 2) -> None:
+                 min_lead_steps: int = 1, window_steps: int = 6, max_fetches_per_step: int = 2,
+                 uses: HourActivityAhead | None = None) -> None:
         if cost_useless < 0 or cost_missed < 0:
             raise ValueError("fetch costs must be >= 0")
         if window_steps < max(min_lead_steps, 1):
@@ -57,12 +78,26 @@ class FetchPolicy:
         self.min_lead_steps = max(1, min_lead_steps)
         self.window_steps = window_steps
         self.max_fetches_per_step = max_fetches_per_step
+        self.uses = uses
+
+    @property
+    def source(self) -> str:
+        """Where the candidates come from: ``"movements"`` (the forecaster) or ``"clock"`` (the uses model)."""
+        return "movements" if self.uses is None else "clock"
+
+    def with_costs(self, cost_useless: float, cost_missed: float) -> "FetchPolicy":
+        """The same policy (candidates, lead times, cap) at other costs."""
+        return FetchPolicy(self.forecaster, cost_useless=cost_useless, cost_missed=cost_missed,
+                           min_lead_steps=self.min_lead_steps, window_steps=self.window_steps,
+                           max_fetches_per_step=self.max_fetches_per_step, uses=self.uses)
 
     def learn(self, days: Sequence[Day]) -> None:
-        """Add finished days to the movement model (a household's session learning as it goes; the
-        activity model is shared with the session, which updates it)."""
+        """Add finished days to the movement model and the uses model (a household's session
+        learning as it goes; the activity model is shared with the session, which updates it)."""
         movements = self.forecaster.movements
         movements.partial_fit(days, movements.objects_)
+        if self.uses is not None:
+            fit_uses_ahead(days, self.uses.objects, self.min_lead_steps, self.window_steps, ahead=self.uses)
 
     @property
     def threshold(self) -> float:
@@ -77,15 +112,33 @@ class FetchPolicy:
 
     def candidates(self, activities: Sequence[str], locations: Sequence[Sequence[str]],
                    weekday: int | None = None) -> list[FetchCandidate]:
-        """Every tracked object as a candidate fetch, most likely useful first."""
+        """Every tracked object as a candidate fetch by the movement forecast, most likely useful
+        first (a session reads the policy's own source: :meth:`candidates_at`)."""
         return self.candidates_from(self.forecast(activities, locations, weekday))
+
+    def candidates_at(self, now: FetchContext) -> list[FetchCandidate]:
+        """The candidates of a step from the policy's own source: the uses model when it has one,
+        else the forecast (``window_steps - 1`` steps ahead)."""
+        if self.uses is not None:
+            return self.candidates_from_uses(self.uses, now)
+        return self.candidates_from(now.forecast(self.window_steps - 1))
 
     def candidates_from(self, forecast: Forecast) -> list[FetchCandidate]:
         p = forecast.useful_probability(self.min_lead_steps, self.window_steps)
         targets = forecast.likely_target(self.min_lead_steps, self.window_steps)
+        return self._ranked(forecast.objects, p, targets)
+
+    def candidates_from_uses(self, uses: HourActivityAhead, now: FetchContext) -> list[FetchCandidate]:
+        """Every object as a candidate by ``uses`` (P(used within the lead window), no target
+        place: the uses model does not say where)."""
+        since = now.since if uses.clock else None
+        p = uses.proba(now.activity, now.minute, now.weekday, since)[0]
+        return self._ranked(uses.objects, p, [None] * len(p))
+
+    def _ranked(self, objects: Sequence[str], p: np.ndarray, targets: Sequence[str | None]) -> list[FetchCandidate]:
         ev = expected_value(p, self.cost_useless, self.cost_missed)
-        order = sorted(range(len(p)), key=lambda j: (-p[j], forecast.objects[j]))
-        return [FetchCandidate(forecast.objects[j], float(p[j]), targets[j], float(ev[j])) for j in order]
+        order = sorted(range(len(p)), key=lambda j: (-p[j], objects[j]))
+        return [FetchCandidate(objects[j], float(p[j]), targets[j], float(ev[j])) for j in order]
 
     def choose(self, candidates: Sequence[FetchCandidate], exclude: Collection[str] = ()) -> list[FetchCandidate]:
         """The candidates worth fetching: positive expected value, not already fetched, at most

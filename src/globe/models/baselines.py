@@ -10,8 +10,10 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from globe.data.records import Day
 from globe.models.base import ActivityModelBase, Weekdays, rank
 from globe.models.state_space import StateSpace
+from globe.sequences.movements import moved_objects
 
 HOUR_ACTIVITY = "hour_activity"
 """The name of the hour + activity rows in every results table (Table I, the lookahead, the fetch
@@ -133,10 +135,18 @@ class HourActivityBaseline(_TableRow):
 
     def fit(self, days: Sequence) -> "HourActivityBaseline":
         """Count ``days`` (:class:`~globe.data.records.Day`: activities and clock minutes)."""
+        self._seen: Counter[tuple[int, int, str, str]] = Counter()  # (horizon, hour, a_r, a_{r+j}); 0: next different
+        self._labels: set[str] = set()
+        self._first: Counter[str] = Counter()
+        return self.partial_fit(days)
+
+    def partial_fit(self, days: Sequence) -> "HourActivityBaseline":
+        """Add ``days`` to the counts (a household's session learning day by day: the same counts as
+        fitting on every day at once)."""
+        if not hasattr(self, "_seen"):
+            return self.fit(days)
         h, width = self.horizons, self.slot_minutes
-        seen: Counter[tuple[int, int, str, str]] = Counter()  # (horizon, hour, a_r, a_{r+j}); horizon 0: next different
-        labels: set[str] = set()
-        first: Counter[str] = Counter()
+        seen, labels, first = self._seen, self._labels, self._first
         for day in days:
             acts, n = day.activities, len(day.activities)
             first.update(acts[:1])
@@ -154,7 +164,7 @@ class HourActivityBaseline(_TableRow):
             self.pair_[j].setdefault((slot, a), Counter())[b] += c
             self.slot_[j].setdefault(slot, Counter())[b] += c
         self.classes_ = tuple(sorted(labels))
-        self.first_ = {a: c / sum(first.values()) for a, c in sorted(first.items())}
+        self.first_ = {a: c / sum(first.values()) for a, c in sorted(first.items())} if first else {}
         self._answers: dict[tuple[int, str, int, bool], dict[str, float]] = {}
         return self
 
@@ -409,10 +419,36 @@ class HourActivityAhead:
             return found
         bands = since_band(np.asarray(since))
         out = found.copy()
+        deepest = next((k for k in reversed(keys) if k in self._refs), None)  # a dated question of undated days
         for b in np.unique(bands).tolist():
-            key = (keys[-1], b)
+            key = (deepest, b)
             if key in self._refs:
                 cols = bands == b
                 out[:, cols] = (self._events[key][:, cols] + self.shrinkage * out[:, cols]) / (self._refs[key][cols]
                                                                                               + self.shrinkage)
         return out
+
+
+def used_matrix(day: Day, objects: Sequence[str]) -> np.ndarray:
+    """(steps x objects, bool): the objects used (moved, :func:`moved_objects`) at each step of ``day``."""
+    used = np.array([[o in moved for o in objects] for moved in moved_objects(day, objects)], dtype=bool)
+    return used.reshape(len(day), len(objects))
+
+
+def fit_uses_ahead(days: Sequence[Day], objects: Sequence[str], min_lead: int, window: int,
+                   clock: bool = False, ahead: HourActivityAhead | None = None) -> HourActivityAhead:
+    """P(o is used at a step u with ``min_lead`` <= u - t <= ``window`` | the activity at t, the
+    clock slot of t), counted at every step t of ``days`` (added to ``ahead`` when given, so a
+    session learning day by day counts what fitting on every day at once would): the fetch
+    policy's candidates from uses; with ``clock``, the clock-aware model (also the day type and the
+    time since o's last use)."""
+    ahead = HourActivityAhead(objects, 1, clock=clock) if ahead is None else ahead
+    lo = max(1, min_lead)
+    for day in days:
+        used = used_matrix(day, ahead.objects)
+        within = np.zeros((len(day), 1, len(ahead.objects)), dtype=bool)
+        for t in range(len(day)):
+            within[t, 0] = used[t + lo: t + window + 1].any(axis=0)
+        since = minutes_since_use(used, day.minutes) if ahead.clock else None
+        ahead.add(day.activities, day.minutes, within, None, day.weekday, since)
+    return ahead

@@ -6,7 +6,10 @@ learned when the next day's first observation arrives. The test days are then re
 way, with a prediction asked after every step, and scored:
 
 - *activity F1*: at step t = 1..T-1 of a test day, the activity the service predicted after
-  observing step t-1, against the true a_t (weighted F1, as Table I);
+  observing step t-1, against the true a_t (weighted F1, as Table I); beside it, at the same
+  steps, the two rules it must beat: *persistence F1* (a_{t-1} goes on) and *hour + activity F1*
+  (the most frequent next activity given a_{t-1} and its hour, counted on the days the household
+  had learned by then: :class:`~globe.models.baselines.HourActivityBaseline`);
 - *object F1*: at every movement event (an object whose location at step t differs from t-1),
   the object the service named after observing step t-1 -- what a robot would fetch just before
   the person uses it -- against the object that moved (weighted F1);
@@ -25,12 +28,13 @@ from __future__ import annotations
 
 import datetime as dt
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from globe.data.records import Day, Household
 from globe.errors import DataError, GlobeError
 from globe.evaluation.metrics import f1
+from globe.models.baselines import HourActivityBaseline, mode
 from globe.sequences.movements import extract_movements
 
 if TYPE_CHECKING:  # the service extra is needed only to run the curve, not to import this module
@@ -40,7 +44,8 @@ if TYPE_CHECKING:  # the service extra is needed only to run the curve, not to i
 CHECKPOINTS: tuple[int, ...] = (1, 2, 5, 10, 20, 40, 65)
 ISOLATE_UP_TO = 10  # checkpoints up to this score each test day in its own household
 NO_PREDICTION = "<none>"
-COLUMNS = ("household", "days_learned", "activity_f1", "object_f1", "fetch_precision", "fetch_recall")
+COLUMNS = ("household", "days_learned", "activity_f1", "object_f1", "fetch_precision", "fetch_recall", "persistence_f1",
+           "hour_activity_f1")
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +63,8 @@ class CurvePoint:
     fetches: int
     observations: int  # observations posted for this point (training and test days)
     elapsed_s: float
+    persistence_f1: float | None = None  # the same steps, predicted by the activity before
+    hour_activity_f1: float | None = None  # the same steps, by hour + activity counted on the days learned
 
     def as_row(self) -> dict[str, Any]:
         return asdict(self)
@@ -71,6 +78,8 @@ class _Scores:
     activity_pred: list[str]
     object_true: list[str]
     object_pred: list[str]
+    persistence_pred: list[str] = field(default_factory=list)  # beside activity_pred, step by step
+    hour_activity_pred: list[str] = field(default_factory=list)
     fetches: int = 0
     useful_fetches: int = 0
     used_objects: int = 0
@@ -121,23 +130,30 @@ def stream_days(client: GlobeClient, name: str, household: Household, days: Sequ
 
 
 def _score_replayed(household: Household, days: Sequence[Day], predictions: Mapping[tuple[int, int], ServicePrediction],
-                    scores: _Scores) -> None:
+                    scores: _Scores, learned: Sequence[Day] = ()) -> None:
     """Add the activity and object pairs of replayed ``days``; ``predictions[(d, t)]`` is the one
-    made after observing step t of day d."""
+    made after observing step t of day d. The baselines' predictions at the same steps: hour +
+    activity counted on ``learned`` and the replayed days before (as the service learns them)."""
     missing = [(d, t) for d, day in enumerate(days) for t in range(len(day)) if (d, t) not in predictions]
     if missing:
         raise GlobeError(f"no prediction after step {missing[0][1]} of replayed day {missing[0][0]}")
+    rule = HourActivityBaseline(1).fit(learned)
     for d, day in enumerate(days):
         for t in range(1, len(day)):
+            before = day.activities[t - 1]
             scores.activity_true.append(day.activities[t])
             scores.activity_pred.append(predictions[(d, t - 1)].activity or NO_PREDICTION)
+            scores.persistence_pred.append(before)
+            scores.hour_activity_pred.append(mode(rule.proba(before, day.minutes[t - 1], 1)) or NO_PREDICTION)
+        rule.partial_fit([day])
         for ev in extract_movements(day, household.objects):
             scores.object_true.append(ev.obj)
             scores.object_pred.append(predictions[(d, ev.step - 1)].object or NO_PREDICTION)
 
 
 def _replay_and_score(client: GlobeClient, name: str, household: Household, days: Sequence[Day],
-                      dates: Sequence[dt.date], scores: _Scores, min_lead_steps: int, window_steps: int) -> int:
+                      dates: Sequence[dt.date], scores: _Scores, min_lead_steps: int, window_steps: int,
+                      learned: Sequence[Day] = ()) -> int:
     from globe.service.robot import SimulatedRobot, replay_days
 
     predictions: dict[tuple[int, int], ServicePrediction] = {}
@@ -147,7 +163,7 @@ def _replay_and_score(client: GlobeClient, name: str, household: Household, days
 
     report = replay_days(client, name, household, days, SimulatedRobot(), dates=dates,
                          min_lead_steps=min_lead_steps, window_steps=window_steps, on_prediction=keep)
-    _score_replayed(household, days, predictions, scores)
+    _score_replayed(household, days, predictions, scores, learned)
     scores.add_report(report)
     return sum(len(d) for d in days)
 
@@ -194,7 +210,7 @@ def curve_point(client: GlobeClient, household: Household, days_learned: int, *,
         try:
             posted += stream_days(client, name, household, train, dates[:days_learned])
             posted += _replay_and_score(client, name, household, test_days, dates[days_learned:], scores,
-                                        min_lead_steps, window_steps)
+                                        min_lead_steps, window_steps, train)
         finally:
             client.delete_household(name)
     return CurvePoint(
@@ -205,6 +221,8 @@ def curve_point(client: GlobeClient, household: Household, days_learned: int, *,
         fetch_recall=scores.used_fetched_in_advance / scores.used_objects if scores.used_objects else 0.0,
         activity_steps=len(scores.activity_true), object_events=len(scores.object_true), fetches=scores.fetches,
         observations=posted, elapsed_s=time.perf_counter() - started,
+        persistence_f1=f1(scores.activity_true, scores.persistence_pred),
+        hour_activity_f1=f1(scores.activity_true, scores.hour_activity_pred),
     )
 
 

@@ -139,6 +139,14 @@ MIGRATIONS: list[str] = [
     ALTER TABLE training_days ADD COLUMN events BLOB;
     ALTER TABLE observations ADD COLUMN sensors TEXT;
     """,
+    # 9: beside each day's one-step predictions scored, the steps persistence and hour + activity
+    # got right (the rules the model must beat) and the steps they were scored at (0 for days
+    # scored before: their rates leave those days out rather than count them wrong)
+    """
+    ALTER TABLE day_scores ADD COLUMN baseline_predictions INTEGER NOT NULL DEFAULT 0;
+    ALTER TABLE day_scores ADD COLUMN persistence_correct INTEGER NOT NULL DEFAULT 0;
+    ALTER TABLE day_scores ADD COLUMN hour_activity_correct INTEGER NOT NULL DEFAULT 0;
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -220,9 +228,13 @@ class DayScore:
     useful_fetches: int = 0
     uses: int = 0
     uses_fetched: int = 0
+    baseline_predictions: int = 0
+    persistence_correct: int = 0
+    hour_activity_correct: int = 0
 
 
-SCORE_COLUMNS = ("predictions", "correct", "fetches", "useful_fetches", "uses", "uses_fetched")
+SCORE_COLUMNS = ("predictions", "correct", "fetches", "useful_fetches", "uses", "uses_fetched", "baseline_predictions",
+                 "persistence_correct", "hour_activity_correct")
 
 
 @dataclass(frozen=True, slots=True)

@@ -240,6 +240,16 @@ class DayScoreOut(_Body):
     uses: int = Field(..., description="times an object was used (moved)")
     uses_fetched: int = Field(..., description="uses that a fetch within the lead window before had anticipated")
     recall: float | None
+    baseline_predictions: int = Field(0, description="of the steps scored, those the baselines were scored at too "
+                                                     "(all of them, but on days scored before version 9 kept them)")
+    persistence_correct: int = Field(0, description="of those steps, those where persistence (the activity stays) "
+                                                    "was right")
+    persistence_accuracy: float | None = Field(None, description="persistence's one-step accuracy on those steps")
+    hour_activity_correct: int = Field(0, description="of the steps scored, those where hour + activity (the most "
+                                                      "frequent next activity given the current one and the hour, "
+                                                      "counted on the days learnt) was right")
+    hour_activity_accuracy: float | None = Field(None, description="hour + activity's one-step accuracy on those "
+                                                                   "steps")
 
 
 def _rate(hits: int, total: int) -> float | None:
@@ -254,6 +264,12 @@ class OnlineScores(_Body):
     accuracy: float | None = Field(..., description="activity accuracy one step ahead over these days")
     precision: float | None = Field(..., description="fetch precision over these days")
     recall: float | None = Field(..., description="fetch recall over these days")
+    persistence_accuracy: float | None = Field(
+        None, description="persistence's one-step accuracy (the activity stays) over the same scored steps: the rule "
+                          "the model must beat (days scored before the baselines were kept are left out)")
+    hour_activity_accuracy: float | None = Field(
+        None, description="hour + current activity's one-step accuracy over the same scored steps (the most frequent "
+                          "next activity given the current one and the hour, counted on the days learnt)")
 
     @classmethod
     def from_days(cls, rows: list[Any]) -> "OnlineScores":
@@ -261,13 +277,20 @@ class OnlineScores(_Body):
         days = [DayScoreOut(day=r.day, predictions=r.predictions, correct=r.correct,
                             accuracy=_rate(r.correct, r.predictions), fetches=r.fetches,
                             useful_fetches=r.useful_fetches, precision=_rate(r.useful_fetches, r.fetches),
-                            uses=r.uses, uses_fetched=r.uses_fetched, recall=_rate(r.uses_fetched, r.uses))
+                            uses=r.uses, uses_fetched=r.uses_fetched, recall=_rate(r.uses_fetched, r.uses),
+                            baseline_predictions=r.baseline_predictions, persistence_correct=r.persistence_correct,
+                            persistence_accuracy=_rate(r.persistence_correct, r.baseline_predictions),
+                            hour_activity_correct=r.hour_activity_correct,
+                            hour_activity_accuracy=_rate(r.hour_activity_correct, r.baseline_predictions))
                 for r in rows]
         total = {k: sum(getattr(d, k) for d in days) for k in ("predictions", "correct", "fetches", "useful_fetches",
-                                                               "uses", "uses_fetched")}
+                                                               "uses", "uses_fetched", "baseline_predictions",
+                                                               "persistence_correct", "hour_activity_correct")}
         return cls(days=days, accuracy=_rate(total["correct"], total["predictions"]),
                    precision=_rate(total["useful_fetches"], total["fetches"]),
-                   recall=_rate(total["uses_fetched"], total["uses"]))
+                   recall=_rate(total["uses_fetched"], total["uses"]),
+                   persistence_accuracy=_rate(total["persistence_correct"], total["baseline_predictions"]),
+                   hour_activity_accuracy=_rate(total["hour_activity_correct"], total["baseline_predictions"]))
 
 
 class StatsOut(_Body):

@@ -1,16 +1,18 @@
 """Online scores kept in the database: how well GLOBE does in one home, against what then happened.
 
 What an observation settles is the session's rule (:meth:`globe.session.HouseholdSession.settle`,
-the same that scores a replay offline): the one-step activity prediction of the step it closes,
-and, when it starts a new day, the finished day's fetches (a fetch is right when the object is then
-used within the policy's lead window). Here those become rows of the store's ``day_scores`` table
-(counts per day, so days add up), written in the same transaction as the observation that settles
-them: a restart keeps them.
+the same that scores a replay offline): the one-step activity prediction of the step it closes
+(with whether persistence and hour + activity were right there, so the rules the model must beat
+are scored over the same steps), and, when it starts a new day, the finished day's fetches (a
+fetch is right when the object is then used within the policy's lead window). Here those become
+rows of the store's ``day_scores`` table (counts per day, so days add up), written in the same
+transaction as the observation that settles them: a restart keeps them.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import replace
 
 from globe.service.schema import SCORE_COLUMNS, DayScore
 from globe.service.schemas import OnlineScores
@@ -23,7 +25,7 @@ Statement = tuple[str, tuple]
 
 def statements(name: str, settled: Settled) -> list[Statement]:
     """The rows an observation's :class:`Settled` writes with it: the closed step's label beside
-    its one-step prediction and whether it was right, the finished day's fetch counts (its
+    its one-step prediction and whether it (and each baseline) was right, the finished day's fetch counts (its
     fetches marked counted, its step predictions dropped), the opened step's one-step prediction."""
     out: list[Statement] = []
     day = settled.day
@@ -33,7 +35,10 @@ def statements(name: str, settled: Settled) -> list[Statement]:
         step, label = settled.observed
         out.append(("UPDATE step_predictions SET observed = ? WHERE household = ? AND day = ? AND step = ?",
                     (label, name, day, step)))
-        out.append(_scores(name, day, predictions=1, correct=int(settled.scored[1])))
+        right = settled.baselines or (False, False)
+        out.append(_scores(name, day, predictions=1, correct=int(settled.scored[1]),
+                           baseline_predictions=int(settled.baselines is not None),
+                           persistence_correct=int(right[0]), hour_activity_correct=int(right[1])))
     report = settled.fetches
     if report is not None:
         if report.fetches or report.used_objects:
@@ -74,9 +79,10 @@ def today_score(session: HouseholdSession, store: Store, name: str) -> DayScore 
         return None
     stored = next(iter(store.day_scores(name, day)), DayScore(day))
     report = session.fetch_report(settled_only=True)
-    return DayScore(day, stored.predictions, stored.correct, stored.fetches + report.fetches,
-                    stored.useful_fetches + report.useful_fetches, stored.uses + report.used_objects,
-                    stored.uses_fetched + report.used_fetched_in_advance)
+    return replace(stored, fetches=stored.fetches + report.fetches,
+                   useful_fetches=stored.useful_fetches + report.useful_fetches,
+                   uses=stored.uses + report.used_objects,
+                   uses_fetched=stored.uses_fetched + report.used_fetched_in_advance)
 
 
 def online_scores(store: Store, name: str, session: HouseholdSession, days: int = 28) -> OnlineScores:

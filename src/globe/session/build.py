@@ -59,7 +59,7 @@ def build_session(household: Household, config: GlobeConfig, deployment: Deploym
     movements = assembly.movement_model(cfg.lookahead, grid.step_minutes, *deployment.movement).fit(
         fitted.sequences.packed, household.objects)
     policy = assembly.fetch_policy(assembly.forecaster_over(fitted.activity, movements, cfg.lookahead), cfg.policy,
-                                   grid.step_minutes)
+                                   grid.step_minutes, household.train if deployment.fetch_objects == "clock" else None)
     fc = cfg.filter
     sensing = None
     if sensors is not None:
@@ -100,4 +100,5 @@ def deployment_summary(deployment: Deployment) -> str:
     objects = "Witten-Bell" if d.models.object_estimator == "witten_bell" else "longest-context"
     how = "chosen by cross-validation on its training days" if d.cross_validated else "as configured"
     note = f" ({d.note})" if d.note else ""
-    return f"{activity_model_summary(d.models)}; objects by a {objects} n-gram per activity; {how}{note}"
+    fetch = "; fetches by the clock-aware uses model" if d.fetch_objects == "clock" else ""
+    return f"{activity_model_summary(d.models)}; objects by a {objects} n-gram per activity{fetch}; {how}{note}"

@@ -62,10 +62,12 @@ class Settled:
     """What one observation settles (:meth:`HouseholdSession.settle`), for the day under way
     before it (``day``): the step it closes, whether its one-step prediction was right and the
     label it had, the fetches of the day when it starts a new one, and the one-step prediction of
-    the step it opens (step, activity, probability)."""
+    the step it opens (step, activity, probability); beside the scored prediction, whether the two
+    rules a model must beat were right at the same step (``baselines``: persistence, hour + activity)."""
 
     day: str | None
     scored: tuple[int, bool] | None = None
     observed: tuple[int, str] | None = None
     fetches: FetchReport | None = None
     opened: tuple[int, str, float] | None = None
+    baselines: tuple[bool, bool] | None = None

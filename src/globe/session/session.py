@@ -21,7 +21,10 @@ evaluation scored at that step.
   (through the chooser, the LLM gate when there is one), and the fetches of the fetch policy
   (:func:`~globe.inference.fetch_policy.follow_fetches`: at most ``max_fetches_per_step``, never an
   object waiting for the use it was fetched for, never one in use now or just put back, none at
-  the day's last step), forecast from the filter's most probable histories.
+  the day's last step), forecast from the filter's most probable histories, or, where the
+  household deploys the clock-aware uses model (``Deployment.fetch_objects``), read from it with
+  the activity under way, the clock, the day type and the time since each object's last use today
+  (:meth:`~globe.inference.fetch_policy.FetchPolicy.candidates_at`).
 - **Learning** (``learn=True``): when an observation belongs to a new day, the finished day is
   added to every model, so the result equals training on all days at once. Unknown steps of a
   learned day take the filter's most probable history; a day labelled on fewer than half of its
@@ -57,9 +60,17 @@ from globe.data.sensors import SensorDay
 from globe.errors import DataError, UnknownLabelError
 from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
 from globe.inference.emission import MovementEmission
-from globe.inference.fetch_policy import FetchCandidate, FetchPolicy, FetchReport, follow_fetches, left_alone
+from globe.inference.fetch_policy import (
+    FetchCandidate,
+    FetchContext,
+    FetchPolicy,
+    FetchReport,
+    follow_fetches,
+    left_alone,
+)
 from globe.inference.forecast import Forecast, mixture
 from globe.models.base import ActivityModelBase, stay_or_change
+from globe.models.baselines import HourActivityBaseline, minutes_since_use, mode
 from globe.reasoning.choice import ObjectChooser, run_context
 from globe.recognition.asking import DayAsker
 from globe.sequences.movements import Alignment, used_between
@@ -107,6 +118,7 @@ class HouseholdSession(SensorSteps):
         # the training days are counted, then dropped: the map is kept (memory per household stays small)
         self.household = Household(household.name, household.nodes, household.objects, (), (), household.source)
         self.days_learned = len(household.train)
+        self.hour_activity = HourActivityBaseline(1).fit(household.train)  # the online scores' baseline
         self.learned_days = [d.name for d in household.train]  # their names, in the order learned
         self.observations = 0
         self.fallbacks: Counter[str] = Counter()
@@ -326,19 +338,30 @@ class HouseholdSession(SensorSteps):
         opened right after the last one gets its one-step prediction (what :meth:`decide` says of it)."""
         if not place.new_step or self._day is None:
             return Settled(self._day)
-        scored = observed = fetches = opened = None
+        scored = observed = fetches = opened = baselines = None
         if self._labels:
             last = len(self._labels) - 1
             predicted, label = self.step_predictions.get(last), self._labels[last]
             if predicted is not None and label is not None:
                 scored, observed = (last, predicted[0] == label), (last, label)
+                baselines = self._baselines_right(last, label)
             if place.day != self._day:
                 fetches = self.fetch_report()
         if place.day == self._day and place.step == len(self._labels) and self._looked and self._looked[-1]:
             top = self.next_activity()
             if top is not None:
                 opened = (place.step, *top)
-        return Settled(self._day, scored, observed, fetches, opened)
+        return Settled(self._day, scored, observed, fetches, opened, baselines)
+
+    def _baselines_right(self, step: int, label: str) -> tuple[bool, bool]:
+        """Whether persistence (the activity stays) and hour + activity (the most frequent next
+        activity given it and the hour, counted on the days learnt) predicted ``label`` at ``step``
+        from the step before (its label, else the last label before it)."""
+        previous = next((a for a in reversed(self._labels[:step]) if a is not None), None)
+        if previous is None:
+            return False, False
+        rule = mode(self.hour_activity.proba(previous, self.grid.minute(step - 1), 1))
+        return previous == label, rule == label
 
     def remember(self, settled: Settled) -> None:
         """After the observation: keep the one-step prediction of the step it opened (scored when
@@ -449,12 +472,24 @@ class HouseholdSession(SensorSteps):
         t = len(self._labels) - 1
         if t >= self.grid.last_step or self.days_learned == 0:
             return (), (), frozenset()
-        forecast = self.forecast(self.policy.window_steps - 1)
-        candidates = tuple(self.policy.candidates_from(forecast))
+        candidates = tuple(self.policy.candidates_at(self._fetch_context(t)))
         before = self._states[t - 1] if t else self._states[t]
         alone = left_alone(self.household.objects, before, self._states[t], self._use_places)
         chosen = self.policy.choose(candidates, exclude=set(self.waiting()) | alone)
         return tuple(chosen), candidates, alone
+
+    def _fetch_context(self, t: int) -> FetchContext:
+        """What the fetch policy's candidates after step ``t`` are read from (the activity under way:
+        the step's label, else the filter's most probable history's; each object's minutes since
+        its last use today: the uses seen so far)."""
+        since = np.empty(0)
+        uses = self.policy.uses
+        if uses is not None and uses.clock:  # read only by the clock-aware uses model (a whole day's pass)
+            minutes = [self.grid.minute(s) for s in range(t + 1)]
+            used = np.array([[o in u for o in self.household.objects] for u in self._uses[: t + 1]], dtype=bool)
+            since = minutes_since_use(used.reshape(t + 1, len(self.household.objects)), minutes)[-1]
+        activity = self._labels[t] or next(reversed(self.activity_history()), "")
+        return FetchContext(activity, self.grid.minute(t), self.weekday, since, self.forecast)
 
     # -- forecasting ----------------------------------------------------------------------------
     def forecast(self, horizon: int) -> Forecast:
@@ -507,14 +542,17 @@ class HouseholdSession(SensorSteps):
             self._beliefs = [self._filter.start(1, weekdays=[weekday])]
             policy = self.sensing.policy() if self.sensing is not None else None
             if policy is not None and day is not None:
-                self._asker = DayAsker(policy, self.grid.steps)
+                # the same worth the evaluation's asking curve scores: unsure, and about activities little labelled
+                self._asker = DayAsker(policy, self.grid.steps,
+                                       labelled=self.sensing.emission.labelled_steps(self._filter.labels))
 
     def _close(self) -> None:
         """The finished day is learned (see module doc)."""
         if self.learning:
             self._learn_sensors()
         labelled = sum(a is not None for a in self._labels)
-        if self.learning and len(self._labels) >= 2 and 2 * labelled >= len(self._labels):
+        first = self.days_learned == 0 and self.sensing is not None and labelled > 0  # a cold start's answers
+        if self.learning and len(self._labels) >= 2 and (2 * labelled >= len(self._labels) or first):
             self.learn([self.current_day()])
 
     def learn(self, days: Sequence[Day]) -> None:
@@ -525,6 +563,7 @@ class HouseholdSession(SensorSteps):
         self.chooser.model.partial_fit([(r.activity, r.objects) for r in runs])  # type: ignore[attr-defined]
         self.emission.partial_fit(days, objects)
         self.policy.learn(days)
+        self.hour_activity.partial_fit(days)
         self.days_learned += len(days)
         self.learned_days += [d.name for d in days]
 
