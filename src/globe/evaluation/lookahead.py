@@ -59,8 +59,8 @@ from globe.models.baselines import (
     HourActivityBaseline,
     minutes_since_use,
     mode,
+    used_matrix,
 )
-from globe.sequences.movements import moved_objects
 
 
 def forecast_days(forecaster: Forecaster | MovementModel, days: Sequence[Day], horizons: int, first: int = 1,
@@ -372,9 +372,8 @@ def first_moves(day: Day, rs: Sequence[int], horizons: int) -> np.ndarray:
 
 def since_use(day: Day, objects: Sequence[str]) -> np.ndarray:
     """(steps x objects): minutes since each object's last use that day, at each step
-    (:func:`~globe.models.baselines.minutes_since_use` of the uses :func:`moved_objects` counts)."""
-    used = np.array([[o in moved for o in objects] for moved in moved_objects(day, objects)], dtype=bool)
-    return minutes_since_use(used.reshape(len(day), len(objects)), day.minutes)
+    (:func:`~globe.models.baselines.minutes_since_use` of :func:`~globe.models.baselines.used_matrix`)."""
+    return minutes_since_use(used_matrix(day, objects), day.minutes)
 
 
 def fit_moves_baseline(days: Sequence[Day], objects: Sequence[str], horizons: int, la: LookaheadConfig,
