@@ -5,7 +5,8 @@ against the issue's targets, and the figures the closing note reports.
   per step, against the 1 ms target;
 - offline: a year of 1-minute steps recognised (filtered) at once, against the one-minute target;
 - accuracy: the learning curve (1, 3, 7, 14 and all labelled days, settings chosen on them), the
-  asking curve (questions a day spent where worth most vs at random), the CRF row
+  asking curve from 1 and from 3 labelled days (questions a day spent where worth most, where the
+  recogniser is least sure, and at random: the mean of three draws), the CRF row
   (sklearn-crfsuite, when installed) and GLOBE's activity model fed recognised activities.
 
 New code: there is no previous version to compare with; ratios are to the targets.
@@ -58,10 +59,16 @@ def main() -> None:
         print(f"  {row['labelled_days']:>2} labelled days: time-slice {row['time_slice_accuracy']:.3f}, "
               f"class {row['class_accuracy']:.3f} / smoothed {row['smoothed_time_slice_accuracy']:.3f}, "
               f"{row['smoothed_class_accuracy']:.3f}  {row['settings']}")
-    print("asking curve (3 labelled days; class accuracy, where worth most vs at random):")
-    for row in R.asking_curve(home, sensors, 1, labelled_days=3):
-        print(f"  {row['questions_per_day']} a day: {row['worth_class_accuracy']:.3f} ({row['worth_questions']} asked)"
-              f" vs {row['random_class_accuracy']:.3f} ({row['random_questions']} asked)")
+    for labelled_days in (1, 3):
+        print(f"asking curve ({labelled_days} labelled days, the other {len(home.train) - labelled_days} lived through "
+              "asking; class accuracy on the test days: worth, the chance of being wrong alone, random (mean of "
+              f"{R.DRAWS} draws +- sd)):")
+        for row in R.asking_curve(home, sensors, 1, labelled_days=labelled_days, asking=("worth", "unsure", "random")):
+            gain = row["worth_class_accuracy"] - row["random_class_accuracy"]
+            print(f"  {row['questions_per_day']} a day: worth {row['worth_class_accuracy']:.3f} "
+                  f"({row['worth_questions']:.0f} asked), unsure {row['unsure_class_accuracy']:.3f}, random "
+                  f"{row['random_class_accuracy']:.3f} +- {row.get('random_class_accuracy_sd', 0.0):.3f} "
+                  f"({row['random_questions']:.0f} asked); worth - random {gain:+.3f}")
     crf = R.crf_scores(home, sensors, 1)
     print("CRF (sklearn-crfsuite):", "not installed" if crf is None else crf.row())
     chosen = R.fit_recogniser(list(home.train), sensors, 1)

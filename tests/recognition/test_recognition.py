@@ -143,7 +143,7 @@ def test_cross_validation_keeps_the_default_unless_beaten_and_curves_have_their_
     rows = R.learning_curve(home, sensors, 5, counts=(1, 3, None), options=options)
     assert [r["labelled_days"] for r in rows] == [1, 3, len(home.train)]
     assert rows[-1]["class_accuracy"] > rows[0]["class_accuracy"]
-    asking = R.asking_curve(home, sensors, 5, labelled_days=2, budgets=(0, 2), options=options)
+    asking = R.asking_curve(home, sensors, 5, labelled_days=2, budgets=(0, 2), options=options, draws=1)
     assert asking[0]["worth_questions"] == 0 and 0 < asking[1]["worth_questions"] <= 2 * (len(home.train) - 2)
 
 

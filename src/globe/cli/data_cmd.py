@@ -23,9 +23,9 @@ from globe.cli.common import (
 )
 from globe.data.csv_logs import household_step
 from globe.data.importers import GridOptions, ImportResult, import_casas, import_home_assistant, import_kasteren
-from globe.data.importers.options import DEFAULT_STEP_MINUTES, DEFAULT_TEST_FRACTION, USE_MODES
+from globe.data.importers.options import DEFAULT_STEP_MINUTES, DEFAULT_TEST_FRACTION, UNLABELLED_MODES, USE_MODES
 from globe.data.importers.text import parse_clock
-from globe.data.sensors import check_sensor_data
+from globe.data.sensors import check_sensor_data, read_unlabelled_days
 from globe.sequences.runs import activity_runs
 
 app = typer.Typer(help="Validate and import household observation logs.", no_args_is_help=True)
@@ -37,21 +37,23 @@ app.add_typer(import_app, name="import")
 
 @app.command("validate")
 def validate(data: DataOption = None, households: HouseholdsOption = None, config: ConfigOption = None) -> None:
-    """Load every day file (and the sensors' files, where a household has them), check it, and summarise each
-    household."""
+    """Load every day file (and the sensors' files and unlabelled days, where a household has them), check it, and
+    summarise each household."""
     cfg = resolve(config)
     table = Table(title="Households")
     for col in ("household", "train days", "test days", "step (min)", "objects", "activities", "movements",
-                "sensors"):
+                "sensors", "unlabelled days"):
         table.add_column(col)
     for h in households_from(cfg, data, households):
         days = h.train + h.test
         moves = sum(len(r.events) for d in days for r in activity_runs(d, h.objects, cfg.sequences.alignment))
         acts = {a for d in days for a in d.activities}
         step = cfg.data.step_minutes or household_step(days)
-        sensors = check_sensor_data(h, step)
+        unlabelled = read_unlabelled_days(h, step)
+        sensors = check_sensor_data(h, step, unlabelled)
         table.add_row(plain(h.name), str(len(h.train)), str(len(h.test)), str(step or "-"), str(len(h.objects)),
-                      str(len(acts)), str(moves), "-" if sensors is None else str(len(sensors.sensors)))
+                      str(len(acts)), str(moves), "-" if sensors is None else str(len(sensors.sensors)),
+                      str(len(unlabelled)) if unlabelled else "-")
     print_table(table)
     out.print("all files valid", style="green", markup=False)
 
@@ -93,6 +95,9 @@ TestFromOption = Annotated[str | None, typer.Option(
                         "--test-fraction)")]
 UntilOption = Annotated[str | None, typer.Option(
     "--until", help="YYYY-MM-DD: leave out the days after this date (the date itself is kept)")]
+UnlabelledOption = Annotated[str, typer.Option(
+    "--unlabelled", help="days a sensor was heard on and nobody annotated: 'keep' writes them to unlabelled/ (no "
+                         "activity column; 'globe recognise --label' labels them), 'drop' leaves them out")]
 SkipBadLinesOption = Annotated[bool, typer.Option(
     "--skip-bad-lines", help="leave out lines that break a rule (corrupt values, times out of order, an annotation "
                              "that ends before it begins), listed in import.json, instead of stopping at the first")]
@@ -111,7 +116,7 @@ def _date(value: str | None, name: str) -> date | None:
 
 def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_fraction: float | None,
           overlaps: str, use: str = "while-on", max_use_minutes: float | None = None, test_from: str | None = None,
-          until: str | None = None) -> GridOptions:
+          until: str | None = None, unlabelled: str = "keep") -> GridOptions:
     """The grid options from the command line (parsing only; GridOptions.check judges them)."""
     minutes = {}
     for name, value in (("--day-start", day_start), ("--day-end", day_end)):
@@ -129,6 +134,9 @@ def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_f
     mode = next((m for m in USE_MODES if m == use), None)
     if mode is None:
         raise typer.BadParameter(f"{use!r} is not 'while-on' or 'start'", param_hint="'--use'")
+    keep = next((m for m in UNLABELLED_MODES if m == unlabelled), None)
+    if keep is None:
+        raise typer.BadParameter(f"{unlabelled!r} is not 'keep' or 'drop'", param_hint="'--unlabelled'")
     if max_use_minutes is not None and not max_use_minutes > 0:
         raise typer.BadParameter(f"{max_use_minutes:g} is not more than 0", param_hint="'--max-use-minutes'")
     fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
@@ -136,7 +144,7 @@ def _grid(step: int, day_start: str, day_end: str, test_days: int | None, test_f
                        test_days=test_days, test_fraction=fraction,
                        overlaps="latest" if overlaps == "latest" else "error", use=mode,
                        max_use_minutes=max_use_minutes, test_from=_date(test_from, "--test-from"),
-                       until=_date(until, "--until"))
+                       until=_date(until, "--until"), unlabelled=keep)
 
 
 def _summary(result: ImportResult) -> None:
@@ -146,6 +154,9 @@ def _summary(result: ImportResult) -> None:
     objects = f"objects: {', '.join(result.objects)}" if result.objects else "no objects"
     say(f"wrote {result.train_days} training and {count(result.test_days, 'test day')} to {result.dest} "
         f"({objects}; activities: {', '.join(result.activities)})")
+    if result.unlabelled_days:
+        say(f"kept {count(result.unlabelled_days, 'day')} with sensor records and no annotation in "
+            f"{result.dest / 'unlabelled'} (not training or test days; 'globe recognise --label' labels them)")
     if result.dropped_days:
         say(f"left out {count(result.dropped_days, 'day')} (unannotated, only carrying an annotation over from the day "
             f"before, not covered by the log from first to last row, or after --until): see {result.report}")
@@ -174,6 +185,7 @@ def import_casas_cmd(
     max_use_minutes: MaxUseOption = None,
     test_from: TestFromOption = None,
     until: UntilOption = None,
+    unlabelled: UnlabelledOption = "keep",
     skip_bad_lines: SkipBadLinesOption = False,
     timezone: Annotated[str | None, typer.Option("--timezone", help="the IANA time zone of the log's local times, "
                                                                     "so that the hour logged twice when the clocks go "
@@ -184,7 +196,7 @@ def import_casas_cmd(
 ) -> None:
     """A CASAS event log (without --objects, item sensors I... are the objects)."""
     options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps, use, max_use_minutes, test_from,
-                    until)
+                    until, unlabelled)
     _summary(import_casas(log_file=log_file, dest=dest, options=options, objects=objects,
                           skip_bad_lines=skip_bad_lines, timezone=timezone, resident=resident))
 
@@ -213,6 +225,7 @@ def import_kasteren_cmd(
     max_use_minutes: MaxUseOption = None,
     test_from: TestFromOption = None,
     until: UntilOption = None,
+    unlabelled: UnlabelledOption = "keep",
     skip_bad_lines: SkipBadLinesOption = False,
 ) -> None:
     """A van Kasteren or Ordóñez interval log (without --objects, contact and electric sensors are the objects).
@@ -220,7 +233,7 @@ def import_kasteren_cmd(
     Doors are left out; the report lists every sensor and why. Files with their own id lists need no lists.
     """
     options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps, use, max_use_minutes, test_from,
-                    until)
+                    until, unlabelled)
     _summary(import_kasteren(sensors_file=sensors, activities_file=activities, dest=dest, options=options,
                              objects=objects, sensor_list=sensor_list, activity_list=activity_list,
                              skip_bad_lines=skip_bad_lines, allow_numeric_labels=allow_numeric_labels))
@@ -245,10 +258,11 @@ def import_home_assistant_cmd(
     max_use_minutes: MaxUseOption = None,
     test_from: TestFromOption = None,
     until: UntilOption = None,
+    unlabelled: UnlabelledOption = "keep",
     skip_bad_lines: SkipBadLinesOption = False,
 ) -> None:
     """A Home Assistant history export (objects only from --objects)."""
     options = _grid(step, day_start, day_end, test_days, test_fraction, overlaps, use, max_use_minutes, test_from,
-                    until)
+                    until, unlabelled)
     _summary(import_home_assistant(history=history, dest=dest, activity_entity=activity_entity, options=options,
                                    objects=objects, timezone=timezone, skip_bad_lines=skip_bad_lines))

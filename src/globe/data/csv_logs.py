@@ -297,15 +297,20 @@ def _parse_minute(raw: str, source: str, line: int) -> int:
 
 
 def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str], name: str, source: str,
-                   owners: dict[str, str] | None = None) -> tuple[Day, tuple[int, ...]]:
+                   owners: dict[str, str] | None = None, *, labelled: bool = True) -> tuple[Day, tuple[int, ...]]:
     """One day from its text, and the line of each row. ``owners`` maps each object column to its
-    node label (an object cannot be inside itself or inside an object that is inside it)."""
-    rows, header = csv_table(text, source, FIXED_COLUMNS + objects)
-    optional = () if COVERING in objects else (COVERING,)
-    extra = [h for h in header if h not in FIXED_COLUMNS and h not in objects and h not in optional]
+    node label (an object cannot be inside itself or inside an object that is inside it). An
+    unlabelled day (``labelled=False``: a day nobody annotated, :mod:`globe.data.sensors`) has no
+    activity column; its activities are empty, so that nothing mistakes them for labels."""
+    fixed = FIXED_COLUMNS if labelled else ("minute",)
+    rows, header = csv_table(text, source, fixed + objects)
+    optional = () if COVERING in objects or not labelled else (COVERING,)
+    extra = [h for h in header if h not in fixed and h not in objects and h not in optional]
     if extra:
-        raise DataError("not a movable node of this home (see nodes.csv)", source=source, line=1, field=extra[0])
-    i_min, i_act = header.index("minute"), header.index("activity")
+        why = ("an unlabelled day has no activity column (a labelled day goes in train/ or test/)"
+               if not labelled and extra[0] in RESERVED_COLUMNS else "not a movable node of this home (see nodes.csv)")
+        raise DataError(why, source=source, line=1, field=extra[0])
+    i_min, i_act = header.index("minute"), header.index("activity") if labelled else -1
     i_cov = header.index(COVERING) if optional and COVERING in header else None
     covering: list[str] = []
     obj_idx = [header.index(o) for o in objects]
@@ -328,7 +333,7 @@ def parse_day_text(text: str, objects: tuple[str, ...], locations: frozenset[str
         if minutes and minute <= minutes[-1]:
             raise DataError(f"{minute} is not after {minutes[-1]} (minutes must increase)", source=source,
                             line=lineno, field="minute")
-        activity = activity_label(row[i_act], source, lineno)
+        activity = activity_label(row[i_act], source, lineno) if labelled else ""
         if i_cov is not None:
             covering.append(activity_label(row[i_cov], source, lineno, COVERING))
         cells = tuple(row[first: first + len(obj_idx)]) if contiguous else tuple(row[i] for i in obj_idx)
@@ -493,16 +498,20 @@ def load_sensor_data(root: Path, name: str) -> SensorData | None:
     return load(root, name)
 
 
-def format_day(day: Day, objects: tuple[str, ...]) -> str:
+def format_day(day: Day, objects: tuple[str, ...], *, labelled: bool = True) -> str:
     """Serialise a day exactly as the shipped files are written (LF line ends, no quoting): what
     ``csv.writer`` writes row by row. A day repeats a few rows of places many times, so each
     distinct row (and activity) is formatted once and the lines are joined from those pieces (the
-    writer formats each field on its own, so the pieces join to the same text)."""
+    writer formats each field on its own, so the pieces join to the same text). ``labelled=False``
+    leaves the activity columns out (an unlabelled day, read back with ``parse_day_text``'s)."""
     rows: dict[tuple[str, ...], str] = {}
     names: dict[tuple[str, ...], str] = {}
-    covered = day.covering is not None
-    parts = [_csv_line(FIXED_COLUMNS + ((COVERING,) if covered else ()) + objects) + "\n"]
-    labels = zip(day.activities, day.covering) if day.covering is not None else ((a,) for a in day.activities)
+    covered = day.covering is not None and labelled
+    fixed = FIXED_COLUMNS if labelled else ("minute",)
+    parts = [_csv_line(fixed + ((COVERING,) if covered else ()) + objects) + "\n"]
+    labels: Iterable[tuple[str, ...]] = (
+        zip(day.activities, day.covering) if day.covering is not None and covered
+        else ((a,) for a in day.activities) if labelled else (() for _ in day.minutes))
     for minute, label, state in zip(day.minutes, labels, day.locations):
         text = rows.get(state)
         if text is None:  # formatted after a first field, so a lone empty cell is written as a row's middle cell is

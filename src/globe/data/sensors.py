@@ -13,6 +13,12 @@ labels can have its activities recognised (:mod:`globe.recognition`):
   rows cover (its first row's minute to its last row's minute plus one step), so a row past
   midnight is read from seconds past 86400.
 
+- ``unlabelled/<day>.csv``: the days the sensors recorded and nobody annotated (``globe data
+  import`` keeps them, ``--unlabelled keep``): a day file without its activity column (``minute``
+  and the object columns), so that nothing expecting labels reads one by accident; their
+  activations are in ``events/`` as any day's. :func:`read_unlabelled_days` reads them (their
+  activities empty) for the recogniser to learn from and label (``globe recognise --label``).
+
 Days without an events file are days the sensors were not recorded; a folder without
 ``sensors.csv`` has no sensors at all. Both files are checked when read (file, line and field):
 :func:`load_sensor_data` also checks that each events file has its day file, and
@@ -36,15 +42,18 @@ from globe.data.csv_logs import (
     _ragged,
     _read_text,
     _write_atomic,
+    check_step,
     csv_table,
     day_files,
+    format_day,
     household_step,
+    parse_day_text,
 )
 from globe.data.locate import household_dir
-from globe.data.records import Household
+from globe.data.records import Day, Household
 from globe.errors import DataError
 
-SENSORS_FILE, EVENTS_FOLDER = "sensors.csv", "events"
+SENSORS_FILE, EVENTS_FOLDER, UNLABELLED_FOLDER = "sensors.csv", "events", "unlabelled"
 SENSOR_TYPES = ("motion", "door", "contact", "pressure", "flush", "appliance", "power", "light", "temperature",
                 "other")
 """The kinds of sensor the importers name (CASAS M/D/T..., van Kasteren's reed switches, pressure
@@ -205,8 +214,8 @@ def read_sensor_data(root: Path, *, days: Spans | None = None,
     for path in day_files(folder) if folder is not None else []:
         stem = path.stem
         if days is not None and stem not in days:
-            raise DataError(f"no day file train/{stem}.csv or test/{stem}.csv for these events (an events file "
-                            "belongs to the day of its name)", source=str(path))
+            raise DataError(f"no day file train/{stem}.csv or test/{stem}.csv (nor {UNLABELLED_FOLDER}/{stem}.csv) "
+                            "for these events (an events file belongs to the day of its name)", source=str(path))
         found[stem] = parse_events_text(_read_text(path), sensors, stem, str(path),
                                         days.get(stem) if days is not None else None)
     return SensorData(sensors, found)
@@ -218,7 +227,7 @@ def load_sensor_data(root: Path, name: str) -> SensorData | None:
     checked by :func:`check_sensor_data`, which needs the loaded days."""
     folder = household_dir(Path(root), name)
     stems: dict[str, tuple[float, float] | None] = {}
-    for split in ("train", "test"):
+    for split in ("train", "test", UNLABELLED_FOLDER):
         sub = _child(folder, split, want_dir=True)
         stems.update({path.stem: None for path in (day_files(sub) if sub is not None else [])})
     return read_sensor_data(folder, days=stems)
@@ -229,12 +238,16 @@ def day_span(minutes: Sequence[int], step_minutes: int) -> tuple[float, float]:
     return minutes[0] * 60.0, (minutes[-1] + step_minutes) * 60.0
 
 
-def check_sensor_data(household: Household, step_minutes: int | None = None) -> SensorData | None:
+def check_sensor_data(household: Household, step_minutes: int | None = None,
+                      unlabelled: Sequence[Day] | None = None) -> SensorData | None:
     """The loaded ``household``'s sensors, every rule checked (``globe data validate``): the
     files' own, each events file's day, its activations within that day's span (``step_minutes``:
-    the household's step, else the most common gap between its rows) and the objects named."""
-    days = household.train + household.test
-    step = step_minutes or household_step(days) or 0
+    the household's step, else the most common gap between its rows) and the objects named. The
+    unlabelled days are ``unlabelled`` when the caller has read them, else read (and checked) here."""
+    step = step_minutes or household_step(household.train + household.test) or 0
+    if unlabelled is None:
+        unlabelled = read_unlabelled_days(household, step or None)
+    days = household.train + household.test + tuple(unlabelled)
     spans = {day_stem(d.name): day_span(d.minutes, step) for d in days if d.minutes}
     return read_sensor_data(Path(household.source), days=spans, objects=household.objects)
 
@@ -268,3 +281,35 @@ def write_sensor_data(root: Path, data: SensorData) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     for stem, day in sorted(data.days.items()):
         _write_atomic(folder / f"{stem}.csv", format_events(day, data.sensors))
+
+
+def read_unlabelled_days(household: Household, step_minutes: int | None = None) -> tuple[Day, ...]:
+    """The loaded ``household``'s unlabelled days (``unlabelled/<day>.csv``, named
+    ``unlabelled/<stem>``), checked as day files are (its objects and places, the step:
+    ``step_minutes``, else the household's), their activities empty; none without the folder. A
+    date that is also a labelled day is an error: one day, one file."""
+    folder = Path(household.source)
+    sub = _child(folder, UNLABELLED_FOLDER, want_dir=True) if folder.is_dir() else None
+    if sub is None:
+        return ()
+    nodes = household.nodes
+    owners = {n.cls: n.node for n in nodes if n.movable}
+    locations = frozenset(n.node for n in nodes)
+    labelled = {day_stem(d.name) for d in household.train + household.test}
+    step = step_minutes or household_step(household.train + household.test)
+    out = []
+    for path in day_files(sub):
+        if path.stem in labelled:
+            raise DataError(f"{path.stem} is also a labelled day (train/ or test/): one day, one file",
+                            source=str(path))
+        day, lines = parse_day_text(_read_text(path), household.objects, locations,
+                                    f"{UNLABELLED_FOLDER}/{path.stem}", str(path), owners, labelled=False)
+        out.append(check_step(day, lines, step) if step else day)
+    return tuple(out)
+
+
+def write_unlabelled_day(root: Path, day: Day, objects: tuple[str, ...]) -> None:
+    """Write ``day`` as ``unlabelled/<stem>.csv`` of the household folder ``root``, without its
+    activities (see the module doc)."""
+    _write_atomic(Path(root) / UNLABELLED_FOLDER / f"{day_stem(day.name)}.csv",
+                  format_day(day, objects, labelled=False))

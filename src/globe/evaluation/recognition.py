@@ -15,7 +15,8 @@ that costs GLOBE's predictions.
 - **Asking curve** (:func:`asking_curve`): from k labelled days (settings chosen on them), the
   other training days are lived through once, online, with a budget of questions a day answered
   from the annotation, and learnt from at each day's end; scored on the test days, beside the
-  same budget spent at random times.
+  same budget spent at random times (the mean of three draws). The worth rule is fixed
+  (:mod:`globe.recognition.asking`), so nothing about asking is chosen, on test days or others.
 - **End to end** (:func:`end_to_end`): GLOBE's activity model fed recognised (online) activities
   instead of the annotated ones: one-step weighted F1 and next-different-activity accuracy, both
   against the annotation.
@@ -163,40 +164,72 @@ def learning_curve(household: Household, sensors: SensorData, step_minutes: int,
     return rows
 
 
+ASKING = ("worth", "random")
+"""How the asking curve spends its budget: ``worth`` (:func:`~globe.recognition.asking.worth` with
+the labelled counts), ``unsure`` (the chance of being wrong alone) and ``random`` (random times)."""
+DRAWS = 3
+"""Random draws of asking at random times, averaged, so the comparison is not one draw."""
+
+
+def live_asking(settings: RecognitionSettings, labelled: Sequence[Day], unlabelled: Sequence[Day],
+                sensors: SensorData, step_minutes: int, budget: int, how: str = "worth",
+                seed: int = 0) -> tuple[Recogniser, list[list[str | None]]]:
+    """Live through the ``unlabelled`` days in order, online, asking ``budget`` questions a day
+    (``how``: see :data:`ASKING`; ``seed`` draws the random times) answered from their annotation,
+    and learn each day at its end. Returns the recogniser after the last day and the answers."""
+    if how not in ("worth", "unsure", "random"):
+        raise ValueError(f"unknown way of asking {how!r}; expected worth, unsure or random")
+    recogniser = Recogniser(settings).fit(labelled, sensors, step_minutes)
+    answered: list[list[str | None]] = []
+    for i, day in enumerate(unlabelled):
+        ask: Callable[[int, np.ndarray], bool]
+        if how == "random":
+            ask = _at_steps(frozenset(random_steps(len(day), budget, (seed, i, budget))))
+        else:  # paced by the worths of the days seen, read by today's recogniser (yesterday's was less sure)
+            counts = recogniser.labelled_counts() if how == "worth" else None
+            seen = recogniser.filter([*labelled, *unlabelled[:i]])
+            ask = DayAsker(QuestionPolicy(budget, np.concatenate([worth(p, counts) for p in seen])), len(day),
+                           labelled=counts)
+        said = recogniser.filter_asking(day, ask, day.activities.__getitem__)[1]
+        answered.append(said)
+        recogniser = Recogniser(settings).fit(labelled, sensors, step_minutes, unlabelled[: i + 1], answered)
+    return recogniser, answered
+
+
+def _at_steps(steps: frozenset[int]) -> Callable[[int, np.ndarray], bool]:
+    return lambda step, _posterior: step in steps
+
+
 def asking_curve(household: Household, sensors: SensorData, step_minutes: int, labelled_days: int = 3,
                  budgets: Sequence[int] = BUDGETS, seed: int = 0,
-                 options: Sequence[RecognitionSettings] | None = None) -> list[dict[str, Any]]:
+                 options: Sequence[RecognitionSettings] | None = None, asking: Sequence[str] = ASKING,
+                 draws: int = DRAWS) -> list[dict[str, Any]]:
     """Per budget of questions a day: class and time-slice accuracy on the test days after living
-    through the unlabelled training days asking where it is worth most, and asking at random
-    (see module doc)."""
+    through the unlabelled training days (:func:`live_asking`) each way in ``asking`` (random
+    times: the mean of ``draws`` draws, and their spread), with the questions asked (see module doc)."""
     train = list(household.train)
     labelled, unlabelled = train[len(train) - labelled_days:], train[: len(train) - labelled_days]
     settings = replace(choose_settings(labelled, sensors, step_minutes, options=options), self_training=False)
     rows = []
     for budget in budgets:
-        row: dict[str, Any] = {"questions_per_day": budget}
-        for how in ("worth", "random"):
-            recogniser = Recogniser(settings).fit(labelled, sensors, step_minutes)
-            reference = np.concatenate([worth(p) for p in recogniser.filter(labelled)])
-            answered: list[list[str | None]] = []
-            asked_total = 0
-            for i, day in enumerate(unlabelled):
-                truth = day.activities
-                answer = truth.__getitem__
-                if how == "worth":
-                    posts, said = recogniser.filter_asking(day, DayAsker(QuestionPolicy(budget, reference), len(day)),
-                                                           answer)
-                    reference = np.concatenate([reference, worth(posts)])
-                else:
-                    chosen = frozenset(random_steps(len(day), budget, (seed, i, budget)))
-                    _, said = recogniser.filter_asking(day, lambda t, _p, _c=chosen: t in _c, answer)  # type: ignore[misc]
-                asked_total += sum(a is not None for a in said)
-                answered.append(said)
-                recogniser = Recogniser(settings).fit(labelled, sensors, step_minutes, unlabelled[: i + 1], answered)
-            scores = _score(recogniser, household.test)
-            row[f"{how}_class_accuracy"] = round(scores.class_accuracy, 4)
-            row[f"{how}_time_slice_accuracy"] = round(scores.time_slice, 4)
-            row[f"{how}_questions"] = asked_total
+        row: dict[str, Any] = {"labelled_days": len(labelled), "questions_per_day": budget}
+        silent: tuple[Scores, int] | None = None
+        for how in asking:
+            results = []
+            for r in range(draws if how == "random" and budget else 1):
+                if budget == 0 and silent is not None:  # no question: every way is the same
+                    results.append(silent)
+                    continue
+                recogniser, said = live_asking(settings, labelled, unlabelled, sensors, step_minutes, budget, how,
+                                               seed + r)
+                results.append((_score(recogniser, household.test), sum(a is not None for s in said for a in s)))
+                silent = results[-1] if budget == 0 else None
+            classes = [sc.class_accuracy for sc, _ in results]
+            row[f"{how}_class_accuracy"] = round(float(np.mean(classes)), 4)
+            row[f"{how}_time_slice_accuracy"] = round(float(np.mean([sc.time_slice for sc, _ in results])), 4)
+            row[f"{how}_questions"] = round(float(np.mean([n for _, n in results])), 1)
+            if len(results) > 1:
+                row[f"{how}_class_accuracy_sd"] = round(float(np.std(classes)), 4)
         rows.append(row)
     return rows
 

@@ -105,6 +105,15 @@ class SensorEmission(CountingModel):
             out[:, j] = known[:, i] if i is not None else base
         return self.weight * out
 
+    def labelled_steps(self, labels: Sequence[str]) -> np.ndarray:
+        """Per activity of ``labels``: the labelled steps counted for it (weighted; 0 for one never
+        labelled), what the asking policy weighs (:func:`~globe.recognition.asking.worth`)."""
+        if not getattr(self, "classes_", ()):
+            return np.zeros(len(labels))
+        steps = self.counts_[:, : int(self.sizes_[0])].sum(axis=1)  # each step counts once in the first column
+        code = {a: i for i, a in enumerate(self.classes_)}
+        return np.array([steps[code[a]] if a in code else 0.0 for a in labels])
+
     def likelihoods(self, features: np.ndarray, labels: Sequence[str]) -> np.ndarray:
         """:meth:`log_likelihoods` as likelihoods scaled so each step's largest is 1 (what the
         activity filter multiplies its histories by)."""

@@ -6,8 +6,10 @@ emission is :class:`~globe.recognition.emission.SensorEmission` over the step fe
 :mod:`globe.recognition.features`. It runs on the same :class:`~globe.inference.activity_filter.ActivityFilter`
 that infers missing labels from object movements, so online recognition (filtering: no look-ahead,
 what the service can know at a step) and a label seen now and then (an answered question) need
-no new inference code; :func:`~globe.inference.activity_filter.smoothed` reads the kept histories
-back for labelling past days with hindsight.
+no new inference code. With hindsight (labelling past days, self-training) the labels are the
+most probable sequence (:meth:`Recogniser.decode`: the histories the filter kept, as a Viterbi
+path), and how sure each step's label is comes from exact forward-backward (:meth:`Recogniser.smooth`:
+the dynamics are first order, so P(a_t | the whole day) sums over every path).
 
 Few labels: with ``self_training``, days without labels are recognised (smoothed) and their
 confident steps (posterior at least ``confidence``) counted into the emission, weighted by their
@@ -16,6 +18,7 @@ posterior; whether that helps is for cross-validation to say (:mod:`globe.recogn
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Callable, Literal, Sequence
 
@@ -74,16 +77,19 @@ class Recogniser:
         features = [self.features(d) for d in days]
         self._fit_parts([d.activities for d in days], [d.weekday for d in days], features,
                         [np.ones(len(d)) for d in days])
+        self.labelled_ = Counter(a for d in days for a in d.activities)
         if unlabelled and (s.self_training or answers is not None):
             if answers is not None:
                 answers = self._spread(unlabelled, answers)
-            rows = self.smooth(unlabelled, answers)
-            names = self.labels
+                self.labelled_.update(a for said in answers for a in said if a is not None)
+            paths, posts = self.decode(unlabelled, answers), self.smooth(unlabelled, answers)
+            names = self.labels  # after reading them: the answers may have named new activities
             guessed: list[Sequence[str]] = []
             confident: list[Sequence[str | None]] = []
             weights = []
-            for post in rows:
-                best, top = post.argmax(axis=1), post.max(axis=1)
+            for path, post in zip(paths, posts):
+                best = path.argmax(axis=1)
+                top = post[np.arange(len(best)), best]  # how sure the step's label is, every path summed
                 guessed.append(tuple(names[b] for b in best.tolist()))
                 confident.append([names[b] if p >= s.confidence else None for b, p in zip(best.tolist(), top.tolist())])
                 weights.append(top)
@@ -98,7 +104,7 @@ class Recogniser:
         """Each answer taken as the activity of the whole stretch around it that the recogniser
         read as one activity (its most probable activity unchanged, read with hindsight): the
         person did one thing there, and a stretch read wrong was read wrong for the same reason."""
-        return [spread_answers(post.argmax(axis=1).tolist(), said) for post, said in zip(self.smooth(days), answers)]
+        return [spread_answers(path.argmax(axis=1).tolist(), said) for path, said in zip(self.decode(days), answers)]
 
     def _fit_parts(self, sequences: Sequence[Sequence[str]], weekdays: Sequence[int | None],
                    features: Sequence[np.ndarray], weights: Sequence[np.ndarray],
@@ -114,6 +120,11 @@ class Recogniser:
         """The (steps x columns) sensor features of ``day``."""
         return step_features(self.layout_, self.sensors_.of(day.name), day.minutes, self.step_minutes_)
 
+    def labelled_counts(self) -> np.ndarray:
+        """Per activity of :attr:`labels`: the steps labelled in ``fit`` (the labelled days', and the
+        answers' spread over their stretches), what :func:`~globe.recognition.asking.worth` weighs."""
+        return np.array([self.labelled_.get(a, 0) for a in self.labels], dtype=np.float64)
+
     @property
     def labels(self) -> tuple[str, ...]:
         """The activities of every distribution returned (columns)."""
@@ -125,8 +136,16 @@ class Recogniser:
         return self._run(days, answers, "filter")
 
     def smooth(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
-        """Per day, (steps x :attr:`labels`): P(a_t | the whole day's sensors and answers)."""
+        """Per day, (steps x :attr:`labels`): P(a_t | the whole day's sensors and answers), every
+        path summed (:func:`forward_backward`): how sure a label read with hindsight is."""
         return self._run(days, answers, "smooth")
+
+    def decode(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
+        """Per day, (steps x :attr:`labels`): the weight of the histories the filter kept at the
+        day's end through each activity at each step (:func:`~globe.inference.activity_filter.smoothed`:
+        the best way to each state, as a Viterbi path), whose argmax is the most probable *sequence*:
+        the labels read with hindsight (whole stretches, where per-step marginals may flicker)."""
+        return self._run(days, answers, "decode")
 
     def predictive(self, days: Sequence[Day], answers: Answers | None = None) -> list[np.ndarray]:
         """Per day, (steps x :attr:`labels`): P(a_{t+1} | sensors up to t): what the activity
@@ -134,14 +153,19 @@ class Recogniser:
         return self._run(days, answers, "predictive")
 
     def predict(self, days: Sequence[Day], answers: Answers | None = None, *, smooth: bool = False) -> list[list[str]]:
-        """The most probable activity at each step of each day (online unless ``smooth``)."""
+        """The most probable activity at each step of each day: online, or with ``smooth`` the
+        most probable sequence read with hindsight (:meth:`decode`)."""
         names = self.labels
-        rows = self._run(days, answers, "smooth" if smooth else "filter")
+        rows = self._run(days, answers, "decode" if smooth else "filter")
         return [[names[i] for i in r.argmax(axis=1).tolist()] for r in rows]
 
     def _run(self, days: Sequence[Day], answers: Answers | None, mode: Mode) -> list[np.ndarray]:
         labels = list(self.filter_.labels)
         likes = [self.emission_.likelihoods(self.features(d), labels) for d in days]
+        if mode == "smooth":
+            said = answers if answers is not None else [()] * len(days)
+            return [forward_backward(self.filter_, pinned(lk, a, labels), d.weekday)
+                    for d, lk, a in zip(days, likes, said)]
         return run_days(self.filter_, likes, [d.weekday for d in days], answers, mode)
 
     def filter_asking(self, day: Day, ask: Callable[[int, np.ndarray], bool],
@@ -194,14 +218,65 @@ def spread_answers(best: Sequence[int], said: Sequence[str | None]) -> list[str 
     return spread
 
 
-Mode = Literal["filter", "smooth", "predictive"]
+Mode = Literal["filter", "smooth", "decode", "predictive"]
+
+
+def pinned(likelihoods: np.ndarray, said: Sequence[str | None], labels: Sequence[str]) -> np.ndarray:
+    """``likelihoods`` (steps x ``labels``) with each step someone said the activity of (``said``)
+    left only that activity's: an answer pins its step, as a label does in the filter."""
+    out = likelihoods.copy()
+    code = {a: i for i, a in enumerate(labels)}
+    for t, a in enumerate(said[: len(out)]):
+        if a is not None and a in code:
+            keep = out[t, code[a]]
+            out[t] = 0.0
+            out[t, code[a]] = keep if keep > 0 else 1.0
+    return out
+
+
+def forward_backward(flt: ActivityFilter, likelihoods: np.ndarray, weekday: int | None) -> np.ndarray:
+    """(steps x ``flt.labels``): P(a_t | every step's evidence, ``likelihoods`` steps x labels) under
+    ``flt``'s first-order dynamics (the clock model: the next activity depends on the current one
+    and the time), summed over every path by scaled forward and backward passes; the transition at
+    step t is the dynamics' row for each previous activity."""
+    flt.start(1, weekdays=[weekday])  # a state space where the dynamics grew
+    space, n, steps = flt.space, len(flt.labels), len(likelihoods)
+    if not steps:
+        return np.zeros((0, n))
+    likes = np.ones((steps, n))
+    likes[:, : likelihoods.shape[1]] = likelihoods
+    codes = np.arange(n, dtype=np.int64)
+    state = np.array([space.root_of(weekday)], dtype=np.int64)
+    first = space.rows(state)[0][:n]
+    moves: list[np.ndarray] = []  # moves[t - 1]: (previous x next) at step t
+    for _ in range(1, steps):
+        after = space.children(np.repeat(state[:1], n), codes)  # each previous activity, one step on
+        moves.append(space.rows(after)[:, :n])
+        state = after
+    uniform = np.full(n, 1.0 / n)
+    forward = np.zeros((steps, n))
+    row = first * likes[0]
+    for t in range(steps):
+        if t:
+            row = (forward[t - 1] @ moves[t - 1]) * likes[t]
+        total = row.sum()
+        forward[t] = row / total if total > 0 else uniform
+    backward = np.ones((steps, n))
+    for t in range(steps - 2, -1, -1):
+        row = moves[t] @ (likes[t + 1] * backward[t + 1])
+        total = row.sum()
+        backward[t] = row / total if total > 0 else uniform
+    post = forward * backward
+    return post / np.maximum(post.sum(axis=1, keepdims=True), 1e-300)
 
 
 def run_days(flt: ActivityFilter, likelihoods: Sequence[np.ndarray], weekdays: Sequence[int | None],
-             answers: Answers | None = None, mode: Mode = "filter") -> list[np.ndarray]:
+             answers: Answers | None = None, mode: Literal["filter", "decode", "predictive"] = "filter"
+             ) -> list[np.ndarray]:
     """Run ``flt`` over days at once, each step taking in that day's sensor ``likelihoods`` (steps x
     ``flt.labels``) and its answer, if any. Per day, (steps x ``flt.labels``): P(a_t | up to t)
-    (``filter``), P(a_t | the whole day) (``smooth``) or P(a_{t+1} | up to t) (``predictive``)."""
+    (``filter``), the kept histories' weight through each activity at the day's end (``decode``:
+    :func:`~globe.inference.activity_filter.smoothed`) or P(a_{t+1} | up to t) (``predictive``)."""
     if not likelihoods:
         return []
     belief = flt.start(len(likelihoods), weekdays=list(weekdays))
@@ -214,12 +289,12 @@ def run_days(flt: ActivityFilter, likelihoods: Sequence[np.ndarray], weekdays: S
                 like[q, : lk.shape[1]] = lk[t]
         said = None if answers is None else [a[t] if t < len(a) else None for a in answers]
         belief = flt.update(belief, t, said, likelihood=like)
-        if mode != "smooth":
+        if mode != "decode":
             post = flt.posterior(belief) if mode == "filter" else flt.predictive(belief)
             for q, lk in enumerate(likelihoods):
                 if t < len(lk):
                     out[q][t, : post.shape[1]] = post[q]
-    if mode == "smooth":
+    if mode == "decode":
         full = smoothed(flt, belief)
         out = [full[q, : len(lk)] for q, lk in enumerate(likelihoods)]
     return out

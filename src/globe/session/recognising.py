@@ -5,6 +5,14 @@ household's ambient sensors (:mod:`globe.session.sensing`): checking the events 
 carry, consulting the question policy after each observation, reading the recognised activity
 (now and for every step today) and counting each finished day into the sensor emission. It
 shares the session's state and lock; the session's one activity filter does the inference.
+
+A household created with sensors and no labelled day (a cold start) has no activity model to be
+unsure with yet, and knows no activity's name but those the person says: its budget of questions
+is spread evenly over the day from its first step (every step as uncertain as any other),
+each question offering the activities heard so far as equally likely, or none (an open "what are
+you doing?") before the first answer. The answers label their steps, which the sensor emission
+counts at the day's end and from which the first day is learned (the session fills the steps
+between from the nearest answer), so the next day recognises and asks as any household does.
 """
 
 from __future__ import annotations
@@ -50,6 +58,9 @@ class SensorSteps:
     def _state(self) -> tuple:  # pragma: no cover - the session's
         raise NotImplementedError
 
+    def known_activities(self) -> tuple[str, ...]:  # pragma: no cover - the session's
+        raise NotImplementedError
+
     def validate_sensors(self, events: Sequence[SensorEvent]) -> None:
         """Sensor events name the household's sensors and end no earlier than they start."""
         if self.sensing is None:
@@ -67,19 +78,37 @@ class SensorSteps:
     def _consult(self, step: int) -> None:
         """Ask the question policy about ``step`` when it has no label (after each observation, so a
         replay of the same observations asks the same questions)."""
-        if self._asker is None or self._filter is None or self._labels[step] is not None:
+        if self._labels[step] is not None:
+            return
+        if self._filter is None:
+            self._consult_cold(step)
+            return
+        if self._asker is None:
             return
         belief = self._filtered()
         if belief is None or belief.step != step:
             return
         post = self._filter.posterior(belief)[0]
-        self._worths[step] = float(worth(post))
+        self._worths[step] = float(worth(post, self._asker.labelled))
         if self._asker(step, post):
             self._asked.append(step)
             names = list(self._filter.labels)
             order = np.argsort(-post, kind="stable")[:MAX_OPTIONS]
             options = tuple((names[int(i)], float(post[i])) for i in order if post[i] > 0)
             self._question = Question(self._day or "", step, options)
+
+    def _consult_cold(self, step: int) -> None:
+        """Before a first day is learned (see module doc): the k-th of the budget's questions is
+        asked at the first observed step from ``k * steps / budget`` on, offering the activities
+        the household knows so far, equally likely (none: an open question)."""
+        sensing = self.sensing
+        if sensing is None or self._day is None or len(self._asked) >= sensing.budget:
+            return
+        if step < len(self._asked) * self.grid.steps // sensing.budget:
+            return
+        self._asked.append(step)
+        known = self.known_activities()
+        self._question = Question(self._day, step, tuple((a, 1.0 / len(known)) for a in known[:MAX_OPTIONS]))
 
     def _today_events(self) -> SensorDay:
         """Today's sensor activations so far (seconds after today's midnight)."""

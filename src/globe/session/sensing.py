@@ -133,7 +133,8 @@ class SessionSensors:
         labels = list(flt.labels)
         likes = [self.emission.likelihoods(self.features(e, d.minutes), labels) for d, e in recorded]
         posteriors = run_days(flt, likes, [d.weekday for d, _ in recorded])
-        self.add_reference(np.concatenate([worth(p) for p in posteriors]))
+        counts = self.emission.labelled_steps(labels)
+        self.add_reference(np.concatenate([worth(p, counts) for p in posteriors]))
 
 
 def seconds_after_midnight(time: dt.datetime, day: str) -> float:

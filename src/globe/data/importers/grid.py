@@ -36,6 +36,12 @@ that the rules below hold for every format and are written once (the options are
   all it has: annotating stopped, or the recorder was down; a day one annotation covers whole,
   a day away, is kept), and a day the log does not cover from its first step to its last (the
   log's first and last days, usually). All are listed in the report.
+- A day with no annotation at all on which a sensor was heard (a record inside its rows' span) is
+  an *unlabelled* day: with ``unlabelled="keep"`` (``--unlabelled keep``, the default) it is
+  written to ``unlabelled/<date>.csv`` (its rows and object cells, no activity column:
+  :mod:`globe.data.sensors`) with its ``events/<date>.csv``, listed in the report
+  (``unlabelled_days``), never a training or test day; with ``drop`` it is left out as above.
+  Recognition learns from such days and labels them (``globe recognise --label``).
 - A kept day whose longest stretch without an event from any sensor is far longer than the
   home's usual (1.5 times the median longest of the days a sensor was heard on, and 6 hours at
   least: :mod:`globe.data.importers.report`) is listed in the report (``silent_stretches``): a
@@ -71,16 +77,18 @@ from datetime import date, datetime, time, timedelta
 from pathlib import Path
 from typing import Any, Sequence
 
+import numpy as np
+
 from globe.data.csv_logs import write_day, write_nodes
 from globe.data.importers.events import sensor_data
 from globe.data.importers.objects import HomeMap, ObjectSelection, build_map
 from globe.data.importers.options import GridOptions, Overlaps, clock
 from globe.data.importers.report import REPORT_FILE, LabelStats, build_report, silent_stretches, write_report
-from globe.data.importers.sensor_log import Annotation, SensorLog, keep_to_the_log
+from globe.data.importers.sensor_log import EPOCH, Annotation, SensorLog, keep_to_the_log
 from globe.data.importers.text import show
 from globe.data.importers.uses import ObjectUses, find_uses
 from globe.data.records import Day
-from globe.data.sensors import write_sensor_data
+from globe.data.sensors import write_sensor_data, write_unlabelled_day
 from globe.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
@@ -103,6 +111,7 @@ class ImportResult:
     bad_lines: int = 0  # lines left out (--skip-bad-lines), listed in the report
     left_on: int = 0  # uses cut to a firing (a sensor left on), listed in the report
     first_bad_line: str = ""  # the first of them, for the command line
+    unlabelled_days: int = 0  # days with sensor records and no annotation, written to unlabelled/
 
 
 def _ceil_steps(delta: timedelta, step: timedelta) -> int:
@@ -175,8 +184,9 @@ def _meets(ann: Annotation, base: datetime, window: timedelta) -> bool:
 
 
 def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: GridOptions
-                 ) -> tuple[dict[date, datetime], list[dict[str, str]]]:
-    """The kept days (date -> first step's start) and the dropped ones with why."""
+                 ) -> tuple[dict[date, datetime], dict[date, datetime], list[dict[str, str]]]:
+    """The kept days (date -> first step's start), the unlabelled ones kept (the same) and the
+    dropped ones with why."""
     assert sensor_log.first is not None and sensor_log.last is not None
     offset = timedelta(minutes=options.day_start_minute)
     last_row = timedelta(minutes=options.day_end_minute)
@@ -191,7 +201,9 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
                 if ann.start.date() == day or ann.end >= base + window:  # a day away is a day
                     begun.add(day)
     kept: dict[date, datetime] = {}
+    unlabelled: dict[date, datetime] = {}
     dropped: list[dict[str, str]] = []
+    heard = np.sort(np.frombuffer(sensor_log.moments, dtype=np.float64))
     for day in _day_dates(sensor_log.first, sensor_log.last):
         midnight = datetime.combine(day, time())
         if options.until is not None and day > options.until:
@@ -203,7 +215,12 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
             why = (f"partial: the log ends at {sensor_log.last:%Y-%m-%d %H:%M:%S}, before this day's last row "
                    f"({clock(options.day_end_minute)})")
         elif day not in annotated:
-            why = "no annotation"
+            lo = (midnight + offset - EPOCH).total_seconds()
+            span = np.searchsorted(heard, [lo, lo + window.total_seconds()])
+            if options.unlabelled == "keep" and span[0] < span[1]:  # a sensor was heard: the recorder was up
+                unlabelled[day] = midnight + offset
+                continue
+            why = "no annotation"  # and, unless --unlabelled drop, no sensor record
         elif day not in begun:
             why = ("no annotation begins on it: it only carries one over from the day before, which ends before "
                    "its last row (annotating stopped, or the log has a gap)")
@@ -211,7 +228,7 @@ def _choose_days(sensor_log: SensorLog, ordered: Sequence[Annotation], options: 
             kept[day] = midnight + offset
             continue
         dropped.append({"date": day.isoformat(), "why": why})
-    return kept, dropped
+    return kept, unlabelled, dropped
 
 
 def _place_annotations(grid: _Grid, ordered: Sequence[Annotation]) -> dict[str, LabelStats]:
@@ -341,13 +358,16 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
     objects = selection.objects()
     home = build_map(objects)
     ordered = check_overlaps(sensor_log.annotations, options.overlaps, error_field=sensor_log.annotation_field)
-    kept, dropped = _choose_days(sensor_log, ordered, options)
-    log.info("%s: %d days with annotations kept, %d dropped", sensor_log.format, len(kept), len(dropped))
+    kept, unlabelled, dropped = _choose_days(sensor_log, ordered, options)
+    log.info("%s: %d days with annotations kept, %d unlabelled kept, %d dropped", sensor_log.format, len(kept),
+             len(unlabelled), len(dropped))
     if not kept:
         reasons = Counter(d["why"].split(":")[0] for d in dropped)
-        counts = ", ".join(f"{n} {why}" for why, n in reasons.items())
-        raise DataError(f"no day to import: none of the {len(dropped)} days is both annotated and covered by the log "
-                        f"from its first row ({clock(options.day_start_minute)}) to its last "
+        counts = ", ".join([f"{n} {why}" for why, n in reasons.items()]
+                           + ([f"{len(unlabelled)} with sensor records and no annotation (GLOBE learns activity names "
+                               "from a few labelled days: annotate one or more)"] if unlabelled else []))
+        raise DataError(f"no day to import: none of the {len(dropped) + len(unlabelled)} days is both annotated and "
+                        f"covered by the log from its first row ({clock(options.day_start_minute)}) to its last "
                         f"({clock(options.day_end_minute)}): {counts}", source=", ".join(sensor_log.sources))
     silent, limit_h = silent_stretches(sensor_log, kept, options)
     if silent:
@@ -355,12 +375,15 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
         sensor_log.notes.append(f"{n} kept {'day has' if n == 1 else 'days have'} a stretch of {limit_h:.1f} hours or "
                                 "more with no event from any sensor, far longer than the home's usual (a recorder "
                                 "outage, or nobody home): see silent_stretches in the report")
-    grid = _Grid(options, kept, {day: [IDLE] * options.steps for day in kept}, {})
+    every = {**kept, **unlabelled}  # unlabelled days: their object cells and events, no activity
+    grid = _Grid(options, every, {day: [IDLE] * options.steps for day in every}, {})
     per_label = _place_annotations(grid, ordered)
     uses = {spec.object: find_uses(spec, sensor_log.activations, options) for spec in objects}
     _place_uses(grid, uses)
     left_on = [row for found in uses.values() for row in found.left_on]
-    sensors, sensors_report = sensor_data(sensor_log, selection, uses, kept, options)
+    sensors, sensors_report = sensor_data(sensor_log, selection, uses, every, options)
+    activities = {day: grid.activities[day] for day in kept}
+    used = {obj: {day: steps for day, steps in marks.items() if day in kept} for obj, marks in grid.used.items()}
     splits = _split(sorted(kept), options)
     columns = tuple(spec.object for spec in objects)
     tmp = _prepare_dest(dest)
@@ -370,11 +393,15 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
             (tmp / split).mkdir()
             for day in days:
                 write_day(tmp / split / f"{day.isoformat()}.csv", _day(grid, day, columns, home, split), columns)
+        for day in sorted(unlabelled):
+            write_unlabelled_day(tmp, _day(grid, day, columns, home, "unlabelled"), columns)
         if sensors is not None:
             write_sensor_data(tmp, sensors)
-        report = build_report(sensor_log, selection, objects, home, options, settings or {}, grid.activities,
-                              grid.used, per_label, splits, dropped, uses, silent, left_on)
+        report = build_report(sensor_log, selection, objects, home, options, settings or {}, activities,
+                              used, per_label, splits, dropped, uses, silent, left_on)
         report["sensors"] = sensors_report
+        report["grid"]["unlabelled"] = options.unlabelled
+        report["unlabelled_days"] = [day.isoformat() for day in sorted(unlabelled)]
         write_report(tmp, report)
         if Path(dest).exists():
             Path(dest).rmdir()
@@ -387,11 +414,11 @@ def _write_import(sensor_log: SensorLog, selection: ObjectSelection, options: Gr
         raise
     log.info("%s: wrote %d train and %d test days to %s", sensor_log.format, len(splits["train"]), len(splits["test"]),
              dest)
-    labels = tuple(sorted({a for row in grid.activities.values() for a in row}))
+    labels = tuple(sorted({a for row in activities.values() for a in row}))
     bad = sensor_log.bad_lines
     return ImportResult(Path(dest), len(splits["train"]), len(splits["test"]), columns, labels, len(dropped),
                         Path(dest) / REPORT_FILE, tuple(sensor_log.notes), bad_lines=len(bad), left_on=len(left_on),
-                        first_bad_line=str(bad[0]) if bad else "")
+                        first_bad_line=str(bad[0]) if bad else "", unlabelled_days=len(unlabelled))
 
 
 def _day(grid: _Grid, day: date, columns: tuple[str, ...], home: HomeMap, split: str) -> Day:

@@ -17,6 +17,10 @@ DEFAULT_DAY_END = 1440  # 24:00, HOMER+'s last row
 DEFAULT_TEST_FRACTION = 0.2
 Overlaps = Literal["error", "latest"]
 UseMode = Literal["while-on", "start"]
+Unlabelled = Literal["keep", "drop"]
+UNLABELLED_MODES: tuple[Unlabelled, ...] = ("keep", "drop")
+"""What ``--unlabelled`` accepts: a day the sensors recorded and nobody annotated is written to
+``unlabelled/`` (keep: recognition learns from it and labels it) or left out (drop)."""
 USE_MODES: tuple[UseMode, ...] = ("while-on", "start")
 """What ``--use`` accepts; what each means is :data:`globe.data.importers.uses.USE_RULES`."""
 
@@ -35,6 +39,7 @@ class GridOptions:
     max_use_minutes: float | None = None  # a use longer is a sensor left on (None: the module's rule)
     test_from: date | None = None  # the kept days from this date on are the test days
     until: date | None = None  # days after this date are left out
+    unlabelled: Unlabelled = "keep"  # days with sensor records and no annotation: unlabelled/ (keep) or left out
 
     def check(self) -> None:
         """Called where an import starts (not in the constructor, so options stay plain values)."""
@@ -53,6 +58,8 @@ class GridOptions:
             raise ConfigError(f"overlaps must be 'error' or 'latest' (got {self.overlaps!r})")
         if self.use not in USE_MODES:
             raise ConfigError(f"use must be 'while-on' or 'start' (got {self.use!r})")
+        if self.unlabelled not in UNLABELLED_MODES:
+            raise ConfigError(f"unlabelled must be 'keep' or 'drop' (got {self.unlabelled!r})")
         if self.max_use_minutes is not None and not self.max_use_minutes > 0:
             raise ConfigError(f"the longest use must be more than 0 minutes (got {self.max_use_minutes})")
         if self.test_from is not None and self.test_days is not None:
