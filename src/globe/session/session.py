@@ -540,11 +540,12 @@ class HouseholdSession(SensorSteps):
                                           min_weight=self.min_weight)
             weekday = None if day is None else dt.date.fromisoformat(day).weekday()
             self._beliefs = [self._filter.start(1, weekdays=[weekday])]
-            policy = self.sensing.policy() if self.sensing is not None else None
-            if policy is not None and day is not None:
+            sensing = self.sensing
+            policy = sensing.policy() if sensing is not None else None
+            if sensing is not None and policy is not None and day is not None:
                 # the same worth the evaluation's asking curve scores: unsure, and about activities little labelled
                 self._asker = DayAsker(policy, self.grid.steps,
-                                       labelled=self.sensing.emission.labelled_steps(self._filter.labels))
+                                       labelled=sensing.emission.labelled_steps(self._filter.labels))
 
     def _close(self) -> None:
         """The finished day is learned (see module doc)."""
