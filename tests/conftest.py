@@ -19,10 +19,49 @@ from globe.data.locate import resolve_data_root
 from tests.helpers import free_port
 
 
+def pytest_configure(config):
+    """One seed per run, drawn once: here in the run's own process (pytest-xdist's controller),
+    handed to every xdist worker through its ``workerinput``, so that all workers (and the header a
+    failure is rerun from) use the same seed."""
+    workerinput = getattr(config, "workerinput", None)
+    if workerinput is not None:
+        os.environ["GLOBE_TEST_SEED"] = workerinput["globe_test_seed"]
+    elif not os.environ.get("GLOBE_TEST_SEED"):
+        os.environ["GLOBE_TEST_SEED"] = str(random.randrange(1_000_000))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node):
+    """pytest-xdist: a worker starts with the controller's seed."""
+    node.workerinput["globe_test_seed"] = os.environ["GLOBE_TEST_SEED"]
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto`` (pyproject.toml's default): one pytest-xdist worker per core, at most 4 (each
+    holds HOMER+ and its fitted models, about 1 GB, and starts its own services), and none for a run
+    of a single test file (it would run on one worker anyway, after the workers' start)."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None  # xdist's own reading of it
+    files = {arg.split("::")[0] for arg in config.args}
+    if len(files) == 1 and os.path.isfile(next(iter(files))):
+        return 0
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, min(cores, 4))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist, the modules with a test marked ``slow`` first (the order is otherwise
+    kept): the workers take whole modules (``--dist loadfile``) in this order, and the longest one
+    taken last would leave one worker running alone at the end."""
+    if getattr(config, "workerinput", None) is None:
+        return
+    slow = {item.nodeid.split("::")[0] for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.nodeid.split("::")[0] not in slow)
+
+
 def pytest_report_header(config):
-    seed = os.environ.get("GLOBE_TEST_SEED") or str(random.randrange(1_000_000))
-    os.environ["GLOBE_TEST_SEED"] = seed
-    return f"GLOBE_TEST_SEED={seed}"
+    return f"GLOBE_TEST_SEED={os.environ['GLOBE_TEST_SEED']}"
 
 
 _WRITTEN_BY_DEFAULT = ("globe.sqlite3", ".globe-cache")
@@ -37,6 +76,8 @@ def _nothing_written_where_the_tests_run(request):
     before = {n for n in _WRITTEN_BY_DEFAULT if Path(n).exists()}
     yield
     appeared = [n for n in _WRITTEN_BY_DEFAULT if Path(n).exists() and n not in before]
+    # pytest-xdist's workers share this folder: a file another worker's test wrote while this one ran
+    # fails both (the culprit is the one that fails again under ``-n 0``).
     assert not appeared, f"{request.node.nodeid} wrote {appeared} into {Path.cwd()} instead of its own folder"
 
 

@@ -1,11 +1,35 @@
 """Small helpers shared by tests."""
 
+import itertools
+import os
+import random
 import socket
 from typing import NoReturn
 
+#: Ports below the kernel's ephemeral range (32768 up on Linux), a slice per pytest-xdist worker.
+_WORKER_PORTS, _PORTS_PER_WORKER = 20000, 500
+_next_port: "itertools.count[int] | None" = None
+
 
 def free_port() -> int:
-    """A TCP port on loopback that nothing listens on right now."""
+    """A TCP port on loopback that nothing listens on right now. Under pytest-xdist each worker
+    hands out the ports of its own slice in turn, so another worker (or an outgoing connection,
+    which gets an ephemeral port) cannot take the same port before the server binds it; a plain
+    run lets the kernel choose."""
+    global _next_port
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if worker.startswith("gw") and worker[2:].isdigit():
+        first = _WORKER_PORTS + int(worker[2:]) % 24 * _PORTS_PER_WORKER
+        if _next_port is None:
+            _next_port = itertools.count(random.randrange(_PORTS_PER_WORKER))
+        for _ in range(_PORTS_PER_WORKER):
+            port = first + next(_next_port) % _PORTS_PER_WORKER
+            with socket.socket() as s:
+                try:
+                    s.bind(("127.0.0.1", port))
+                except OSError:
+                    continue  # in use (another program, or a server of this run not yet gone)
+                return port
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]

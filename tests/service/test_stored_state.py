@@ -69,10 +69,15 @@ def test_training_days_set_aside_are_counted(server, households):
         assert (s["days_learned"], s["training_days_set_aside"]) == (2, 1)
 
 
+HELD = dt.timedelta(seconds=20)
+
+
 def test_an_observation_far_ahead_of_the_clock_is_held_not_a_lock(make_server, households):
     """One glitched clock (an observation 23 h 50 min ahead, inside the one-day skew) must not
     refuse every real observation until the clock passes it: it is stored and acknowledged as
-    pending, and applied once the clock is within service.max_ahead of it; nothing is lost."""
+    pending, and applied once the clock is within service.max_ahead of it; nothing is lost. The
+    server reads the real clock: ``HELD`` leaves a restart on a loaded machine time to finish
+    before the first held observation falls due."""
     srv = make_server({"GLOBE_SERVICE__MAX_AHEAD": "PT2S"})  # default skew: one day
     h = households["A"]
     with srv.client() as c:
@@ -80,23 +85,23 @@ def test_an_observation_far_ahead_of_the_clock_is_held_not_a_lock(make_server, h
         now = dt.datetime.now(UTC)
         assert c.observe("A", now, "reading", {})["pending"] is False
         glitch = c.observe("A", now + dt.timedelta(hours=23, minutes=50), "sleep", {}, id="glitch")
-        soon = c.observe("A", now + dt.timedelta(seconds=6), "reading", {})
+        soon = c.observe("A", now + HELD, "reading", {})
         assert glitch["pending"] and soon["pending"]
         assert c.observe("A", now + dt.timedelta(seconds=1), "reading", {})["pending"] is False  # real time goes on
         s = c.stats("A")
         assert (s["observations"], s["pending"]) == (2, 2)
-        fails(lambda: c.observe("A", now + dt.timedelta(seconds=6), "reading", {}), 422, "time")  # that time is held
+        fails(lambda: c.observe("A", now + HELD, "reading", {}), 422, "time")  # that time is held
         assert c.observe("A", now + dt.timedelta(hours=23, minutes=50), "sleep", {}, id="glitch")["duplicate"]
     srv.kill()
     srv.start()  # held observations stay held across a restart
     with srv.client() as c:
         s = c.stats("A")
         assert (s["observations"], s["pending"], s["quarantined"]) == (2, 2, 0)
-        time.sleep(max(0.0, (now + dt.timedelta(seconds=4.2) - dt.datetime.now(UTC)).total_seconds()))
+        time.sleep(max(0.0, (now + HELD - dt.timedelta(seconds=1.8) - dt.datetime.now(UTC)).total_seconds()))
         s = c.stats("A")  # the clock is now within two seconds of the first held one: applied
         assert (s["observations"], s["pending"]) == (3, 1)
-        fails(lambda: c.observe("A", now + dt.timedelta(seconds=5), "reading", {}), 422, "time")
-        assert c.observe("A", now + dt.timedelta(seconds=7), "reading", {})["duplicate"] is False  # and it goes on
+        fails(lambda: c.observe("A", now + HELD - dt.timedelta(seconds=1), "reading", {}), 422, "time")
+        assert c.observe("A", now + HELD + dt.timedelta(seconds=1), "reading", {})["duplicate"] is False  # and it goes on
     db = sqlite3.connect(srv.db)
     assert db.execute("SELECT COUNT(*) FROM observations WHERE quarantined = 0").fetchone()[0] == 5
     db.close()
