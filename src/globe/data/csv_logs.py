@@ -467,14 +467,20 @@ def read_household_map(root: Path, name: str) -> tuple[Path, tuple[Node, ...]]:
     return folder, read_nodes(nodes_file)
 
 
+def map_rules(nodes: Sequence[Node]) -> tuple[frozenset[str], dict[str, str]]:
+    """What a home's map says of its day files' cells (:func:`parse_day_text`): every place a cell
+    may name, and each object column's node label (an object is never inside itself or inside an
+    object inside it)."""
+    return frozenset(n.node for n in nodes), {n.cls: n.node for n in nodes if n.movable}
+
+
 def load_household(root: Path, name: str, *, step_minutes: int | None = None, resample: Resample = "none") -> Household:
     """Load household ``name`` under ``root`` (see :func:`household_dir`): nodes and every
     train/test day, each checked against the household's step (``step_minutes``, else the most
     common gap between rows)."""
     folder, nodes = read_household_map(root, name)
     objects = tuple(n.cls for n in nodes if n.movable)
-    owners = {n.cls: n.node for n in nodes if n.movable}
-    locations = frozenset(n.node for n in nodes)
+    locations, owners = map_rules(nodes)
     parsed: dict[Split, list[tuple[Day, tuple[int, ...]]]] = {"train": [], "test": []}
     for split in ("train", "test"):
         sub = _child(folder, split, want_dir=True)

@@ -47,6 +47,7 @@ from globe.data.csv_logs import (
     day_files,
     format_day,
     household_step,
+    map_rules,
     parse_day_text,
 )
 from globe.data.locate import household_dir
@@ -292,9 +293,7 @@ def read_unlabelled_days(household: Household, step_minutes: int | None = None) 
     sub = _child(folder, UNLABELLED_FOLDER, want_dir=True) if folder.is_dir() else None
     if sub is None:
         return ()
-    nodes = household.nodes
-    owners = {n.cls: n.node for n in nodes if n.movable}
-    locations = frozenset(n.node for n in nodes)
+    locations, owners = map_rules(household.nodes)
     labelled = {day_stem(d.name) for d in household.train + household.test}
     step = step_minutes or household_step(household.train + household.test)
     out = []

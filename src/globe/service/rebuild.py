@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from globe.config import Deployment, GlobeConfig, ServiceConfig
-from globe.data.csv_logs import activity_label
+from globe.data.csv_logs import activity_label, map_rules
 from globe.data.records import Household
 from globe.data.sensors import SensorData, SensorDay, day_stem, parse_events_text
 from globe.errors import DataError, GlobeError, LimitError, StoreError
@@ -72,7 +72,7 @@ def rebuild(store: Store, config: GlobeConfig, backend: LLMBackend | None, selec
         raise StoreError(row.problem)
     tz = timepolicy.zone(row.timezone)
     nodes, objects = store.load_map(row.name)
-    parser = DayParser(objects, frozenset(n.node for n in nodes), {n.cls: n.node for n in nodes if n.movable})
+    parser = DayParser(objects, *map_rules(nodes))
     days, set_aside = [], 0
     listed = store.sensors(row.name)
     events: dict[str, SensorDay] = {}

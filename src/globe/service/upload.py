@@ -24,6 +24,7 @@ from globe.data.csv_logs import (
     check_map,
     check_step,
     household_step,
+    map_rules,
     parse_day_text,
     parse_nodes_text,
 )
@@ -203,9 +204,7 @@ def household_from(name: str, nodes: tuple[Node, ...], day_texts: Iterable[str],
     keep the household's step (``step_minutes``, else the most common gap), as on disk. A day
     with a date (``dates``, one per text) is named by it, so that models can read its weekday."""
     objects = tuple(n.cls for n in nodes if n.movable)
-    owners = {n.cls: n.node for n in nodes if n.movable}
-    locations = frozenset(n.node for n in nodes)
-    parser = DayParser(objects, locations, owners)
+    parser = DayParser(objects, *map_rules(nodes))
     parsed = [parser.parse(text, f"days[{i}]") for i, text in enumerate(day_texts)]
     step = step_minutes or household_step(d for d, _ in parsed)
     days = tuple(check_step(d, lines, step) if step else d for d, lines in parsed)
