@@ -15,9 +15,12 @@ from __future__ import annotations
 
 import random
 from datetime import date, timedelta
+from pathlib import Path
+from typing import Sequence
 
-from globe.data.records import Household
-from globe.data.sensors import Sensor, SensorData, SensorDay
+from globe.data.csv_logs import write_day, write_nodes
+from globe.data.records import Day, Household
+from globe.data.sensors import Sensor, SensorData, SensorDay, write_sensor_data
 from tests.simulated import END, START, _Block, _clock_blocks, _day, _household, _unsettled
 
 SENSORS = (
@@ -62,6 +65,18 @@ def sensor_home(days: int = 28, test: int = 7, step: int = 1, seed: int = 0, mis
         out_days.append(_day(name, blocks, step))
         events[name] = _activations(rng, name, blocks, step, miss, false_per_hour, stuck=rng.random() < 0.1)
     return _household("Sensors", out_days, test), SensorData(SENSORS, events)
+
+
+def write_home(folder: Path, home: Household, sensors: SensorData, train: Sequence[Day] | None = None) -> Path:
+    """``home`` written as a household folder (``nodes.csv``, ``train/`` and ``test/`` day files,
+    ``sensors.csv`` and ``events/``), as an import with its sensors writes it; ``train`` (default:
+    the home's training days) the days written as labelled training days."""
+    write_nodes(folder / "nodes.csv", home.nodes)
+    for split, days in (("train", home.train if train is None else train), ("test", home.test)):
+        for day in days:
+            write_day(folder / split / f"{day.name}.csv", day, home.objects)
+    write_sensor_data(folder, sensors)
+    return folder
 
 
 def _activations(rng: random.Random, name: str, blocks: list[_Block], step: int, miss: float, false_per_hour: float,

@@ -12,9 +12,8 @@ from dataclasses import replace
 import pytest
 
 from globe.config import GlobeConfig
-from globe.data.csv_logs import load_household, write_day, write_nodes
+from globe.data.csv_logs import load_household
 from globe.data.records import Day, Household
-from globe.data.sensors import write_sensor_data
 from globe.errors import ConfigError
 from globe.evaluation import main_job
 from globe.evaluation.activity_anticipation import score_anticipation
@@ -24,7 +23,7 @@ from globe.evaluation.protocol import evaluate_days, seen_day
 from globe.evaluation.recognised import recognise_households, recognise_test_days, scope_of, sensors_of
 from globe.evaluation.selection import Memo
 from globe.recognition.recogniser import RecognitionSettings
-from tests.simulated_sensors import sensor_home
+from tests.simulated_sensors import sensor_home, write_home
 
 FAST = [RecognitionSettings()]  # one candidate: the settings' cross-validation is tested in tests/recognition
 QUICK = {"selection": {"folds": 2, "routine_orders": [2], "time_weights": [0.0], "stay_margins": [1.0],
@@ -36,13 +35,7 @@ QUICK = {"selection": {"folds": 2, "routine_orders": [2], "time_weights": [0.0],
 
 def _folder(root, days=8, test=2):
     home, sensors = sensor_home(days=days, test=test, step=10, seed=3)
-    folder = root / "Sensors"
-    write_nodes(folder / "nodes.csv", home.nodes)
-    for split, split_days in (("train", home.train), ("test", home.test)):
-        for day in split_days:
-            write_day(folder / split / f"{day.name}.csv", day, home.objects)
-    write_sensor_data(folder, sensors)
-    return folder
+    return write_home(root / "Sensors", home, sensors)
 
 
 @pytest.fixture(scope="module")

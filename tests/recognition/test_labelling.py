@@ -8,13 +8,13 @@ import json
 import subprocess
 import sys
 
-from globe.data.csv_logs import load_household, write_day, write_nodes
+from globe.data.csv_logs import load_household
 from globe.data.records import Day
-from globe.data.sensors import check_sensor_data, write_sensor_data, write_unlabelled_day
+from globe.data.sensors import check_sensor_data, write_unlabelled_day
 from globe.evaluation.recognition import fit_recogniser, recognition_scores
 from globe.models.clock import ClockModel
 from globe.recognition.labelling import recognise_days
-from tests.simulated_sensors import sensor_home
+from tests.simulated_sensors import sensor_home, write_home
 
 LABELLED = 3
 
@@ -54,14 +54,9 @@ def test_recognised_labels_of_the_unlabelled_days_reach_the_stated_accuracy():
 
 def test_label_writes_a_household_that_loads_and_trains(tmp_path):
     home, sensors, labelled, hidden, truth = _hidden(days=9)
-    folder = tmp_path / "data" / "Sensors"
-    write_nodes(folder / "nodes.csv", home.nodes)
-    for split, days in (("train", labelled), ("test", home.test)):
-        for day in days:
-            write_day(folder / split / f"{day.name}.csv", day, home.objects)
+    folder = write_home(tmp_path / "data" / "Sensors", home, sensors, train=labelled)
     for day in hidden:
         write_unlabelled_day(folder, day, home.objects)
-    write_sensor_data(folder, sensors)
     run = subprocess.run([sys.executable, "-m", "globe", "recognise", "--data", str(tmp_path / "data"), "--label",
                           str(tmp_path / "labelled")], capture_output=True, text=True, timeout=600, cwd=tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]

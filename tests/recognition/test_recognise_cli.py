@@ -6,19 +6,12 @@ import csv
 import subprocess
 import sys
 
-from globe.data.csv_logs import write_day, write_nodes
-from globe.data.sensors import write_sensor_data
-from tests.simulated_sensors import sensor_home
+from tests.simulated_sensors import sensor_home, write_home
 
 
 def _folder(root, days=8, test=2):
     home, sensors = sensor_home(days=days, test=test, step=10, seed=3)
-    folder = root / "Sensors"
-    write_nodes(folder / "nodes.csv", home.nodes)
-    for split, split_days in (("train", home.train), ("test", home.test)):
-        for day in split_days:
-            write_day(folder / split / f"{day.name}.csv", day, home.objects)
-    write_sensor_data(folder, sensors)
+    write_home(root / "Sensors", home, sensors)
     return home
 
 

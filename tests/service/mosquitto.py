@@ -115,3 +115,16 @@ class Listener:
     def close(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
+
+
+def mqtt_config(broker: Mosquitto, extra: str = "") -> str:
+    """GLOBE's ``[mqtt]`` section for ``broker`` (quick reconnects for tests), then ``extra``."""
+    return f"""
+[mqtt]
+enabled = true
+broker = "{broker.url}"
+client_id = "globe-test"
+reconnect_min_s = 1
+reconnect_max_s = 2
+{extra}
+"""

@@ -138,18 +138,11 @@ def test_import_names_the_day_file_a_limit_refuses(tmp_path):
 
 
 def test_import_keeps_a_folders_sensors(tmp_path):
-    from globe.data.csv_logs import write_day, write_nodes
-    from globe.data.sensors import write_sensor_data
     from globe.service.store import Store
-    from tests.simulated_sensors import sensor_home
+    from tests.simulated_sensors import sensor_home, write_home
 
     home, sensors = sensor_home(days=5, test=1, step=10, seed=4)
-    folder = tmp_path / "Sensors"
-    write_nodes(folder / "nodes.csv", home.nodes)
-    for split, days in (("train", home.train), ("test", home.test)):
-        for day in days:
-            write_day(folder / split / f"{day.name}.csv", day, home.objects)
-    write_sensor_data(folder, sensors)
+    folder = write_home(tmp_path / "Sensors", home, sensors)
     db = tmp_path / "globe.sqlite3"
     cli("household", "import", "--db", str(db), "--name", "s", "--method", "ngram", str(folder))
     store = Store(db)

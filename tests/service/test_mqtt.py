@@ -13,7 +13,7 @@ import pytest
 
 from tests.service.conftest import upload
 from tests.service.ha_discovery_schema import discovery_problems, entity_states
-from tests.service.mosquitto import Listener, Mosquitto
+from tests.service.mosquitto import Listener, Mosquitto, mqtt_config
 from tests.simulated import clock_home
 
 pytestmark = pytest.mark.service
@@ -23,18 +23,6 @@ DISCOVERY = f"homeassistant/device/globe_{HOME}/config"
 STATE = f"globe/{HOME}/state"
 ACTIVITY_TOPIC = "homeassistant/input_select/activity/state"
 KETTLE_TOPIC = "homeassistant/binary_sensor/kettle_in_use/state"
-
-
-def mqtt_config(broker: Mosquitto, extra: str = "") -> str:
-    return f"""
-[mqtt]
-enabled = true
-broker = "{broker.url}"
-client_id = "globe-test"
-reconnect_min_s = 1
-reconnect_max_s = 2
-{extra}
-"""
 
 
 STATESTREAM = f"""observe_interval_s = 1

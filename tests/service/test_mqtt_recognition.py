@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from tests.service.ha_discovery_schema import discovery_problems, entity_states
-from tests.service.mosquitto import Listener, Mosquitto
+from tests.service.mosquitto import Listener, Mosquitto, mqtt_config
 from tests.service.test_sensor_households import create_body
 from tests.simulated_sensors import sensor_home
 
@@ -34,19 +34,12 @@ STEP_S = 600
 
 def config_text(broker: Mosquitto) -> str:
     """No activity entity: the household's activity is recognised from its sensors."""
-    return f"""
-[mqtt]
-enabled = true
-broker = "{broker.url}"
-client_id = "globe-test"
-reconnect_min_s = 1
-reconnect_max_s = 2
-observe_interval_s = 1
+    return mqtt_config(broker, f"""observe_interval_s = 1
 
 [mqtt.households.{HOME}]
 sensors = {{ "binary_sensor.kitchen_motion" = "M_kitchen", "binary_sensor.fridge_door" = "C_fridge", \
 "binary_sensor.garden_motion" = "M_garden" }}
-"""
+""")
 
 
 def midday_zone() -> str:
