@@ -26,8 +26,21 @@ def pytest_configure(config):
     workerinput = getattr(config, "workerinput", None)
     if workerinput is not None:
         os.environ["GLOBE_TEST_SEED"] = workerinput["globe_test_seed"]
+        # llama.cpp's threads spin at each barrier: two workers' LLMs with two threads each on two
+        # cores run ten times slower than one thread each (the commands the tests start inherit it)
+        os.environ.setdefault("GLOBE_LLM__N_THREADS", str(llm_threads()))
     elif not os.environ.get("GLOBE_TEST_SEED"):
         os.environ["GLOBE_TEST_SEED"] = str(random.randrange(1_000_000))
+
+
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def llm_threads() -> int:
+    """llama.cpp threads per test process: the cores shared among pytest-xdist's workers."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    return max(1, min(2, _cores() // max(1, workers)))
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -46,8 +59,7 @@ def pytest_xdist_auto_num_workers(config):
     files = {arg.split("::")[0] for arg in config.args}
     if len(files) == 1 and os.path.isfile(next(iter(files))):
         return 0
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, min(cores, 4))
+    return max(1, min(_cores(), 4))
 
 
 def pytest_collection_modifyitems(config, items):
@@ -119,7 +131,7 @@ def gguf_path():
 def embedded_llm(gguf_path):
     from globe.reasoning.backends.embedded import EmbeddedBackend
 
-    return EmbeddedBackend(model_path=gguf_path, n_threads=2)
+    return EmbeddedBackend(model_path=gguf_path, n_threads=llm_threads())
 
 
 @pytest.fixture(scope="session")
@@ -130,7 +142,7 @@ def llm_server(gguf_path, tmp_path_factory):
     with log.open("w") as fh:
         proc = subprocess.Popen(
             [sys.executable, "-m", "llama_cpp.server", "--model", str(gguf_path), "--host", "127.0.0.1",
-             "--port", str(port), "--n_threads", "2", "--n_ctx", "512"],
+             "--port", str(port), "--n_threads", str(llm_threads()), "--n_ctx", "512"],
             stdout=fh, stderr=subprocess.STDOUT,
         )
     deadline = time.time() + 60

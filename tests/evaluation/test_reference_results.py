@@ -2,7 +2,8 @@
 
 The LLM-free half of ``globe reproduce`` (the model selections, the baseline, n-gram, smoothed
 and routine rows of Table I, calibration, activity anticipation, the lookahead and the fetch policy
-with their baseline and oracle rows, and missing labels) is run and compared row by row with
+with their baseline and oracle rows, and missing labels) is run, its printed tables checked whole
+when piped, and its files compared row by row with
 ``reference/homer_plus``: choices exactly, figures to the third decimal. Ties in every selection
 are broken by an explicit order, so a changed last bit cannot flip a row; a row that moves is a
 change to explain (and to commit with new reference results).
@@ -79,6 +80,8 @@ def test_main_job_matches_the_reference_results(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "globe", "reproduce", "--out", str(out), "--config", str(config),
                            "--backend", "none", "--no-robustness"], capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
+    # the tables printed to a pipe (not a terminal) are whole: no cell cut short with an ellipsis
+    assert "Persistence" in done.stdout and "n-gram Markov" in done.stdout and "…" not in done.stdout
     differences = []
     for name, keys in KEYS.items():
         differences += _differences(name, _rows(out / name, keys), _rows(REFERENCE / name, keys), keys)

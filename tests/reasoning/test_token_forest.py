@@ -101,8 +101,9 @@ def test_big_forests_over_many_batches_score_like_nodes_alone(embedded_llm, seed
         for used in rng.sample(words, 4):
             text = f"While {activity}, the person used the {used}. Next, the person used the"
             prompt = tuple(rt.tokenize(text, True))
-            requests.append(Request(prompt, tuple(rng.sample(tails, rng.randint(1, len(tails))))))
+            requests.append(Request(prompt, tuple(rng.sample(tails, rng.randint(1, 8)))))
     requests.append(Request(requests[0].prompt, tuple(rng.sample(tails, len(tails)))))  # every tail: > 64 leaves
+    requests.append(Request(requests[1].prompt, tuple(rng.sample(tails, 40))))  # with the one above: > one batch's rows
     assert any(len(_split(r, rt.cells)) > 1 for r in requests)  # some need several forests (whatever the seed)
     with rt.lock:
         decodes = rt.decodes
@@ -117,7 +118,8 @@ def test_scores_do_not_depend_on_the_thread_count(gguf_path, embedded_llm):
     from globe.reasoning.backends.token_forest import runtime
 
     rt2 = embedded_llm._shared()
-    rt1 = runtime(str(gguf_path), 1, rt2.n_ctx)
+    rt1 = runtime(str(gguf_path), 2 if embedded_llm.n_threads == 1 else 1, rt2.n_ctx)  # another runtime
+    assert rt1 is not rt2
     prompt = "While cooking, the person used the pan. Next, the person used the"
     tails = tuple(tuple(rt2.tokenize(w, False)) for w in (" spatula", " coffee cup", " food jam"))
     request = Request(tuple(rt2.tokenize(prompt, True)), tails)
