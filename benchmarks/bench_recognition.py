@@ -6,8 +6,8 @@ against the issue's targets, and the figures the closing note reports.
 - offline: a year of 1-minute steps recognised (filtered) at once, against the one-minute target;
 - accuracy: the learning curve (1, 3, 7, 14 and all labelled days, settings chosen on them), the
   asking curve from 1 and from 3 labelled days (questions a day spent where worth most, where the
-  recogniser is least sure, and at random: the mean of three draws), the CRF row
-  (sklearn-crfsuite, when installed) and GLOBE's activity model fed recognised activities.
+  recogniser is least sure, and at random: the mean of three draws), the library rows (a CRF,
+  sklearn-crfsuite, and a plain HMM, hmmlearn, when installed) and GLOBE's activity model fed recognised activities.
 
 New code: there is no previous version to compare with; ratios are to the targets.
 Usage: python benchmarks/bench_recognition.py [--quick]
@@ -69,8 +69,9 @@ def main() -> None:
                   f"({row['worth_questions']:.0f} asked), unsure {row['unsure_class_accuracy']:.3f}, random "
                   f"{row['random_class_accuracy']:.3f} +- {row.get('random_class_accuracy_sd', 0.0):.3f} "
                   f"({row['random_questions']:.0f} asked); worth - random {gain:+.3f}")
-    crf = R.crf_scores(home, sensors, 1)
-    print("CRF (sklearn-crfsuite):", "not installed" if crf is None else crf.row())
+    rows = R.library_rows(home, sensors, 1)
+    for name in ("crf (sklearn-crfsuite)", "plain hmm (hmmlearn)"):
+        print(f"{name}, every training day, hindsight:", rows[name].row() if name in rows else "not installed")
     chosen = R.fit_recogniser(list(home.train), sensors, 1)
     model = ClockModel(step_minutes=1).fit([d.activities for d in home.train], [d.weekday for d in home.train])
     print("end to end (clock model, all labelled days):", R.end_to_end(model, home.test, chosen.predict(home.test)))

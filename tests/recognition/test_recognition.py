@@ -3,6 +3,7 @@ and the scores, on hand-made days and on the simulated sensor home (tests/simula
 
 from __future__ import annotations
 
+import importlib.util
 from functools import lru_cache
 
 import numpy as np
@@ -163,6 +164,16 @@ def test_the_crf_row_runs_when_installed():
     home, sensors = _home()
     scores = R.crf_scores(home, sensors, 5)
     assert scores is not None and scores.time_slice > 0.7
+
+
+def test_the_plain_hmm_row_decodes_with_hmmlearn_and_both_library_rows_are_listed():
+    pytest.importorskip("hmmlearn")
+    home, sensors = _home()
+    scores = R.hmm_scores(home, sensors, 5)
+    assert scores is not None and scores.time_slice > 0.7
+    rows = R.library_rows(home, sensors, 5)
+    assert rows["plain hmm (hmmlearn)"].row() == scores.row()
+    assert ("crf (sklearn-crfsuite)" in rows) == (importlib.util.find_spec("sklearn_crfsuite") is not None)
 
 
 def test_the_emission_learns_day_by_day_as_from_all_days_at_once():

@@ -134,8 +134,8 @@ def _print(report: RecognitionReport) -> None:
     for row in report.learning:
         table.add_row(str(row["labelled_days"]), f"{row['time_slice_accuracy']:.3f}", f"{row['class_accuracy']:.3f}",
                       f"{row['smoothed_time_slice_accuracy']:.3f}", f"{row['smoothed_class_accuracy']:.3f}")
-    if report.crf is not None:
-        table.add_row("CRF, all", f"{report.crf.time_slice:.3f}", f"{report.crf.class_accuracy:.3f}", "", "")
+    for name, scores in report.library.items():  # read with hindsight: beside the smoothed columns
+        table.add_row(f"{name}, all", "", "", f"{scores.time_slice:.3f}", f"{scores.class_accuracy:.3f}")
     print_table(table)
     if report.asking:
         asking = Table(title=f"{report.household}: asking the person (class accuracy on the test days)")

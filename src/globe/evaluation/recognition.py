@@ -20,8 +20,9 @@ that costs GLOBE's predictions.
 - **End to end** (:func:`end_to_end`): GLOBE's activity model fed recognised (online) activities
   instead of the annotated ones: one-step weighted F1 and next-different-activity accuracy, both
   against the annotation.
-- **A row from a library** (:func:`crf_scores`): a linear-chain CRF (sklearn-crfsuite) over the
-  same features and the hour, when installed (``pip install globe[recognition]``).
+- **Rows from libraries** (:func:`library_rows`): a linear-chain CRF (sklearn-crfsuite) over the
+  same features and the hour, and a plain HMM (hmmlearn) over van Kasteren's best features, each
+  when installed (``pip install globe[recognition]``).
 """
 
 from __future__ import annotations
@@ -310,6 +311,78 @@ def crf_scores(household: Household, sensors: SensorData, step_minutes: int, lab
     return recognition_scores(_flat(household.test), [a for p in predicted for a in p])
 
 
+def hmm_scores(household: Household, sensors: SensorData, step_minutes: int, labelled: Sequence[Day] | None = None,
+               features: tuple[str, ...] | None = None) -> Scores | None:
+    """A plain HMM (hmmlearn's Viterbi decoding), the literature's generative baseline: one state
+    per activity, time-free transitions and a start counted on ``labelled`` (default: every
+    training day) with add-one smoothing, each step's feature columns independent given the
+    activity (naive Bayes, add-one); the feature set (default: chosen among
+    :data:`~globe.recognition.features.REPRESENTATIONS` by class accuracy on held-out blocks of
+    ``labelled``, as the recogniser's is). Scored on the test days, read with hindsight (the most
+    probable sequence); None when hmmlearn is not installed. Where GLOBE's recogniser differs: its
+    dynamics know the clock, and it also reads each step online."""
+    try:
+        import hmmlearn  # noqa: F401
+    except ImportError:
+        return None
+    labelled = list(household.train if labelled is None else labelled)
+    if features is None:
+        features = REPRESENTATIONS[0]
+        if len(labelled) >= 2:
+            split = folds(len(labelled), min(CV_FOLDS, len(labelled)))
+            features = best_beyond_noise([(f, [recognition_scores(_flat([labelled[i] for i in held]), _plain_hmm(
+                [labelled[i] for i in train], sensors, step_minutes, f)([labelled[i] for i in held])).class_accuracy
+                for train, held in split]) for f in REPRESENTATIONS])
+    test = list(household.test)
+    return recognition_scores(_flat(test), _plain_hmm(labelled, sensors, step_minutes, features)(test))
+
+
+def _plain_hmm(labelled: Sequence[Day], sensors: SensorData, step_minutes: int,
+               features: tuple[str, ...]) -> Callable[[Sequence[Day]], list[str]]:
+    """:func:`hmm_scores`' HMM counted on ``labelled``: days -> their steps' decoded activities."""
+    from hmmlearn.base import BaseHMM
+
+    layout = Layout.of(sensors.sensors, features)
+    names = sorted({a for d in labelled for a in d.activities})
+    code = {a: i for i, a in enumerate(names)}
+    start, moves = np.ones(len(names)), np.ones((len(names), len(names)))
+    counts = [np.ones((len(names), size)) for size in layout.sizes]
+
+    def x_of(day: Day) -> np.ndarray:
+        return step_features(layout, sensors.of(day.name), day.minutes, step_minutes).astype(np.int64)
+    for day in labelled:
+        x, y = x_of(day), np.array([code[a] for a in day.activities], dtype=np.int64)
+        start[y[0]] += 1
+        np.add.at(moves, (y[:-1], y[1:]), 1)
+        for c, table in enumerate(counts):
+            np.add.at(table, (y, x[:, c]), 1)
+    log_emission = [np.log(t / t.sum(axis=1, keepdims=True)) for t in counts]
+
+    class PlainHMM(BaseHMM):  # hmmlearn's documented extension point: the emission's log-likelihood
+        def _check(self) -> None:
+            self._check_sum_1("startprob_")
+            self._check_sum_1("transmat_")
+
+        def _compute_log_likelihood(self, X: np.ndarray) -> np.ndarray:
+            return sum(table[:, X[:, c]].T for c, table in enumerate(log_emission))
+
+    hmm = PlainHMM(n_components=len(names))
+    hmm.startprob_, hmm.transmat_ = start / start.sum(), moves / moves.sum(axis=1, keepdims=True)
+
+    def decode(days: Sequence[Day]) -> list[str]:
+        states = hmm.predict(np.vstack([x_of(d) for d in days]), [len(d) for d in days])
+        return [names[i] for i in states.tolist()]
+    return decode
+
+
+def library_rows(household: Household, sensors: SensorData, step_minutes: int) -> dict[str, Scores]:
+    """The rows from well-kept libraries beside GLOBE's recogniser, trained on every training day
+    and read with hindsight: a linear-chain CRF and a plain HMM, each where installed."""
+    rows = {"crf (sklearn-crfsuite)": crf_scores(household, sensors, step_minutes),
+            "plain hmm (hmmlearn)": hmm_scores(household, sensors, step_minutes)}
+    return {name: scores for name, scores in rows.items() if scores is not None}
+
+
 @dataclass(frozen=True, slots=True)
 class RecognitionReport:
     """Everything :func:`recognition_report` measured for one home."""
@@ -317,7 +390,7 @@ class RecognitionReport:
     household: str
     learning: list[dict[str, Any]]
     asking: list[dict[str, Any]]
-    crf: Scores | None
+    library: dict[str, Scores]  # :func:`library_rows`
     scores: Scores  # online recognition from every labelled training day, on the test days
     settings: dict[str, Any]
     end_to_end: dict[str, Any]
@@ -327,8 +400,9 @@ def recognition_report(household: Household, sensors: SensorData, step_minutes: 
                        counts: Sequence[int | None] = LEARNING_DAYS, budgets: Sequence[int] = BUDGETS,
                        asking_from: int = 3, progress: Callable[[str], None] | None = None) -> RecognitionReport:
     """The learning curve, the asking curve (from ``asking_from`` labelled days; skipped with
-    fewer training days), the CRF row, the scores and confusion of the recogniser trained on every
-    training day, and the end-to-end effect on the clock model's predictions, for one home."""
+    fewer training days), the library rows (:func:`library_rows`), the scores and confusion of the
+    recogniser trained on every training day, and the end-to-end effect on the clock model's
+    predictions, for one home."""
     from globe.models.clock import ClockModel
 
     def say(text: str) -> None:
@@ -341,28 +415,28 @@ def recognition_report(household: Household, sensors: SensorData, step_minutes: 
     if len(household.train) > asking_from:
         say(f"the asking curve ({asking_from} labelled days, {', '.join(map(str, budgets))} questions a day)")
         asking = asking_curve(household, sensors, step_minutes, labelled_days=asking_from, budgets=budgets)
-    say("the CRF row")
-    crf = crf_scores(household, sensors, step_minutes)
+    say("the CRF and plain HMM rows")
+    library = library_rows(household, sensors, step_minutes)
     predicted = recogniser.predict(household.test)
     scores = recognition_scores(_flat(household.test), [a for p in predicted for a in p])
     say("the end-to-end effect")
     model = ClockModel(step_minutes=step_minutes).fit([d.activities for d in household.train],
                                                       [d.weekday for d in household.train])
-    return RecognitionReport(household.name, learning, asking, crf, scores, recogniser.describe(),
+    return RecognitionReport(household.name, learning, asking, library, scores, recogniser.describe(),
                              end_to_end(model, household.test, predicted, recogniser.predictive(household.test),
                                         recogniser.labels))
 
 
 def write_recognition(report: RecognitionReport, out: Path) -> list[Path]:
-    """``recognition.csv`` (the learning curve, the CRF row), ``asking.csv``, ``per_class.csv`` and
+    """``recognition.csv`` (the learning curve, the library rows), ``asking.csv``, ``per_class.csv`` and
     ``confusion.png`` (rows: the annotated activity, each row's shares) under ``out``/household."""
     folder = out / report.household
     folder.mkdir(parents=True, exist_ok=True)
     rows = [{"model": "globe (naive Bayes + clock)", **{k: v for k, v in r.items() if k != "settings"},
              "settings": json.dumps(r["settings"], sort_keys=True)} for r in report.learning]
-    if report.crf is not None:
-        rows.append({"model": "crf (sklearn-crfsuite)", "labelled_days": report.learning[-1]["labelled_days"]
-                     if report.learning else "", **report.crf.row()})
+    for name, scores in report.library.items():
+        rows.append({"model": name, "labelled_days": report.learning[-1]["labelled_days"] if report.learning else "",
+                     **scores.row()})
     written = [_write_csv(folder / "recognition.csv", rows)]
     if report.asking:
         written.append(_write_csv(folder / "asking.csv", report.asking))
