@@ -194,7 +194,8 @@ def test_the_live_part_refreshes_without_reloading_the_page(driver, service, hou
 
 
 def test_a_household_with_sensors_shows_recognition_and_fits_a_phone(driver, service):
-    """The recognised lane, the recognised column and today's counts still fit a 390 px phone."""
+    """The recognised lane, the recognised column, today's counts and the answer card still fit a
+    390 px phone, and an answer chosen there labels the step under way."""
     import httpx
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support import expected_conditions as ec
@@ -218,4 +219,18 @@ def test_a_household_with_sensors_shows_recognition_and_fits_a_phone(driver, ser
     assert "Steps recognised" in driver.find_element(By.ID, "recognition").text
     assert "Sensors" in driver.find_element(By.ID, "recent-steps").text
     no_console_errors(driver)
-    shoot(driver, "today-sensors")
+    shoot(driver, "today-sensors")  # the "what are you doing?" card fits too
+    # answering from the page: the step under way gets the label, today's labelled count goes up
+    from selenium.webdriver.support.ui import Select
+
+    def labelled(d) -> str:
+        return d.find_element(By.CSS_SELECTOR, "#recognition .tile .value").text
+    before = int(labelled(driver))
+    card = driver.find_element(By.ID, "asking")
+    assert "What are you doing?" in card.text
+    Select(card.find_element(By.NAME, "other")).select_by_value(day.activities[19])  # step 19 has no label
+    card.find_element(By.CSS_SELECTOR, "button.secondary").click()
+    WebDriverWait(driver, 10).until(lambda d: labelled(d) == str(before + 1))
+    assert driver.find_element(By.CSS_SELECTOR, "#recent-steps tbody tr td:nth-child(2)").text == \
+        day.activities[19].replace("_", " ")
+    no_console_errors(driver)

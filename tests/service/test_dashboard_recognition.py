@@ -71,3 +71,50 @@ def test_a_household_without_sensors_shows_no_recognition(sensed, households):
         html = browser.get("/dashboard/households/plain").text
     assert 'id="recognition"' not in html and "Sensors</th>" not in html and " recognised " not in html
     assert len(re.findall(r"<title>\d\d:\d\d observed ", html)) == 2 * 5
+
+
+def _form(html: str) -> dict[str, str]:
+    card = html[html.index('id="asking"'):]
+    card = card[:card.index("</form>")]
+    return dict(re.findall(r'<input type="hidden" name="(\w+)" value="([^"]*)">', card))
+
+
+def test_an_answer_on_the_today_page_labels_the_step_under_way_once_and_never_a_left_one(sensed):
+    db, member, day = sensed
+    admin = tokens(db)[0]
+    home = sensor_home(days=6, test=2, step=10)
+    steps = observations(home, day, BASE, 13)
+    with app_client(db, admin) as c:
+        assert c.post("/households", json=create_body(home, "Q")).status_code == 201
+        for obs in steps[:12]:
+            assert c.post("/households/Q/observations", json=obs).status_code == 201
+    with app_client(db) as browser:
+        assert login(browser, admin).status_code == 303
+        html = browser.get("/dashboard/households/Q").text
+        form = _form(html)
+        assert form["step"] == "11" and "What are you doing?" in html
+        assert re.search(r'<select name="other"[^>]*>(<option value="\w+">[\w ]+</option>)+</select>', html)
+        said = {**form, "activity": "", "other": day.activities[11]}
+        assert browser.post("/dashboard/households/Q/answer", data=said, follow_redirects=False).status_code == 303
+        after = browser.get("/dashboard/households/Q").text
+        assert re.search(r'Steps labelled</span><span class="value">1<', after)
+        first = re.search(r'<tbody>\s*<tr><td class="time">[^<]*</td><td>([^<]*)</td>', after)
+        assert first and first[1] == day.activities[11].replace("_", " ")
+        again = browser.post("/dashboard/households/Q/answer", data=said, follow_redirects=False)  # a second tap
+        assert again.status_code == 303
+        forged = browser.post("/dashboard/households/Q/answer", data={**said, "csrf": "x"}, follow_redirects=False)
+        assert forged.status_code == 403
+    with app_client(db, admin) as c:
+        assert c.get("/households/Q/stats").json()["observations"] == 13  # 12 steps and one answer
+        assert c.post("/households/Q/observations", json=steps[12]).status_code == 201
+    with app_client(db) as browser:
+        assert login(browser, admin).status_code == 303
+        fresh = _form(browser.get("/dashboard/households/Q").text)
+        assert fresh["step"] == "12"
+        late = browser.post("/dashboard/households/Q/answer", data={**said, "csrf": fresh["csrf"]},  # the old step
+                            follow_redirects=False)
+        assert late.status_code == 422 and "came after the step it answers" in late.text
+        assert login(browser, member["S"]).status_code == 303
+        other = browser.post("/dashboard/households/Q/answer", data={**said, "csrf": _form(
+            browser.get("/dashboard/households/S").text)["csrf"]}, follow_redirects=False)
+        assert other.status_code == 403 and "does not give access" in other.text

@@ -125,6 +125,7 @@ def today(registry: Registry, name: str) -> dict[str, Any]:
             "recent": recent[-RECENT_STEPS:][::-1],
             "legend": _legend(colour, [x for s in steps for x in (s.observed, s.predicted, s.recognised)]),
             "recognition": _recognition(a),
+            "asking": _asking(a),
             "next_activity": top,
             "next_hour": next_hour(registry, a),
             "fetches": fetches_today(registry, name, a),
@@ -141,6 +142,22 @@ def _recognition(a: HouseholdSession) -> dict[str, int] | None:
     labelled, recognised = a.step_counts()
     asked, answered = a.questions_today()
     return {"labelled": labelled, "recognised": recognised, "asked": asked, "answered": answered}
+
+
+def _asking(a: HouseholdSession) -> dict[str, Any] | None:
+    """The "what are you doing?" card of a household with sensors and a step under way: the step
+    it labels, the question's likely activities when one is asked (else the recognised one), and
+    every activity the household knows, for an answer the question did not offer."""
+    if a.sensing is None or a.step is None or a.day is None:
+        return None
+    question = a.question()
+    if question is not None:
+        options = list(question.options)
+    else:
+        found = a.recognised()
+        options = [found] if found is not None else []
+    return {"day": a.day, "step": a.step, "time": _clock(a.grid.minute(a.step)), "question": question is not None,
+            "options": options, "activities": sorted(a.known_activities())}
 
 
 def _legend(colour: dict[str, str], used: list[str | None]) -> list[tuple[str, str]]:

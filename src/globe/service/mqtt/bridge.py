@@ -34,8 +34,8 @@ from typing import Any
 
 from globe.config import GlobeConfig
 from globe.config.mqtt import broker_address
-from globe.errors import DataError, GlobeError, MissingExtraError, UnknownHouseholdError
-from globe.service import timepolicy
+from globe.errors import GlobeError, MissingExtraError, UnknownHouseholdError
+from globe.service import answers
 from globe.service.mqtt import payloads
 from globe.service.mqtt.statestream import MalformedMessage, StateBook, decode_state
 from globe.service.registry import Registry
@@ -410,9 +410,9 @@ class MqttBridge:
 
     def _answer(self, name: str, payload: bytes, arrived: float) -> None:
         """An answer (the activity, plain text) is the label of the step under way, the one a
-        question asks about: an observation at its arrival, through the same path as any. One
-        arriving after that step was left (the next step observed) is logged and left out: the
-        person may be doing something else by then."""
+        question asks about, observed at its arrival (:func:`globe.service.answers.answer`). One
+        arriving after that step was left is logged and left out: the person may be doing
+        something else by then."""
         try:
             text = decode_state(payload, self.book.max_label_length)
         except MalformedMessage as err:
@@ -423,14 +423,7 @@ class MqttBridge:
         activity = entry.activities.get(text, text) if entry is not None else text
         when = _utc(arrived)
         try:
-            with self.registry.locked(name) as session:
-                zone = timepolicy.zone(self.registry.row(name).timezone)
-                place = session.placement(when.astimezone(zone))
-                if place.new_step:
-                    raise DataError(f"the answer {activity[:64]!r} came after the step it answers (its next "
-                                     "step was not observed yet, or was left)")
-            self.registry.observe(name, time=when, activity=activity, locations={},
-                                  client_id=f"ha-answer-{when:%Y%m%dT%H%M%S.%fZ}")
+            answers.answer(self.registry, name, activity, arrived=when, client_id=f"ha-answer-{when:%Y%m%dT%H%M%S.%fZ}")
         except GlobeError as err:
             self._count("rejected")
             log.warning("MQTT: answer for household %s refused: %s", name, err)

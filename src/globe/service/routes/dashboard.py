@@ -19,7 +19,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from globe.errors import GlobeError
-from globe.service import auth
+from globe.service import answers, auth
 from globe.service.dashboard import views
 from globe.service.dashboard.sessions import LOGIN_COOKIE, SESSION_COOKIE, Session, Sessions
 from globe.service.deps import RegistryDep
@@ -238,6 +238,34 @@ async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDe
     except GlobeError as err:
         return failure(err.http_status, "Unavailable", str(err), **v.context(registry))
     return redirect(f"/dashboard/households/{name}/settings")
+
+
+@router.post("/dashboard/households/{name}/answer")
+async def answer(name: str, request: Request, v: ViewerDep, registry: RegistryDep) -> Response:
+    """The person's answer to "what are you doing?" from the Today page: the label of the step
+    the page showed, while it is still under way (:func:`globe.service.answers.answer`)."""
+    try:
+        fields = await form(request)
+    except PermissionError as err:
+        return failure(403, "Refused", str(err), **v.context(registry))
+    if not sessions(request).check_csrf(v.session, fields.get("csrf")):
+        return failure(403, "Refused", "the form did not come from this dashboard (CSRF token missing or wrong)",
+                       **v.context(registry))
+    if not v.caller.admin and v.caller.household != name:
+        return failure(403, "Not yours", f"this login does not give access to household {name!r}",
+                       **v.context(registry))
+    activity = fields.get("activity") or fields.get("other") or ""
+    try:
+        step = (fields["day"], int(fields["step"]))
+    except (KeyError, ValueError):
+        return failure(422, "Bad form", "the answer names no step (day and step)", **v.context(registry))
+    if not activity.strip():
+        return failure(422, "Bad form", "choose an activity", **v.context(registry))
+    try:
+        await _in_thread(lambda: answers.answer(registry, name, activity, step=step))
+    except GlobeError as err:
+        return failure(err.http_status, "Not taken", str(err), **v.context(registry))
+    return redirect(f"/dashboard/households/{name}")
 
 
 @router.get("/dashboard/static/{file}")

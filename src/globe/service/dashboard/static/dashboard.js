@@ -3,6 +3,8 @@
 (function () {
   "use strict";
   function refresh(box) {
+    var active = document.activeElement;
+    if (active && active.tagName === "SELECT" && box.contains(active)) { return; }  // a choice being made
     var url = box.getAttribute("data-refresh");
     fetch(url, { credentials: "same-origin", headers: { "Accept": "text/html" }, cache: "no-store" })
       .then(function (r) {
