@@ -184,11 +184,17 @@ async def households(v: ViewerDep, registry: RegistryDep) -> Response:
     return page(views.render("households.html", lines=lines, **v.context(registry)))
 
 
+def _not_theirs(v: Viewer, registry: Registry, name: str) -> Response | None:
+    """The refusal for a login that does not give access to household ``name`` (None: it does)."""
+    if v.caller.admin or v.caller.household == name:
+        return None
+    return failure(403, "Not yours", f"this login does not give access to household {name!r}", **v.context(registry))
+
+
 async def _household_page(v: Viewer, registry: Registry, name: str, template: str, read: Any,
                           page_name: str) -> Response:
-    if not v.caller.admin and v.caller.household != name:
-        return failure(403, "Not yours", f"this login does not give access to household {name!r}",
-                       **v.context(registry))
+    if (refused := _not_theirs(v, registry, name)) is not None:
+        return refused
     try:
         data = await _in_thread(read, registry, name)
     except GlobeError as err:
@@ -251,9 +257,8 @@ async def answer(name: str, request: Request, v: ViewerDep, registry: RegistryDe
     if not sessions(request).check_csrf(v.session, fields.get("csrf")):
         return failure(403, "Refused", "the form did not come from this dashboard (CSRF token missing or wrong)",
                        **v.context(registry))
-    if not v.caller.admin and v.caller.household != name:
-        return failure(403, "Not yours", f"this login does not give access to household {name!r}",
-                       **v.context(registry))
+    if (refused := _not_theirs(v, registry, name)) is not None:
+        return refused
     activity = fields.get("activity") or fields.get("other") or ""
     try:
         step = (fields["day"], int(fields["step"]))
