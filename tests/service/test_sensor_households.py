@@ -91,3 +91,28 @@ def test_events_without_sensors_and_malformed_sensors_are_refused_by_field(tmp_p
         assert r.json()["field"] == "sensors[2].sensor", r.text
         r = c.post("/households", json={**body, "events": ["sensor,start,end\nnope,1,2\n"]})
         assert r.json()["field"] == "events[0].sensor", r.text
+
+
+def test_the_service_recognises_what_the_evaluation_shows_the_models(tmp_path, home):
+    """Served = scored: a household created over HTTP with its sensors, a test day observed step by
+    step with its sensor activations and no label, recognises at each step the activity that
+    ``globe evaluate --activities recognised`` shows the models at that step (same deployment,
+    same recogniser settings chosen on the training days, same online filter)."""
+    from dataclasses import replace
+
+    from globe.evaluation.recognised import recognise_test_days
+    from tests.service.dashboard_helpers import config
+
+    db = tmp_path / "globe.sqlite3"
+    admin, _ = tokens(db)
+    h, sensors = home
+    day = h.test[0]
+    scored = recognise_test_days(replace(h, test=(day,)), sensors, STEP, config=config(db)).household.test[0].observed
+    served = []
+    with app_client(db, admin) as c:
+        assert c.post("/households", json=create_body(home)).status_code == 201
+        for obs in observations(home, day, BASE, 40):
+            assert c.post("/households/S/observations", json=obs).status_code == 201
+            served.append(c.get("/households/S/prediction").json()["recognised"]["activity"])
+    assert served == list(scored[:40])
+    assert sum(a == b for a, b in zip(served, day.activities)) >= 0.6 * len(served)  # and it recognises

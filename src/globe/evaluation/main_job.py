@@ -105,7 +105,7 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
     (out_dir / "recognition.csv").unlink(missing_ok=True)  # a folder written before says nothing stale
     if activities == "recognised":
         with stages.stage("recognition: the test days' activities from the sensors (settings by cross-validation)"):
-            recognised = recognise_households(config, households)
+            recognised = recognise_households(config, households, memo=memo)
             households = [r.household for r in recognised]
             write_recognition(out_dir, recognised)
     needed = families([m for m in methods if backend is not None or not METHODS[m].needs_llm])

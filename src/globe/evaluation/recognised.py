@@ -2,17 +2,22 @@
 GLOBE scores when nobody annotates the home and its activities come from the sensors.
 
 The truth stays the annotation. What the models are shown of each test day is the activity the
-recogniser (:mod:`globe.recognition`) read from the home's sensors *online*, step by step with no
-look-ahead (filtering: what a live service would have known at each step), its most probable
-activity per step, kept as the day's :attr:`~globe.data.records.Day.observed`; every table reads
-:attr:`~globe.data.records.Day.seen` where it conditions on the activity and the annotation
-where it scores. The recogniser's settings are chosen by cross-validation on the annotated
-training days (:func:`~globe.evaluation.recognition.fit_recogniser`) and fitted on all of them;
-the training days stay annotated, so every model is the one the annotated evaluation fits.
+household's session recognises at each step *as the service would*: the household is deployed
+as ``globe train`` or ``POST /households`` deploys it (:func:`~globe.evaluation.deploy.choose_deployment`,
+its recogniser's settings chosen by cross-validation on the annotated training days,
+:func:`~globe.evaluation.recognition.choose_settings`), and each test day is replayed through its
+:class:`~globe.session.HouseholdSession` with the sensor activations and object places of each
+step and no label; the session's recognised activity after each step (its one activity filter:
+the deployed activity model as the dynamics, the sensors and the objects' movements as the
+evidence, no look-ahead) is kept as the day's :attr:`~globe.data.records.Day.observed`. Every
+table reads :attr:`~globe.data.records.Day.seen` where it conditions on the activity and the
+annotation where it scores; the training days stay annotated, so every model is the one the
+annotated evaluation fits.
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import logging
 from dataclasses import dataclass, replace
@@ -20,14 +25,21 @@ from pathlib import Path
 from typing import Literal, Sequence
 
 from globe import assembly
-from globe.config import GlobeConfig
+from globe.config import Deployment, GlobeConfig
 from globe.data.records import Household
 from globe.data.sensors import SensorData, check_sensor_data
 from globe.errors import ConfigError
 from globe.evaluation import report
+from globe.evaluation.deploy import choose_deployment
+from globe.evaluation.fetch import LAST_DATE
+from globe.evaluation.online import day_observations, replay_dates
 from globe.evaluation.published import DataScope
-from globe.evaluation.recognition import Scores, fit_recogniser, recognition_scores
+from globe.evaluation.recognition import Scores, deployed_settings, recognition_scores
+from globe.evaluation.selection import Memo
 from globe.recognition.recogniser import RecognitionSettings
+from globe.session import build_session
+from globe.session.build import activity_model_summary
+from globe.session.sensing import SensorEvent, settings_to_dict
 
 log = logging.getLogger("globe.stages")
 
@@ -64,28 +76,66 @@ def sensors_of(household: Household, step_minutes: int) -> SensorData:
 
 
 def recognise_test_days(household: Household, sensors: SensorData, step_minutes: int,
-                        options: Sequence[RecognitionSettings] | None = None) -> Recognised:
-    """``household`` with each test day's ``observed`` set to the activities recognised online
-    (see the module doc), the recogniser's settings chosen by cross-validation on the training
-    days among ``options`` (default: :func:`~globe.evaluation.recognition.candidates`)."""
+                        options: Sequence[RecognitionSettings] | None = None, config: GlobeConfig | None = None,
+                        memo: Memo | None = None) -> Recognised:
+    """``household`` with each test day's ``observed`` set to the activities its session
+    recognises online (see the module doc), deployed by ``config`` (default: the defaults) with
+    the recogniser's settings chosen by cross-validation on the training days among ``options``
+    (default: :func:`~globe.evaluation.recognition.candidates`); ``memo`` shares the deployment's
+    cross-validation with the tables."""
     if not household.train or not household.test:
         raise ConfigError(f"household {household.name}: recognising activities needs training and test days")
-    recogniser = fit_recogniser(list(household.train), sensors, step_minutes, options=options)
-    settings = recogniser.describe()
-    log.info("%s: recogniser settings chosen on the training days: %s", household.name, settings)
-    predicted = recogniser.predict(household.test)
+    config = config or GlobeConfig()
+    settings = deployed_settings(household, sensors, step_minutes, options)
+    deployment = choose_deployment(household, config, memo)
+    described = {**settings_to_dict(settings), "dynamics": activity_model_summary(deployment.models)}
+    log.info("%s: recognised as served: %s", household.name, described)
+    predicted = served_recognition(household, sensors, config, deployment, settings)
     test = tuple(replace(day, observed=tuple(seen)) for day, seen in zip(household.test, predicted))
     scores = recognition_scores([a for d in household.test for a in d.activities], [a for p in predicted for a in p])
-    return Recognised(replace(household, test=test), scores, settings)
+    return Recognised(replace(household, test=test), scores, described)
+
+
+def served_recognition(household: Household, sensors: SensorData, config: GlobeConfig, deployment: Deployment,
+                       settings: RecognitionSettings) -> list[list[str]]:
+    """Per test day of ``household``, the activity its session (built as the service builds it,
+    asking nothing) recognises after each step, the test days replayed in order on consecutive
+    dates with each step's sensor activations (those beginning in it; the first step also those
+    before it) and object places, and no label."""
+    session = build_session(household, config, deployment, None, sensors=sensors, recognition=settings,
+                            questions_per_day=0)
+    dates = replay_dates(household.test, LAST_DATE)  # as the fetch policy's replay
+    out = []
+    for day, date in zip(household.test, dates):
+        found = sensors.of(day.name)
+        midnight = dt.datetime.combine(date, dt.time())
+        names = [sensors.sensors[int(i)].name for i in found.sensor.tolist()] if found is not None else []
+        starts = found.start.tolist() if found is not None else []
+        ends = found.end.tolist() if found is not None else []
+        bounds = [m * 60 for m in day.minutes[1:]] + [float("inf")]
+        seen: list[str] = []
+        k = 0
+        for (_row, obs), upper in zip(day_observations(household, day, date, visible=lambda _row: False), bounds):
+            events = []
+            while k < len(starts) and starts[k] < upper:
+                events.append(SensorEvent(names[k], midnight + dt.timedelta(seconds=starts[k]),
+                                          midnight + dt.timedelta(seconds=ends[k])))
+                k += 1
+            session.observe(replace(obs, sensors=tuple(events)))
+            found_now = session.recognised()
+            seen.append(found_now[0] if found_now is not None else (seen[-1] if seen else day.activities[0]))
+        out.append(seen)
+    return out
 
 
 def recognise_households(config: GlobeConfig, households: Sequence[Household],
-                         options: Sequence[RecognitionSettings] | None = None) -> list[Recognised]:
+                         options: Sequence[RecognitionSettings] | None = None,
+                         memo: Memo | None = None) -> list[Recognised]:
     """:func:`recognise_test_days` for every household (each with its own step and sensors); a
     household without sensors is an error before any is recognised."""
     found = [(h, assembly.step_minutes(h, config)) for h in households]
     sensors = [sensors_of(h, step) for h, step in found]
-    return [recognise_test_days(h, s, step, options) for (h, step), s in zip(found, sensors)]
+    return [recognise_test_days(h, s, step, options, config, memo) for (h, step), s in zip(found, sensors)]
 
 
 def write_recognition(out_dir: Path, recognised: Sequence[Recognised]) -> Path:

@@ -135,6 +135,15 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
     trained = replace(chosen, self_training=True)
     return best_beyond_noise([next(f for f in first if f[0] == chosen), (trained, per_fold(trained))])
 
+def deployed_settings(household: Household, sensors: SensorData, step_minutes: int,
+                      options: Sequence[RecognitionSettings] | None = None) -> RecognitionSettings:
+    """The recogniser's settings a household with sensors is deployed with (``POST /households``,
+    ``globe evaluate --activities recognised``): :func:`choose_settings` on its labelled training
+    days that have recorded sensors (the first option, the default, with fewer than two)."""
+    return choose_settings([d for d in household.train if sensors.of(d.name) is not None], sensors, step_minutes,
+                           options=options)
+
+
 def fit_recogniser(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
                    options: Sequence[RecognitionSettings] | None = None) -> Recogniser:
     """A home's recogniser with the settings chosen on its labelled days."""

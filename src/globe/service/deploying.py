@@ -78,12 +78,8 @@ class Selections:
 
 
 def choose_recognition(household: Household, sensors: SensorData, step_minutes: int) -> RecognitionSettings:
-    """The recogniser's settings of a household with sensors: chosen by cross-validation on its
-    labelled training days that have recorded sensors
-    (:func:`globe.evaluation.recognition.choose_settings`); the default with fewer than two."""
-    labelled = [d for d in household.train if sensors.of(d.name) is not None]
-    if len(labelled) < 2:
-        return RecognitionSettings()
-    from globe.evaluation.recognition import choose_settings
+    """The recogniser's settings of a household with sensors, as the evaluation deploys them
+    (:func:`globe.evaluation.recognition.deployed_settings`)."""
+    from globe.evaluation.recognition import deployed_settings
 
-    return choose_settings(labelled, sensors, step_minutes)
+    return deployed_settings(household, sensors, step_minutes)
