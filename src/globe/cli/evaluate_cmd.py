@@ -124,7 +124,8 @@ def evaluate(
         "objects (forecast with the listed methods among persistence, ngram and routine)")] = True,
     activities: Annotated[str, typer.Option(
         "--activities", help="what the models are shown of the test days: the 'annotated' activities, or those "
-        "'recognised' online from the home's sensors (scored against the annotation either way)")] = "annotated",
+        "'recognised' online from the home's sensors as its service recognises them (scored against the annotation "
+        "either way)")] = "annotated",
 ) -> None:
     """Evaluate chosen methods on the test days and write a results folder: Table I, the activity
     ahead, and for homes with objects the objects ahead and the fetch policy."""
@@ -218,8 +219,9 @@ def print_recognition(out_dir: Path) -> None:
         return
     with path.open(newline="", encoding="utf-8") as fh:
         for r in csv.DictReader(fh):
-            out.print(f"{r['household']}: test-day activities recognised from the sensors online, time-slice accuracy "
-                      f"{float(r['time_slice_accuracy']):.3f}, class accuracy {float(r['class_accuracy']):.3f} "
+            out.print(f"{r['household']}: test-day activities recognised from the sensors online, as served, "
+                      f"time-slice accuracy {float(r['time_slice_accuracy']):.3f}, class accuracy "
+                      f"{float(r['class_accuracy']):.3f} "
                       f"(settings chosen on training days: {r['settings']})", markup=False)
 
 
