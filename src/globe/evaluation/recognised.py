@@ -20,6 +20,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import logging
+from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal, Sequence
@@ -105,6 +106,8 @@ def served_recognition(household: Household, sensors: SensorData, config: GlobeC
     session = build_session(household, config, deployment, None, sensors=sensors, recognition=settings,
                             questions_per_day=0)
     dates = replay_dates(household.test, LAST_DATE)  # as the fetch policy's replay
+    # where the session says nothing (no belief yet), the training days' commonest activity, never the annotation
+    usual = Counter(a for d in household.train for a in d.activities).most_common(1)[0][0]
     out = []
     for day, date in zip(household.test, dates):
         found = sensors.of(day.name)
@@ -123,7 +126,7 @@ def served_recognition(household: Household, sensors: SensorData, config: GlobeC
                 k += 1
             session.observe(replace(obs, sensors=tuple(events)))
             found_now = session.recognised()
-            seen.append(found_now[0] if found_now is not None else (seen[-1] if seen else day.activities[0]))
+            seen.append(found_now[0] if found_now is not None else (seen[-1] if seen else usual))
         out.append(seen)
     return out
 
