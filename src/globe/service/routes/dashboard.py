@@ -223,8 +223,9 @@ async def settings(name: str, v: ViewerDep, registry: RegistryDep) -> Response:
     return await _household_page(v, registry, name, "settings.html", views.settings, "settings")
 
 
-@router.post("/dashboard/households/{name}/shadow")
-async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDep) -> Response:
+async def _form_of_this_dashboard(request: Request, v: Viewer, registry: Registry) -> dict[str, str] | Response:
+    """A logged-in page's form fields, or the refusal of a form too big or not from this dashboard
+    (its CSRF token missing or wrong)."""
     try:
         fields = await form(request)
     except PermissionError as err:
@@ -232,6 +233,14 @@ async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDe
     if not sessions(request).check_csrf(v.session, fields.get("csrf")):
         return failure(403, "Refused", "the form did not come from this dashboard (CSRF token missing or wrong)",
                        **v.context(registry))
+    return fields
+
+
+@router.post("/dashboard/households/{name}/shadow")
+async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDep) -> Response:
+    fields = await _form_of_this_dashboard(request, v, registry)
+    if isinstance(fields, Response):
+        return fields
     if not v.caller.admin:
         return failure(403, "Admins only", "only an admin token switches shadow mode", **v.context(registry))
     if fields.get("shadow") not in ("on", "off"):
@@ -250,13 +259,9 @@ async def shadow(name: str, request: Request, v: ViewerDep, registry: RegistryDe
 async def answer(name: str, request: Request, v: ViewerDep, registry: RegistryDep) -> Response:
     """The person's answer to "what are you doing?" from the Today page: the label of the step
     the page showed, while it is still under way (:func:`globe.service.answers.answer`)."""
-    try:
-        fields = await form(request)
-    except PermissionError as err:
-        return failure(403, "Refused", str(err), **v.context(registry))
-    if not sessions(request).check_csrf(v.session, fields.get("csrf")):
-        return failure(403, "Refused", "the form did not come from this dashboard (CSRF token missing or wrong)",
-                       **v.context(registry))
+    fields = await _form_of_this_dashboard(request, v, registry)
+    if isinstance(fields, Response):
+        return fields
     if (refused := _not_theirs(v, registry, name)) is not None:
         return refused
     activity = fields.get("activity") or fields.get("other") or ""
