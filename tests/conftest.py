@@ -27,7 +27,7 @@ def pytest_configure(config):
     if workerinput is not None:
         os.environ["GLOBE_TEST_SEED"] = workerinput["globe_test_seed"]
         # llama.cpp's threads spin at each barrier: two workers' LLMs with two threads each on two
-        # cores run ten times slower than one thread each (the commands the tests start inherit it)
+        # cores run several times slower than one thread each (the commands the tests start inherit it)
         os.environ.setdefault("GLOBE_LLM__N_THREADS", str(llm_threads()))
     elif not os.environ.get("GLOBE_TEST_SEED"):
         os.environ["GLOBE_TEST_SEED"] = str(random.randrange(1_000_000))
