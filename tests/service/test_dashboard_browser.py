@@ -220,17 +220,26 @@ def test_a_household_with_sensors_shows_recognition_and_fits_a_phone(driver, ser
     assert "Sensors" in driver.find_element(By.ID, "recent-steps").text
     no_console_errors(driver)
     shoot(driver, "today-sensors")  # the "what are you doing?" card fits too
-    # answering from the page: the step under way gets the label, today's labelled count goes up
+    # answering from the page: the step under way gets the label, today's labelled count goes up.
+    # The live part is redrawn every second here, so an element may be replaced between two reads
+    # (in Chromium an error of its own, not always a stale element): each read is retried.
+    from selenium.common.exceptions import WebDriverException
     from selenium.webdriver.support.ui import Select
+
+    patient = WebDriverWait(driver, 10, ignored_exceptions=(WebDriverException,))
 
     def labelled(d) -> str:
         return d.find_element(By.CSS_SELECTOR, "#recognition .tile .value").text
-    before = int(labelled(driver))
-    card = driver.find_element(By.ID, "asking")
-    assert "What are you doing?" in card.text
-    Select(card.find_element(By.NAME, "other")).select_by_value(day.activities[19])  # step 19 has no label
-    card.find_element(By.CSS_SELECTOR, "button.secondary").click()
-    WebDriverWait(driver, 10).until(lambda d: labelled(d) == str(before + 1))
-    assert driver.find_element(By.CSS_SELECTOR, "#recent-steps tbody tr td:nth-child(2)").text == \
-        day.activities[19].replace("_", " ")
+    before = int(patient.until(labelled))
+
+    def answer(d) -> bool:  # a second tap on the same step counts once, so a retried tap is harmless
+        card = d.find_element(By.ID, "asking")
+        assert "What are you doing?" in card.text
+        Select(card.find_element(By.NAME, "other")).select_by_value(day.activities[19])  # step 19: no label
+        card.find_element(By.CSS_SELECTOR, "button.secondary").click()
+        return True
+    patient.until(answer)
+    patient.until(lambda d: labelled(d) == str(before + 1))
+    patient.until(lambda d: d.find_element(By.CSS_SELECTOR, "#recent-steps tbody tr td:nth-child(2)").text
+                  == day.activities[19].replace("_", " "))
     no_console_errors(driver)
