@@ -16,14 +16,17 @@ on the training days only, as every other table).
 
 from __future__ import annotations
 
+import bisect
 import datetime as dt
 from dataclasses import dataclass, field
 from typing import Callable, Iterator, Sequence
 
 from globe.data.records import Day, Household
+from globe.data.sensors import SensorData
 from globe.inference.fetch_policy import FetchReport
 from globe.session import Decision, HouseholdSession, Observation
 from globe.session.records import Settled
+from globe.session.sensing import SensorEvent
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,15 +100,35 @@ def replay_dates(days: Sequence[Day], last: dt.date) -> list[dt.date]:
 
 
 def day_observations(household: Household, day: Day, date: dt.date, *, rows: Sequence[int] | None = None,
-                     visible: Callable[[int], bool] | None = None) -> Iterator[tuple[int, Observation]]:
+                     visible: Callable[[int], bool] | None = None,
+                     sensors: SensorData | None = None) -> Iterator[tuple[int, Observation]]:
     """(row, observation) for each of ``rows`` of ``day`` (default: every row), at its minute on
     ``date`` (wall time), with its activity unless ``visible(row)`` says it is hidden, and every
-    object's place."""
+    object's place; with ``sensors`` (the home's), also the activations that begin in the row
+    (:func:`row_events`)."""
     midnight = dt.datetime.combine(date, dt.time())
+    events = row_events(sensors, day, date) if sensors is not None else None
     for t in range(len(day)) if rows is None else rows:
         label = day.seen[t] if visible is None or visible(t) else None  # as GLOBE saw it (recognised, if so)
         yield t, Observation(midnight + dt.timedelta(minutes=day.minutes[t]), label,
-                             dict(zip(household.objects, day.locations[t])))
+                             dict(zip(household.objects, day.locations[t])), events[t] if events else ())
+
+
+def row_events(sensors: SensorData, day: Day, date: dt.date) -> list[tuple[SensorEvent, ...]]:
+    """Per row of ``day``, the sensor activations recorded for it that begin in the row (before
+    the next row's minute; the first row also takes those before it), as wall times on ``date``:
+    what a home's sensors report with each step's observation."""
+    out: list[list[SensorEvent]] = [[] for _ in range(len(day))]
+    found = sensors.of(day.name)
+    if found is None or not len(day):
+        return [tuple(e) for e in out]
+    midnight = dt.datetime.combine(date, dt.time())
+    bounds = [60.0 * m for m in day.minutes[1:]]
+    for i, start, end in zip(found.sensor.tolist(), found.start.tolist(), found.end.tolist()):
+        row = bisect.bisect_right(bounds, start)
+        out[row].append(SensorEvent(sensors.sensors[i].name, midnight + dt.timedelta(seconds=start),
+                                    midnight + dt.timedelta(seconds=end)))
+    return [tuple(e) for e in out]
 
 
 def replay(session: HouseholdSession, observations: Sequence[tuple[str, int, Observation]],

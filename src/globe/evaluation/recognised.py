@@ -17,7 +17,6 @@ annotated evaluation fits.
 
 from __future__ import annotations
 
-import datetime as dt
 import json
 import logging
 from collections import Counter
@@ -40,7 +39,7 @@ from globe.evaluation.selection import Memo
 from globe.recognition.recogniser import RecognitionSettings
 from globe.session import build_session
 from globe.session.build import activity_model_summary
-from globe.session.sensing import SensorEvent, settings_to_dict
+from globe.session.sensing import settings_to_dict
 
 log = logging.getLogger("globe.stages")
 
@@ -110,23 +109,11 @@ def served_recognition(household: Household, sensors: SensorData, config: GlobeC
     usual = Counter(a for d in household.train for a in d.activities).most_common(1)[0][0]
     out = []
     for day, date in zip(household.test, dates):
-        found = sensors.of(day.name)
-        midnight = dt.datetime.combine(date, dt.time())
-        names = [sensors.sensors[int(i)].name for i in found.sensor.tolist()] if found is not None else []
-        starts = found.start.tolist() if found is not None else []
-        ends = found.end.tolist() if found is not None else []
-        bounds = [m * 60 for m in day.minutes[1:]] + [float("inf")]
         seen: list[str] = []
-        k = 0
-        for (_row, obs), upper in zip(day_observations(household, day, date, visible=lambda _row: False), bounds):
-            events = []
-            while k < len(starts) and starts[k] < upper:
-                events.append(SensorEvent(names[k], midnight + dt.timedelta(seconds=starts[k]),
-                                          midnight + dt.timedelta(seconds=ends[k])))
-                k += 1
-            session.observe(replace(obs, sensors=tuple(events)))
-            found_now = session.recognised()
-            seen.append(found_now[0] if found_now is not None else (seen[-1] if seen else usual))
+        for _row, obs in day_observations(household, day, date, visible=lambda _row: False, sensors=sensors):
+            session.observe(obs)
+            found = session.recognised()
+            seen.append(found[0] if found is not None else (seen[-1] if seen else usual))
         out.append(seen)
     return out
 
