@@ -101,8 +101,8 @@ def recognise(
 
 def _label(household: Household, sensors: SensorData, step: int, unlabelled: tuple[Day, ...], root: Path) -> int:
     """Label ``household``'s recorded unlabelled days into ``root/<its folder>``; 1 when written."""
-    recorded, later = before_test(household, [d for d in unlabelled if sensors.of(d.name) is not None])
-    labelled = [d for d in household.train if sensors.of(d.name) is not None]
+    recorded, later = before_test(household, sensors.recorded(unlabelled))
+    labelled = sensors.recorded(household.train)
     if later:
         out.print(f"{household.name}: {len(later)} unlabelled days on or after the first test day left out (the "
                   "test days stay later than every training day)", markup=False)

@@ -106,6 +106,10 @@ class SensorData:
         """The activations of the day named ``day_name`` (``train/2010-11-04`` or its stem), if recorded."""
         return self.days.get(day_stem(day_name))
 
+    def recorded(self, days: Sequence[Day]) -> list[Day]:
+        """Those of ``days`` whose activations were recorded (the only ones a recogniser can read)."""
+        return [d for d in days if self.of(d.name) is not None]
+
     def index(self, name: str) -> int:
         for i, sensor in enumerate(self.sensors):
             if sensor.name == name:

@@ -140,8 +140,7 @@ def deployed_settings(household: Household, sensors: SensorData, step_minutes: i
     """The recogniser's settings a household with sensors is deployed with (``POST /households``,
     ``globe evaluate --activities recognised``): :func:`choose_settings` on its labelled training
     days that have recorded sensors (the first option, the default, with fewer than two)."""
-    return choose_settings([d for d in household.train if sensors.of(d.name) is not None], sensors, step_minutes,
-                           options=options)
+    return choose_settings(sensors.recorded(household.train), sensors, step_minutes, options=options)
 
 
 def fit_recogniser(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
