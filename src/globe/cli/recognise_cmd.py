@@ -20,7 +20,7 @@ from globe.evaluation.recognition import (
     BUDGETS,
     LEARNING_DAYS,
     RecognitionReport,
-    fit_recogniser,
+    choose_labeller,
     recognition_report,
     write_recognition,
 )
@@ -110,10 +110,10 @@ def _label(household: Household, sensors: SensorData, step: int, unlabelled: tup
         why = "no unlabelled day with sensor events" if not recorded else "no labelled training day with sensor events"
         out.print(f"{household.name}: {why}; nothing to label", markup=False)
         return 0
-    recogniser = fit_recogniser(labelled, sensors, step, recorded)
-    found = recognise_days(recogniser, recorded)
+    choice = choose_labeller(labelled, sensors, step, recorded)
+    found = recognise_days(choice.labeller, recorded)
     dest = write_labelled(household, found, root / Path(household.source).name,
-                          {"labelled_days": len(labelled), "recogniser": recogniser.describe()})
+                          {"labelled_days": len(labelled), "recogniser": choice.describe()})
     table = Table(title=f"{household.name}: days labelled from the sensors (with hindsight)")
     for col in ("day", "mean probability", "activities"):
         table.add_column(col, justify="left")
@@ -121,9 +121,10 @@ def _label(household: Household, sensors: SensorData, step: int, unlabelled: tup
         table.add_row(day.day.name.rsplit("/", 1)[-1], f"{day.mean_probability:.3f}",
                       ", ".join(sorted(set(day.day.activities))))
     print_table(table)
-    self_trained = " and self-training on the unlabelled days" if recogniser.settings.self_training else ""
-    out.print(f"labelled {len(found)} days from {len(labelled)} labelled ones (settings chosen by cross-validation"
-              f"{self_trained}); wrote {dest} (train/ holds them, recognised/ each step's probability)", markup=False)
+    held = ", ".join(f"{name} {acc:.3f}" for name, acc in choice.held_out.items())
+    out.print(f"labelled {len(found)} days from {len(labelled)} labelled ones by the {choice.name} recogniser, "
+              f"chosen by cross-validation on them{f' (held-out class accuracy: {held})' if held else ''}; wrote "
+              f"{dest} (train/ holds them, recognised/ each step's probability)", markup=False)
     return 1
 
 

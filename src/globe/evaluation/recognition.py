@@ -22,7 +22,8 @@ that costs GLOBE's predictions.
   against the annotation.
 - **Rows from libraries** (:func:`library_rows`): a linear-chain CRF (sklearn-crfsuite) over the
   same features and the hour, and a plain HMM (hmmlearn) over the feature set chosen on held-out
-  training days, each when installed (``pip install globe[recognition]``).
+  training days, each when installed (``pip install globe[recognition]``); offered to
+  cross-validation beside GLOBE's recogniser to label the days nobody labelled (:func:`choose_labeller`).
 """
 
 from __future__ import annotations
@@ -40,8 +41,11 @@ from globe.data.sensors import SensorData
 from globe.evaluation.metrics import f1
 from globe.evaluation.selection import best_beyond_noise, folds
 from globe.models.base import ActivityModelBase
+from globe.recognition import library
 from globe.recognition.asking import DayAsker, QuestionPolicy, random_steps, worth
-from globe.recognition.features import REPRESENTATIONS, Layout, step_features
+from globe.recognition.features import REPRESENTATIONS
+from globe.recognition.labelling import Labeller
+from globe.recognition.library import CRF, HMM, CrfRecogniser, PlainHmmRecogniser
 from globe.recognition.recogniser import Recogniser, RecognitionSettings
 
 LEARNING_DAYS = (1, 3, 7, 14, None)
@@ -288,112 +292,106 @@ def end_to_end(model: ActivityModelBase, days: Sequence[Day], recognised: Sequen
     return out
 
 
-def _crf_features(x: np.ndarray, names: Sequence[str], minutes: Sequence[int]) -> list[dict[str, Any]]:
-    rows = []
-    for values, minute in zip(x.tolist(), minutes):
-        row: dict[str, Any] = {f"{n}={v}": 1.0 for n, v in zip(names, values)
-                               if v or not n.startswith(("raw", "change"))}
-        row[f"hour={minute // 60 % 24}"] = 1.0
-        rows.append(row)
-    return rows
-
-
-def crf_scores(household: Household, sensors: SensorData, step_minutes: int, labelled: Sequence[Day] | None = None,
-               features: tuple[str, ...] = ("raw", "change", "last", "room")) -> Scores | None:
-    """A linear-chain CRF (sklearn-crfsuite, L-BFGS with its default regularisation) over the same
-    step features and the hour, trained on ``labelled`` (default: every training day), scored on
-    the test days; None when sklearn-crfsuite is not installed."""
-    try:
-        import sklearn_crfsuite
-    except ImportError:
+def crf_scores(household: Household, sensors: SensorData, step_minutes: int, labelled: Sequence[Day] | None = None
+               ) -> Scores | None:
+    """The linear-chain CRF (:class:`~globe.recognition.library.CrfRecogniser`) trained on
+    ``labelled`` (default: every training day), scored on the test days read with hindsight; None
+    when sklearn-crfsuite is not installed."""
+    if CRF not in library.available():
         return None
-    labelled = list(household.train if labelled is None else labelled)
-    layout = Layout.of(sensors.sensors, features)
-
-    def seq(day: Day) -> list[dict[str, Any]]:
-        x = step_features(layout, sensors.of(day.name), day.minutes, step_minutes)
-        return _crf_features(x, layout.names, day.minutes)
-    crf = sklearn_crfsuite.CRF(algorithm="lbfgs", max_iterations=100, all_possible_transitions=True)
-    crf.fit([seq(d) for d in labelled], [list(d.activities) for d in labelled])
-    predicted = crf.predict([seq(d) for d in household.test])
-    return recognition_scores(_flat(household.test), [a for p in predicted for a in p])
+    fitted = CrfRecogniser().fit(list(household.train if labelled is None else labelled), sensors, step_minutes)
+    return _hindsight_scores(fitted, household.test)
 
 
 def hmm_scores(household: Household, sensors: SensorData, step_minutes: int, labelled: Sequence[Day] | None = None,
                features: tuple[str, ...] | None = None) -> Scores | None:
-    """A plain HMM (hmmlearn's Viterbi decoding), the literature's generative baseline: one state
-    per activity, time-free transitions and a start counted on ``labelled`` (default: every
-    training day) with add-one smoothing, each step's feature columns independent given the
-    activity (naive Bayes, add-one); the feature set (default: chosen among
-    :data:`~globe.recognition.features.REPRESENTATIONS` by class accuracy on held-out blocks of
-    ``labelled``, as the recogniser's is). Scored on the test days, read with hindsight (the most
-    probable sequence); None when hmmlearn is not installed. Where GLOBE's recogniser differs: its
-    dynamics know the clock, and it also reads each step online."""
-    try:
-        import hmmlearn  # noqa: F401
-    except ImportError:
+    """The plain HMM (:class:`~globe.recognition.library.PlainHmmRecogniser`) counted on
+    ``labelled`` (default: every training day) over ``features`` (default: chosen by
+    :func:`choose_hmm_features`), scored on the test days read with hindsight; None when hmmlearn
+    is not installed. Where GLOBE's recogniser differs: its dynamics know the clock, and it also
+    reads each step online."""
+    if HMM not in library.available():
         return None
     labelled = list(household.train if labelled is None else labelled)
-    if features is None:
-        features = REPRESENTATIONS[0]
-        if len(labelled) >= 2:
-            split = folds(len(labelled), min(CV_FOLDS, len(labelled)))
-
-            def per_fold(chosen: tuple[str, ...]) -> list[float]:
-                scores = []
-                for train, held in split:
-                    decode = _plain_hmm([labelled[i] for i in train], sensors, step_minutes, chosen)
-                    days = [labelled[i] for i in held]
-                    scores.append(recognition_scores(_flat(days), decode(days)).class_accuracy)
-                return scores
-            features = best_beyond_noise([(f, per_fold(f)) for f in REPRESENTATIONS])
-    test = list(household.test)
-    return recognition_scores(_flat(test), _plain_hmm(labelled, sensors, step_minutes, features)(test))
+    features = features or choose_hmm_features(labelled, sensors, step_minutes)
+    return _hindsight_scores(PlainHmmRecogniser(features).fit(labelled, sensors, step_minutes), household.test)
 
 
-def _plain_hmm(labelled: Sequence[Day], sensors: SensorData, step_minutes: int,
-               features: tuple[str, ...]) -> Callable[[Sequence[Day]], list[str]]:
-    """:func:`hmm_scores`' HMM counted on ``labelled``: days -> their steps' decoded activities."""
-    from hmmlearn.base import BaseHMM
+def _hindsight_scores(fitted: Labeller, days: Sequence[Day]) -> Scores:
+    return recognition_scores(_flat(days), [a for p in hindsight(fitted, days) for a in p])
 
-    layout = Layout.of(sensors.sensors, features)
-    names = sorted({a for d in labelled for a in d.activities})
-    code = {a: i for i, a in enumerate(names)}
-    start, moves = np.ones(len(names)), np.ones((len(names), len(names)))
-    counts = [np.ones((len(names), size)) for size in layout.sizes]
 
-    def x_of(day: Day) -> np.ndarray:
-        return step_features(layout, sensors.of(day.name), day.minutes, step_minutes).astype(np.int64)
-    for day in labelled:
-        x, y = x_of(day), np.array([code[a] for a in day.activities], dtype=np.int64)
-        start[y[0]] += 1
-        np.add.at(moves, (y[:-1], y[1:]), 1)
-        for c, table in enumerate(counts):
-            np.add.at(table, (y, x[:, c]), 1)
-    log_emission = [np.log(t / t.sum(axis=1, keepdims=True)) for t in counts]
+def hindsight(fitted: Labeller, days: Sequence[Day]) -> list[list[str]]:
+    """Each day's most probable sequence as ``fitted`` reads it with hindsight (its :meth:`decode`)."""
+    return [[fitted.labels[i] for i in path.argmax(axis=1).tolist()] for path in fitted.decode(days)]
 
-    class PlainHMM(BaseHMM):  # hmmlearn's documented extension point: the emission's log-likelihood
-        def _check(self) -> None:
-            self._check_sum_1("startprob_")
-            self._check_sum_1("transmat_")
 
-        def _compute_log_likelihood(self, X: np.ndarray) -> np.ndarray:
-            return sum(table[:, X[:, c]].T for c, table in enumerate(log_emission))
+def _held_out(labelled: Sequence[Day], fit: Callable[[Sequence[Day]], Labeller]) -> list[float]:
+    """Per block of held-out ``labelled`` days (the folds :func:`choose_settings` uses), the class
+    accuracy of the hindsight reading of a labeller ``fit`` on the others."""
+    scores = []
+    for train, held in folds(len(labelled), min(CV_FOLDS, len(labelled))):
+        days = [labelled[i] for i in held]
+        scores.append(_hindsight_scores(fit([labelled[i] for i in train]), days).class_accuracy)
+    return scores
 
-    hmm = PlainHMM(n_components=len(names))
-    hmm.startprob_, hmm.transmat_ = start / start.sum(), moves / moves.sum(axis=1, keepdims=True)
 
-    def decode(days: Sequence[Day]) -> list[str]:
-        states = hmm.predict(np.vstack([x_of(d) for d in days]), [len(d) for d in days])
-        return [names[i] for i in states.tolist()]
-    return decode
+def choose_hmm_features(labelled: Sequence[Day], sensors: SensorData, step_minutes: int) -> tuple[str, ...]:
+    """The plain HMM's feature set among :data:`~globe.recognition.features.REPRESENTATIONS`, by
+    class accuracy on held-out blocks of ``labelled`` (the first, with fewer than two days)."""
+    if len(labelled) < 2:
+        return REPRESENTATIONS[0]
+    return best_beyond_noise([(f, _held_out(labelled, lambda days, f=f: PlainHmmRecogniser(f).fit(  # type: ignore[misc]
+        days, sensors, step_minutes))) for f in REPRESENTATIONS])
+
+
+@dataclass(frozen=True, slots=True)
+class LabellerChoice:
+    """The recogniser chosen to label unlabelled days, fitted on every labelled day, and each
+    candidate's mean class accuracy on the held-out labelled days (read with hindsight)."""
+
+    labeller: Labeller
+    name: str
+    held_out: dict[str, float]
+
+    def describe(self) -> dict[str, Any]:
+        return {"chosen": self.name, **self.labeller.describe(),
+                "held_out_class_accuracy": {k: round(v, 4) for k, v in self.held_out.items()}}
+
+
+GLOBE_LABELLER = "globe (clock dynamics, sensor emission)"
+
+
+def choose_labeller(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
+                    options: Sequence[RecognitionSettings] | None = None) -> LabellerChoice:
+    """Which recogniser labels the ``unlabelled`` days with hindsight: GLOBE's
+    (:func:`fit_recogniser`, its settings chosen on ``labelled``) unless a library recogniser
+    (:mod:`globe.recognition.library`, those installed; the HMM's features chosen on ``labelled``)
+    reads held-out blocks of ``labelled`` days better, beyond noise, by class accuracy. Each is
+    configured on every labelled day and scored fold by fold; the winner is fitted on them all.
+    With fewer than two labelled days there is nothing to hold out: GLOBE's."""
+    labelled = list(labelled)
+    ours = fit_recogniser(labelled, sensors, step_minutes, unlabelled, options)
+    if len(labelled) < 2:
+        return LabellerChoice(ours, GLOBE_LABELLER, {})
+    makers: dict[str, Callable[[Sequence[Day]], Labeller]] = {
+        GLOBE_LABELLER: lambda days: Recogniser(ours.settings).fit(days, sensors, step_minutes, unlabelled)}
+    installed = library.available()
+    if CRF in installed:
+        makers[CRF] = lambda days: CrfRecogniser().fit(days, sensors, step_minutes)
+    if HMM in installed:
+        features = choose_hmm_features(labelled, sensors, step_minutes)
+        makers[HMM] = lambda days: PlainHmmRecogniser(features).fit(days, sensors, step_minutes)
+    scored = [(name, _held_out(labelled, make)) for name, make in makers.items()]
+    name = best_beyond_noise(scored)
+    held = {n: float(np.mean(s)) for n, s in scored}
+    return LabellerChoice(ours if name == GLOBE_LABELLER else makers[name](labelled), name, held)
 
 
 def library_rows(household: Household, sensors: SensorData, step_minutes: int) -> dict[str, Scores]:
     """The rows from well-kept libraries beside GLOBE's recogniser, trained on every training day
     and read with hindsight: a linear-chain CRF and a plain HMM, each where installed."""
-    rows = {"crf (sklearn-crfsuite)": crf_scores(household, sensors, step_minutes),
-            "plain hmm (hmmlearn)": hmm_scores(household, sensors, step_minutes)}
+    rows = {CRF: crf_scores(household, sensors, step_minutes), HMM: hmm_scores(household, sensors, step_minutes)}
     return {name: scores for name, scores in rows.items() if scores is not None}
 
 

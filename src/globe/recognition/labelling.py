@@ -1,14 +1,14 @@
 """Labelling the days nobody labelled, with hindsight, so the rest of GLOBE can learn from them.
 
 A home imported with ``--unlabelled keep`` has days the sensors recorded and nobody annotated
-(``unlabelled/<day>.csv``, :func:`globe.data.sensors.read_unlabelled_days`). A recogniser fitted
-on the labelled training days (its settings, self-training on these days included, chosen by
-cross-validation on them: :func:`globe.evaluation.recognition.fit_recogniser`) reads each of them
-with hindsight: the most probable sequence of activities
-(:meth:`~globe.recognition.recogniser.Recogniser.decode`), and for each step the probability of
-its label with every path summed (:meth:`~globe.recognition.recogniser.Recogniser.smooth`, exact
-forward-backward), which says how sure the label is (measured: the steps at 0.9 or more are right
-more often).
+(``unlabelled/<day>.csv``, :func:`globe.data.sensors.read_unlabelled_days`). A recogniser chosen
+and fitted on the labelled training days reads each of them with hindsight: GLOBE's own (its
+settings, self-training on these days included, chosen by cross-validation on them), or a
+library's linear-chain CRF or plain HMM where cross-validation on the labelled days says it reads
+them better (:func:`globe.evaluation.recognition.choose_labeller`, any :class:`Labeller`). The
+labels are the most probable sequence of activities (its ``decode``), and each step's probability
+that of its label with every path summed (its ``smooth``, exact forward-backward), which says how
+sure the label is (measured for GLOBE's: the steps at 0.9 or more are right more often).
 
 :func:`write_labelled` writes the result as a household folder any GLOBE command loads
 (:func:`globe.data.csv_logs.load_household`): the source's files as they are, each recognised day
@@ -25,7 +25,7 @@ import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Protocol, Sequence
 
 import numpy as np
 
@@ -33,9 +33,26 @@ from globe.data.csv_logs import _csv_line, _write_atomic, write_day
 from globe.data.records import Day, Household
 from globe.data.sensors import EVENTS_FOLDER, UNLABELLED_FOLDER, day_stem
 from globe.errors import DataError
-from globe.recognition.recogniser import Recogniser
 
 RECOGNISED_FOLDER, RECOGNISED_FILE = "recognised", "recognised.json"
+
+
+class Labeller(Protocol):
+    """What reads a day with hindsight: GLOBE's :class:`~globe.recognition.recogniser.Recogniser`
+    or a library's (:mod:`globe.recognition.library`)."""
+
+    @property
+    def labels(self) -> Sequence[str]:
+        """The activities of every array returned (columns)."""
+
+    def decode(self, days: Sequence[Day]) -> list[np.ndarray]:
+        """Per day, (steps x labels) whose row argmax is the most probable sequence."""
+
+    def smooth(self, days: Sequence[Day]) -> list[np.ndarray]:
+        """Per day, (steps x labels): each step's probability given the whole day."""
+
+    def describe(self) -> dict[str, Any]:
+        """What was fitted, for ``recognised.json``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,7 +68,7 @@ class RecognisedDay:
         return float(np.mean(self.probability)) if self.probability else 0.0
 
 
-def recognise_days(recogniser: Recogniser, days: Sequence[Day]) -> list[RecognisedDay]:
+def recognise_days(recogniser: Labeller, days: Sequence[Day]) -> list[RecognisedDay]:
     """Each of ``days`` (unlabelled, with recorded sensors) labelled by ``recogniser`` with
     hindsight: the most probable sequence (:meth:`~globe.recognition.recogniser.Recogniser.decode`),
     each step's probability that of its label with every path summed (``smooth``)."""
@@ -114,8 +131,8 @@ def write_labelled(household: Household, recognised: Sequence[RecognisedDay], de
         report = {**summary, "source": str(source), "days": {
             day_stem(f.day.name): {"mean_probability": round(f.mean_probability, 4),
                                    "activities": sorted(set(f.day.activities))} for f in recognised},
-            "events": EVENTS_FOLDER, "rule": "the most probable activity at each step, read with hindsight "
-                                             "(forward-backward) from the day's sensors"}
+            "events": EVENTS_FOLDER, "rule": "the most probable sequence of activities, read with hindsight from "
+                                             "the day's sensors; probability: each step's, every path summed"}
         _write_atomic(tmp / RECOGNISED_FILE, json.dumps(report, indent=2, ensure_ascii=False) + "\n")
         if dest.exists():
             dest.rmdir()
