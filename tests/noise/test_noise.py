@@ -128,7 +128,9 @@ def test_embedded_llm_proposals_are_plausible_and_cached(small, embedded_llm, tm
     from globe.reasoning.backends.embedded import EmbeddedBackend
     from globe.reasoning.cache import AnswerCache
 
-    one_day = replace(small, train=small.train[:1], test=())
+    day = small.train[0]  # its morning: every step proposes, so each step is a batch of LLM questions
+    morning = replace(day, minutes=day.minutes[:24], activities=day.activities[:24], locations=day.locations[:24])
+    one_day = replace(small, train=(morning,), test=())
     backend = EmbeddedBackend(model_path=embedded_llm.model_path, cache=AnswerCache(tmp_path / "c.sqlite3"))
     first = propose(one_day, "toddler", LLMScorer(backend), seed=0, rate=1.0, temperature=2.0)
     assert first.injections and all(i.origin.startswith("llm:embedded") for i in first.injections)

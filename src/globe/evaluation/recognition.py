@@ -32,7 +32,7 @@ import csv
 import json
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -41,7 +41,7 @@ from globe.data.sensors import SensorData
 from globe.evaluation.metrics import f1
 from globe.evaluation.selection import best_beyond_noise, folds
 from globe.models.base import ActivityModelBase
-from globe.recognition import library
+from globe.recognition import hybrid, library
 from globe.recognition.asking import DayAsker, QuestionPolicy, random_steps, worth
 from globe.recognition.features import REPRESENTATIONS
 from globe.recognition.labelling import Labeller
@@ -53,6 +53,7 @@ LEARNING_DAYS = (1, 3, 7, 14, None)
 BUDGETS = (0, 1, 2, 5)
 """Questions a day of the asking curve."""
 WEIGHTS = (1.0, 0.5, 0.3)
+DISCRIMINATIVE_WEIGHTS = (1.0, 0.5)
 CV_FOLDS = 4
 
 
@@ -104,23 +105,34 @@ def _score(recogniser: Recogniser, days: Sequence[Day], smooth: bool = False) ->
 
 
 def candidates() -> list[RecognitionSettings]:
-    """The representations and weights cross-validation chooses among, the default first
-    (self-training is decided after them, for the one chosen)."""
+    """The representations, emissions and weights cross-validation chooses among, the default
+    first (self-training is decided after them, for the one chosen): naive Bayes at each of
+    :data:`WEIGHTS`, and where scikit-learn is installed the discriminative emission at each of
+    :data:`DISCRIMINATIVE_WEIGHTS` (it counts no evidence twice, so it is tempered less)."""
     out = [RecognitionSettings()]
-    for features in REPRESENTATIONS:
-        for weight in WEIGHTS:
-            s = RecognitionSettings(features=features, weight=weight)
-            if s not in out:
-                out.append(s)
+    emissions: list[tuple[str, tuple[float, ...]]] = [("naive_bayes", WEIGHTS)]
+    if hybrid.available():
+        emissions.append(("discriminative", DISCRIMINATIVE_WEIGHTS))
+    for emission, weights in emissions:
+        for features in REPRESENTATIONS:
+            for weight in weights:
+                s = RecognitionSettings(features=features, weight=weight, emission=emission)  # type: ignore[arg-type]
+                if s not in out:
+                    out.append(s)
     return out
 
 
+Reading = Literal["online", "hindsight"]
+
+
 def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: int,
-                    unlabelled: Sequence[Day] = (), options: Sequence[RecognitionSettings] | None = None
-                    ) -> RecognitionSettings:
+                    unlabelled: Sequence[Day] = (), options: Sequence[RecognitionSettings] | None = None,
+                    reading: Reading = "online") -> RecognitionSettings:
     """The recogniser's settings by class accuracy on held-out blocks of ``labelled`` days (see
-    module doc): the representation and weight first, then whether self-training on the
-    ``unlabelled`` days helps it; with fewer than two labelled days, nothing to hold out: the default."""
+    module doc), read as they will be used: ``online`` (the service, step by step) or with
+    ``hindsight`` (labelling past days: the most probable sequence); the representation, emission
+    and weight first, then whether self-training on the ``unlabelled`` days helps it; with fewer
+    than two labelled days, nothing to hold out: the default."""
     options = list(options or candidates())
     if len(labelled) < 2:
         return options[0]
@@ -130,7 +142,7 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
         scores = []
         for train, held in split:
             fitted = Recogniser(settings).fit([labelled[i] for i in train], sensors, step_minutes, unlabelled)
-            scores.append(_score(fitted, [labelled[i] for i in held]).class_accuracy)
+            scores.append(_score(fitted, [labelled[i] for i in held], smooth=reading == "hindsight").class_accuracy)
         return scores
     first = [(settings, per_fold(settings)) for settings in options]
     chosen = best_beyond_noise(first)
@@ -138,6 +150,7 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
         return chosen
     trained = replace(chosen, self_training=True)
     return best_beyond_noise([next(f for f in first if f[0] == chosen), (trained, per_fold(trained))])
+
 
 def deployed_settings(household: Household, sensors: SensorData, step_minutes: int,
                       options: Sequence[RecognitionSettings] | None = None) -> RecognitionSettings:
@@ -148,9 +161,9 @@ def deployed_settings(household: Household, sensors: SensorData, step_minutes: i
 
 
 def fit_recogniser(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
-                   options: Sequence[RecognitionSettings] | None = None) -> Recogniser:
-    """A home's recogniser with the settings chosen on its labelled days."""
-    settings = choose_settings(labelled, sensors, step_minutes, unlabelled, options)
+                   options: Sequence[RecognitionSettings] | None = None, reading: Reading = "online") -> Recogniser:
+    """A home's recogniser with the settings chosen on its labelled days for ``reading``."""
+    settings = choose_settings(labelled, sensors, step_minutes, unlabelled, options, reading)
     return Recogniser(settings).fit(labelled, sensors, step_minutes, unlabelled)
 
 
@@ -365,13 +378,13 @@ GLOBE_LABELLER = "globe (clock dynamics, sensor emission)"
 def choose_labeller(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
                     options: Sequence[RecognitionSettings] | None = None) -> LabellerChoice:
     """Which recogniser labels the ``unlabelled`` days with hindsight: GLOBE's
-    (:func:`fit_recogniser`, its settings chosen on ``labelled``) unless a library recogniser
+    (:func:`fit_recogniser`, its settings chosen on ``labelled`` read with hindsight) unless a library recogniser
     (:mod:`globe.recognition.library`, those installed; the HMM's features chosen on ``labelled``)
     reads held-out blocks of ``labelled`` days better, beyond noise, by class accuracy. Each is
     configured on every labelled day and scored fold by fold; the winner is fitted on them all.
     With fewer than two labelled days there is nothing to hold out: GLOBE's."""
     labelled = list(labelled)
-    ours = fit_recogniser(labelled, sensors, step_minutes, unlabelled, options)
+    ours = fit_recogniser(labelled, sensors, step_minutes, unlabelled, options, reading="hindsight")
     if len(labelled) < 2:
         return LabellerChoice(ours, GLOBE_LABELLER, {})
     makers: dict[str, Callable[[Sequence[Day]], Labeller]] = {

@@ -2,14 +2,17 @@
 
 The recogniser is a hidden Markov model whose dynamics are the household's own activity model
 (by default the clock model: P(a_t | a_{t-1}, time of day), counted on labelled days) and whose
-emission is :class:`~globe.recognition.emission.SensorEmission` over the step features of
-:mod:`globe.recognition.features`. It runs on the same :class:`~globe.inference.activity_filter.ActivityFilter`
-that infers missing labels from object movements, so online recognition (filtering: no look-ahead,
-what the service can know at a step) and a label seen now and then (an answered question) need
-no new inference code. With hindsight (labelling past days, self-training) the labels are the
-most probable sequence (:meth:`Recogniser.decode`: the histories the filter kept, as a Viterbi
-path), and how sure each step's label is comes from exact forward-backward (:meth:`Recogniser.smooth`:
-the dynamics are first order, so P(a_t | the whole day) sums over every path).
+emission is naive Bayes over the step features of :mod:`globe.recognition.features`
+(:class:`~globe.recognition.emission.SensorEmission`), or a classifier's scaled likelihood as in
+hybrid HMMs (:class:`~globe.recognition.hybrid.DiscriminativeEmission`) where cross-validation
+prefers it (``RecognitionSettings.emission``). It runs on the same
+:class:`~globe.inference.activity_filter.ActivityFilter` that infers missing labels from object
+movements, so online recognition (filtering: no look-ahead, what the service can know at a step)
+and a label seen now and then (an answered question) need no new inference code. With
+hindsight (labelling past days, self-training) the labels are the most probable sequence
+(:meth:`Recogniser.decode`: the histories the filter kept, as a Viterbi path), and how sure each
+step's label is comes from exact forward-backward (:meth:`Recogniser.smooth`: the dynamics are
+first order, so P(a_t | the whole day) sums over every path).
 
 Few labels: with ``self_training``, days without labels are recognised (smoothed) and their
 confident steps (posterior at least ``confidence``) counted into the emission, weighted by their
@@ -30,6 +33,10 @@ from globe.inference.activity_filter import ActivityFilter, smoothed
 from globe.models.clock import ClockModel
 from globe.recognition.emission import SensorEmission
 from globe.recognition.features import Layout, step_features
+from globe.recognition.hybrid import DiscriminativeEmission
+
+EmissionKind = Literal["naive_bayes", "discriminative"]
+EMISSIONS: tuple[EmissionKind, ...] = ("naive_bayes", "discriminative")
 
 Answers = Sequence[Sequence[str | None]]
 """Per day, per step: an activity someone said (a label or an answered question), or None."""
@@ -46,6 +53,16 @@ class RecognitionSettings:
     confidence: float = 0.9
     slot_minutes: int = 60
     shrinkage: float = 5.0
+    emission: EmissionKind = "naive_bayes"
+
+
+def sensor_emission(settings: RecognitionSettings) -> SensorEmission | DiscriminativeEmission:
+    """The (unfitted) sensor emission ``settings`` name: naive Bayes, or the discriminative one."""
+    if settings.emission == "discriminative":
+        return DiscriminativeEmission(weight=settings.weight)
+    if settings.emission != "naive_bayes":
+        raise ValueError(f"unknown sensor emission {settings.emission!r}; expected one of {', '.join(EMISSIONS)}")
+    return SensorEmission(smoothing=settings.smoothing, weight=settings.weight)
 
 
 class Recogniser:
@@ -112,7 +129,7 @@ class Recogniser:
         s = self.settings
         self.dynamics_ = ClockModel(slot_minutes=s.slot_minutes, shrinkage=s.shrinkage, step_minutes=self.step_minutes_)
         self.dynamics_.fit(sequences, weekdays)
-        self.emission_ = SensorEmission(smoothing=s.smoothing, weight=s.weight).fit(
+        self.emission_ = sensor_emission(s).fit(
             features, sequences if labels is None else labels, self.layout_.sizes, weights)
         self.filter_ = ActivityFilter(self.dynamics_, max_hypotheses=self.max_hypotheses, min_weight=self.min_weight)
 
@@ -195,7 +212,7 @@ class Recogniser:
 
     def describe(self) -> dict[str, Any]:
         s = self.settings
-        return {"features": list(s.features), "weight": s.weight, "smoothing": s.smoothing,
+        return {"features": list(s.features), "emission": s.emission, "weight": s.weight, "smoothing": s.smoothing,
                 "self_training": s.self_training, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
 
 

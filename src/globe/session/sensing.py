@@ -5,7 +5,8 @@ A household whose folder has sensors (``sensors.csv``, ``events/<day>.csv``;
 :mod:`globe.recognition.features` for the recogniser's chosen settings (chosen by
 cross-validation on the labelled training days where the household is created,
 :func:`globe.evaluation.recognition.choose_settings`, and passed down as the deployment is) and a
-:class:`~globe.recognition.emission.SensorEmission` counted on the labelled training days. The
+:class:`~globe.recognition.emission.SensorEmission` (or the discriminative emission, where chosen)
+counted on the labelled training days. The
 session's one activity filter takes each step's likelihood from it beside the step's label and
 object movements; the emission learns each finished day from its labelled and answered steps (an
 answer labels the whole stretch read as one activity, as :meth:`Recogniser.fit` reads answers), and
@@ -24,9 +25,8 @@ from globe.data.records import Day
 from globe.data.sensors import Sensor, SensorData, SensorDay
 from globe.inference.activity_filter import ActivityFilter
 from globe.recognition.asking import QuestionPolicy, worth
-from globe.recognition.emission import SensorEmission
 from globe.recognition.features import Layout, step_features
-from globe.recognition.recogniser import RecognitionSettings, run_days
+from globe.recognition.recogniser import RecognitionSettings, run_days, sensor_emission
 
 MAX_OPTIONS = 5
 """The likely activities a question offers, at most."""
@@ -55,7 +55,7 @@ def settings_to_dict(settings: RecognitionSettings) -> dict[str, object]:
     """The recogniser's settings as stored with a household (JSON)."""
     return {"features": list(settings.features), "weight": settings.weight, "smoothing": settings.smoothing,
             "self_training": settings.self_training, "confidence": settings.confidence,
-            "slot_minutes": settings.slot_minutes, "shrinkage": settings.shrinkage}
+            "slot_minutes": settings.slot_minutes, "shrinkage": settings.shrinkage, "emission": settings.emission}
 
 
 def settings_from_dict(found: object) -> RecognitionSettings:
@@ -71,6 +71,7 @@ def settings_from_dict(found: object) -> RecognitionSettings:
         values["features"] = tuple(values["features"])
     settings = RecognitionSettings(**values)
     Layout.of((), settings.features)  # checks the feature names
+    sensor_emission(settings)  # ... and the emission's kind
     return settings
 
 
@@ -89,8 +90,7 @@ class SessionSensors:
         self.index = {s.name: i for i, s in enumerate(self.sensors)}
         self.reference = np.zeros(0)  # worths of asking seen on the days lived so far
         self._days = 0
-        self.emission = SensorEmission(smoothing=settings.smoothing, weight=settings.weight).fit(
-            [], [], self.layout.sizes)
+        self.emission = sensor_emission(settings).fit([], [], self.layout.sizes)
 
     def features(self, day: SensorDay | None, minutes: Sequence[int]) -> np.ndarray:
         """(steps x columns) features of the steps starting at ``minutes``."""
