@@ -127,6 +127,7 @@ class DiscriminativeEmission:
         """The classifier's P(a | x) (steps x its classes), as its ``predict_proba`` computes it,
         read off the one-hot cells directly (a step in the service costs no sparse matrix)."""
         model = self.model_
+        assert model is not None
         cells = np.asarray(features, dtype=np.int64) + self.offsets_[None, :]
         scores = model.coef_[:, cells].sum(axis=2).T + model.intercept_[None, :]  # (steps x rows of coef_)
         if scores.shape[1] == 1:  # two classes: one row of weights, for the second
