@@ -53,7 +53,7 @@ LEARNING_DAYS = (1, 3, 7, 14, None)
 BUDGETS = (0, 1, 2, 5)
 """Questions a day of the asking curve."""
 WEIGHTS = (1.0, 0.5, 0.3)
-DISCRIMINATIVE_WEIGHTS = (1.0, 0.5)
+DISCRIMINATIVE_WEIGHTS = (1.0,)
 CV_FOLDS = 4
 
 
@@ -108,7 +108,7 @@ def candidates() -> list[RecognitionSettings]:
     """The representations, emissions and weights cross-validation chooses among, the default
     first (self-training is decided after them, for the one chosen): naive Bayes at each of
     :data:`WEIGHTS`, and where scikit-learn is installed the discriminative emission at each of
-    :data:`DISCRIMINATIVE_WEIGHTS` (it counts no evidence twice, so it is tempered less)."""
+    :data:`DISCRIMINATIVE_WEIGHTS` (it counts no evidence twice: it is not tempered)."""
     out = [RecognitionSettings()]
     emissions: list[tuple[str, tuple[float, ...]]] = [("naive_bayes", WEIGHTS)]
     if hybrid.available():

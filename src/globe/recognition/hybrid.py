@@ -18,8 +18,9 @@ home at large (ratio 1). It needs scikit-learn (``pip install globe[recognition]
 offers it beside naive Bayes only where installed (:func:`available`).
 
 A service learns each finished day: unlike naive Bayes's counts, a logistic regression is not a
-sum, so the labelled steps are kept (one small integer per feature column) and the classifier
-is refitted on all of them, from the day before's weights (a warm start: a few iterations).
+sum, so the labelled steps are kept, each distinct reading of the sensors with an activity once
+with its weight (a minute's steps mostly repeat the one before), and the classifier is refitted on
+them, from the day before's weights (a warm start: a few iterations).
 """
 
 from __future__ import annotations
@@ -93,9 +94,21 @@ class DiscriminativeEmission:
             self._x = np.vstack([self._x, np.asarray(x, dtype=np.int32)[keep]])
             self._y = np.concatenate([self._y, rows[keep]])
             self._w = np.concatenate([self._w, w[keep]])
+        self._compact()
         self.training_data_ = float(self._w.sum())
         self._refit()
         return self
+
+    def _compact(self) -> None:
+        """Steps with the same features and activity kept as one, their weights summed: the
+        classifier's loss is a weighted sum over steps, so it is the same; what is kept grows with
+        the distinct readings a home gives, not with its days (a minute's steps mostly repeat)."""
+        if not len(self._y):
+            return
+        rows = np.column_stack([self._x, self._y]).astype(np.int64)
+        unique, inverse = np.unique(rows, axis=0, return_inverse=True)
+        self._w = np.bincount(inverse.ravel(), weights=self._w, minlength=len(unique))
+        self._x, self._y = unique[:, :-1].astype(np.int32), unique[:, -1].copy()
 
     def _onehot(self, features: np.ndarray):  # noqa: ANN202 - a scipy sparse matrix
         from scipy.sparse import csr_matrix
