@@ -107,8 +107,8 @@ class DiscriminativeEmission:
             return
         rows = np.column_stack([self._x, self._y]).astype(np.int64)
         unique, inverse = np.unique(rows, axis=0, return_inverse=True)
-        self._w = np.bincount(inverse.ravel(), weights=self._w, minlength=len(unique))
-        self._x, self._y = unique[:, :-1].astype(np.int32), unique[:, -1].copy()
+        self._w = np.bincount(inverse.ravel(), weights=self._w, minlength=len(unique)).astype(np.float64)
+        self._x, self._y = unique[:, :-1].astype(np.int32), unique[:, -1].astype(np.int64)
 
     def _onehot(self, features: np.ndarray):  # noqa: ANN202 - a scipy sparse matrix
         from scipy.sparse import csr_matrix
