@@ -84,7 +84,8 @@ def _built(tmp_path, data, tables: dict, extra_env: dict) -> dict:
     for section, table in tables.items():
         env |= {f"GLOBE_{section.upper()}__{k.upper()}": v for k, (v, *_) in table.items()}
     res = subprocess.run([sys.executable, "-m", "globe", "evaluate", "--methods", "globe", "--households", "B",
-                          "--data", str(data), "--out", str(tmp_path)], capture_output=True, text=True, env=env,
+                          "--no-activity-ahead", "--data", str(data), "--out", str(tmp_path)], capture_output=True,
+                         text=True, env=env,
                          timeout=900)
     assert res.returncode == 0, res.stderr
     return json.loads((tmp_path / "built.json").read_text())["globe"]["B"]

@@ -18,10 +18,12 @@ def test_version():
 
 
 def test_evaluate_writes_a_results_folder(tmp_path):
+    (tmp_path / "next_activity.csv").write_text("stale\n")  # from an earlier run into the same folder
     res = globe("evaluate", "--households", "B", "--methods", "persistence,ngram", "--no-objects-ahead",
-                "--out", str(tmp_path))
+                "--no-activity-ahead", "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr
     assert "Table I" in res.stdout and "n-gram Markov" in res.stdout and "(published)" in res.stdout
+    assert "The activity ahead" not in res.stdout and not (tmp_path / "next_activity.csv").exists()  # not asked for
     for name in ("table1.csv", "table1.md", "timing.csv", "details.csv", "config.json", "table1.png"):
         assert (tmp_path / name).is_file(), name
     rows = list(csv.DictReader((tmp_path / "table1.csv").open()))
@@ -313,7 +315,7 @@ def test_evaluate_takes_every_household_of_a_data_folder_by_default(tmp_path):
     write_nodes(folder / "nodes.csv", home.nodes)
     (tmp_path / "homes" / "notes").mkdir()  # not a household: no nodes.csv
     res = globe("evaluate", "--data", str(tmp_path / "homes"), "--methods", "persistence", "--backend", "none",
-                "--out", str(tmp_path / "out"))
+                "--no-activity-ahead", "--out", str(tmp_path / "out"))
     assert res.returncode == 0, res.stderr
     rows = list(csv.DictReader((tmp_path / "out" / "table1.csv").open()))
     assert {r["household"] for r in rows} - {"mean"} == {"Mine"}

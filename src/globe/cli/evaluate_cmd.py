@@ -119,6 +119,9 @@ def evaluate(
     config: ConfigOption = None,
     threshold: Annotated[float | None, typer.Option("--threshold", help="gate threshold d")] = None,
     backend: Annotated[str | None, typer.Option("--backend", help="embedded, remote or none")] = None,
+    activity_ahead: Annotated[bool, typer.Option(
+        "--activity-ahead/--no-activity-ahead", help="also the activity-ahead tables (the activity at +minutes and the "
+        "next different activity, beside the baselines)")] = True,
     objects_ahead: Annotated[bool, typer.Option(
         "--objects-ahead/--no-objects-ahead", help="also the lookahead and fetch-policy tables, for the homes with "
         "objects (forecast with the listed methods among persistence, ngram and routine)")] = True,
@@ -142,7 +145,8 @@ def evaluate(
     with stage_display() as show:
         stages.progress = show
         results = main_job.evaluate(cfg, hs, names, out_dir, main_job.backend_for(cfg, names), stages,
-                                    objects_ahead=objects_ahead, activities=activities)
+                                    objects_ahead=objects_ahead, activities=activities,
+                                    activity_ahead=activity_ahead)
     print_recognition(out_dir)
     print_table1(results)
     print_activity_anticipation(out_dir)
@@ -238,6 +242,8 @@ def print_activity_anticipation(out_dir: Path) -> None:
             return list(csv.DictReader(fh))
 
     ahead, nxt = rows("activity_anticipation.csv"), rows("next_activity.csv")
+    if not ahead and not nxt:  # not asked for (--no-activity-ahead)
+        return
     every = list(dict.fromkeys(r["horizon_min"] for r in ahead))
     horizons = list(dict.fromkeys([every[0], every[(len(every) - 1) // 2], every[-1]])) if every else []
     table = Table(title="The activity ahead: accuracy at +minutes and of the next different activity")

@@ -88,9 +88,9 @@ def backend_for(config: GlobeConfig, methods: Sequence[str] = ()) -> LLMBackend 
 def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequence[str], out_dir: Path,
              backend: LLMBackend | None = None, stages: Stages | None = None,
              memo: Memo | None = None, objects_ahead: bool = False,
-             activities: str = "annotated") -> Table1Results:
+             activities: str = "annotated", activity_ahead: bool = True) -> Table1Results:
     """Table I rows for ``methods`` and the baselines (:func:`~globe.evaluation.methods.with_baselines`)
-    on each household's test days and the activity ahead, written to ``out_dir``; with
+    on each household's test days and (with ``activity_ahead``) the activity ahead, written to ``out_dir``; with
     ``objects_ahead``, also the lookahead and fetch-policy tables of the households with objects
     (:func:`object_anticipation`, forecasting with those of ``methods`` it can, beside the
     baselines). ``memo`` (cross-validation results and fits) is filled and reused. With
@@ -116,12 +116,15 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
     for method in with_baselines(methods):
         with stages.stage(f"table1: {method}"):
             runs += run_methods(config, households, [method], backend, memo)
-    with stages.stage("activity anticipation"):
-        from globe.evaluation.activity_anticipation import run_activity_anticipation, write_activity_anticipation
+    scope = scope_of(households)
+    for stale in ("activity_anticipation.csv", "next_activity.csv", "activity_anticipation.png"):
+        (out_dir / stale).unlink(missing_ok=True)  # a folder written before says nothing stale
+    if activity_ahead:
+        with stages.stage("activity anticipation"):
+            from globe.evaluation.activity_anticipation import run_activity_anticipation, write_activity_anticipation
 
-        scores = run_activity_anticipation(config, households, memo)
-        scope = scope_of(households)
-        write_activity_anticipation(out_dir, scores, f"{scope.title} test days: the activity ahead")
+            scores = run_activity_anticipation(config, households, memo)
+            write_activity_anticipation(out_dir, scores, f"{scope.title} test days: the activity ahead")
     with stages.stage("table1: write results"):
         written = write_table1_results(out_dir, runs, config, scope, activities)
     with_objects = [h for h in households if h.objects and h.test]
