@@ -89,10 +89,27 @@ def test_the_settings_name_the_emission_and_cross_validation_is_offered_both():
     assert isinstance(sensor_emission(RecognitionSettings()), SensorEmission)
     with pytest.raises(ValueError, match="unknown sensor emission"):
         settings_from_dict({"emission": "neural"})
-    offered = R.candidates()
-    assert offered[0] == RecognitionSettings()
-    assert {s.emission for s in offered} == {"naive_bayes", "discriminative"}
-    assert len(offered) == len(set(offered))
+
+
+def test_cross_validation_offers_the_discriminative_emission_over_the_features_naive_bayes_chose(monkeypatch):
+    home, sensors = sensor_home(days=6, test=1, step=10, seed=2)
+    tried: list[RecognitionSettings] = []
+
+    class Spy(Recogniser):
+        def fit(self, *args, **kwargs):
+            tried.append(self.settings)
+            return super().fit(*args, **kwargs)
+    monkeypatch.setattr(R, "Recogniser", Spy)
+    chosen = R.choose_settings(home.train, sensors, 10)
+    first = [s for s in tried if s.emission == "naive_bayes"]
+    later = [s for s in tried if s.emission == "discriminative"]
+    assert set(first) == set(R.candidates()) and all(s.emission == "naive_bayes" for s in R.candidates())
+    assert later and {(s.features, s.weight) for s in later} == {(later[0].features, 1.0)}  # one, untempered
+    assert tried.index(later[0]) > max(tried.index(s) for s in first)  # offered after the first search
+    assert chosen.emission in ("naive_bayes", "discriminative")
+    tried.clear()
+    R.choose_settings(home.train, sensors, 10, options=[RecognitionSettings()])  # a search of one's own: as asked
+    assert {s.emission for s in tried} == {"naive_bayes"}
 
 
 def test_the_recogniser_reads_the_simulated_home_with_either_emission():

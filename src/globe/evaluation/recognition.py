@@ -53,7 +53,7 @@ LEARNING_DAYS = (1, 3, 7, 14, None)
 BUDGETS = (0, 1, 2, 5)
 """Questions a day of the asking curve."""
 WEIGHTS = (1.0, 0.5, 0.3)
-DISCRIMINATIVE_WEIGHTS = (1.0,)
+DISCRIMINATIVE_WEIGHT = 1.0
 CV_FOLDS = 4
 
 
@@ -105,20 +105,14 @@ def _score(recogniser: Recogniser, days: Sequence[Day], smooth: bool = False) ->
 
 
 def candidates() -> list[RecognitionSettings]:
-    """The representations, emissions and weights cross-validation chooses among, the default
-    first (self-training is decided after them, for the one chosen): naive Bayes at each of
-    :data:`WEIGHTS`, and where scikit-learn is installed the discriminative emission at each of
-    :data:`DISCRIMINATIVE_WEIGHTS` (it counts no evidence twice: it is not tempered)."""
+    """The representations and weights of naive Bayes cross-validation chooses among first, the
+    default first (the emission and self-training are decided after them, for the one chosen)."""
     out = [RecognitionSettings()]
-    emissions: list[tuple[str, tuple[float, ...]]] = [("naive_bayes", WEIGHTS)]
-    if hybrid.available():
-        emissions.append(("discriminative", DISCRIMINATIVE_WEIGHTS))
-    for emission, weights in emissions:
-        for features in REPRESENTATIONS:
-            for weight in weights:
-                s = RecognitionSettings(features=features, weight=weight, emission=emission)  # type: ignore[arg-type]
-                if s not in out:
-                    out.append(s)
+    for features in REPRESENTATIONS:
+        for weight in WEIGHTS:
+            s = RecognitionSettings(features=features, weight=weight)
+            if s not in out:
+                out.append(s)
     return out
 
 
@@ -130,9 +124,16 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
                     reading: Reading = "online") -> RecognitionSettings:
     """The recogniser's settings by class accuracy on held-out blocks of ``labelled`` days (see
     module doc), read as they will be used: ``online`` (the service, step by step) or with
-    ``hindsight`` (labelling past days: the most probable sequence); the representation, emission
-    and weight first, then whether self-training on the ``unlabelled`` days helps it; with fewer
-    than two labelled days, nothing to hold out: the default."""
+    ``hindsight`` (labelling past days: the most probable sequence). The representation and
+    weight first (among ``options``, default :func:`candidates`: the default unless others win
+    beyond noise, then the best of those); for the default search and where scikit-learn is
+    installed, the discriminative emission over the representation chosen
+    (:class:`~globe.recognition.hybrid.DiscriminativeEmission`, untempered: it counts no evidence
+    twice) then joins them, by the same rule (one candidate, not one per representation: each
+    costs a classifier per fold); then whether self-training on the ``unlabelled`` days beats the
+    one chosen beyond noise. With fewer than two labelled days, nothing to hold out: the first
+    option, the default."""
+    offer_discriminative = options is None
     options = list(options or candidates())
     if len(labelled) < 2:
         return options[0]
@@ -146,10 +147,15 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
         return scores
     first = [(settings, per_fold(settings)) for settings in options]
     chosen = best_beyond_noise(first)
+    if offer_discriminative and chosen.emission == "naive_bayes" and hybrid.available():
+        other = replace(chosen, emission="discriminative", weight=DISCRIMINATIVE_WEIGHT)
+        first.append((other, per_fold(other)))
+        chosen = best_beyond_noise(first)  # by the same rule: against the default, the best mean beyond noise
+    kept = next(f for f in first if f[0] == chosen)
     if not unlabelled or chosen.self_training:
         return chosen
     trained = replace(chosen, self_training=True)
-    return best_beyond_noise([next(f for f in first if f[0] == chosen), (trained, per_fold(trained))])
+    return best_beyond_noise([kept, (trained, per_fold(trained))])
 
 
 def deployed_settings(household: Household, sensors: SensorData, step_minutes: int,
