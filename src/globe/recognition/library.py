@@ -66,10 +66,6 @@ class _LibraryRecogniser:
     def decode(self, days: Sequence[Day]) -> list[np.ndarray]:  # pragma: no cover - each class's
         raise NotImplementedError
 
-    def predict(self, days: Sequence[Day]) -> list[list[str]]:
-        """The most probable sequence of each day, read with hindsight."""
-        return [[self.labels[i] for i in path.argmax(axis=1).tolist()] for path in self.decode(days)]
-
     def describe(self) -> dict[str, Any]:
         return {"recogniser": self.name, "features": list(self.features)}
 
