@@ -135,18 +135,32 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
     Bayes's weight 0.898); then whether self-training on the ``unlabelled`` days beats the
     one chosen beyond noise. With fewer than two labelled days, nothing to hold out: the first
     option, the default."""
+    return _searched(labelled, sensors, step_minutes, unlabelled, options, reading)[0]
+
+
+def _held_out(labelled: Sequence[Day], fit: Callable[[Sequence[Day]], Any],
+              score: Callable[[Any, Sequence[Day]], Scores]) -> list[float]:
+    """Per block of held-out ``labelled`` days (:func:`~globe.evaluation.selection.folds`, at most
+    :data:`CV_FOLDS`), the class accuracy ``score`` gives a recogniser ``fit`` on the other days."""
+    scores = []
+    for train, held in folds(len(labelled), min(CV_FOLDS, len(labelled))):
+        scores.append(score(fit([labelled[i] for i in train]), [labelled[i] for i in held]).class_accuracy)
+    return scores
+
+
+def _searched(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day],
+              options: Sequence[RecognitionSettings] | None, reading: Reading
+              ) -> tuple[RecognitionSettings, list[float]]:
+    """:func:`choose_settings`' choice and its held-out scores, fold by fold (none with fewer than
+    two labelled days)."""
     offer_discriminative = options is None
     options = list(options or candidates())
     if len(labelled) < 2:
-        return options[0]
-    split = folds(len(labelled), min(CV_FOLDS, len(labelled)))
+        return options[0], []
 
     def per_fold(settings: RecognitionSettings) -> list[float]:
-        scores = []
-        for train, held in split:
-            fitted = Recogniser(settings).fit([labelled[i] for i in train], sensors, step_minutes, unlabelled)
-            scores.append(_score(fitted, [labelled[i] for i in held], smooth=reading == "hindsight").class_accuracy)
-        return scores
+        return _held_out(labelled, lambda days: Recogniser(settings).fit(days, sensors, step_minutes, unlabelled),
+                         lambda fitted, days: _score(fitted, days, smooth=reading == "hindsight"))
     first = [(settings, per_fold(settings)) for settings in options]
     chosen = best_beyond_noise(first)
     if offer_discriminative and chosen.emission == "naive_bayes" and hybrid.available():
@@ -155,9 +169,11 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
         chosen = best_beyond_noise(first)  # by the same rule: against the default, the best mean beyond noise
     kept = next(f for f in first if f[0] == chosen)
     if not unlabelled or chosen.self_training:
-        return chosen
+        return kept
     trained = replace(chosen, self_training=True)
-    return best_beyond_noise([kept, (trained, per_fold(trained))])
+    last = [kept, (trained, per_fold(trained))]
+    chosen = best_beyond_noise(last)
+    return next(f for f in last if f[0] == chosen)
 
 
 def deployed_settings(household: Household, sensors: SensorData, step_minutes: int,
@@ -347,23 +363,13 @@ def hindsight(fitted: Labeller, days: Sequence[Day]) -> list[list[str]]:
     return [[fitted.labels[i] for i in path.argmax(axis=1).tolist()] for path in fitted.decode(days)]
 
 
-def _held_out(labelled: Sequence[Day], fit: Callable[[Sequence[Day]], Labeller]) -> list[float]:
-    """Per block of held-out ``labelled`` days (the folds :func:`choose_settings` uses), the class
-    accuracy of the hindsight reading of a labeller ``fit`` on the others."""
-    scores = []
-    for train, held in folds(len(labelled), min(CV_FOLDS, len(labelled))):
-        days = [labelled[i] for i in held]
-        scores.append(_hindsight_scores(fit([labelled[i] for i in train]), days).class_accuracy)
-    return scores
-
-
 def choose_hmm_features(labelled: Sequence[Day], sensors: SensorData, step_minutes: int) -> tuple[str, ...]:
     """The plain HMM's feature set among :data:`~globe.recognition.features.REPRESENTATIONS`, by
     class accuracy on held-out blocks of ``labelled`` (the first, with fewer than two days)."""
     if len(labelled) < 2:
         return REPRESENTATIONS[0]
     return best_beyond_noise([(f, _held_out(labelled, lambda days, f=f: PlainHmmRecogniser(f).fit(  # type: ignore[misc]
-        days, sensors, step_minutes))) for f in REPRESENTATIONS])
+        days, sensors, step_minutes), _hindsight_scores)) for f in REPRESENTATIONS])
 
 
 @dataclass(frozen=True, slots=True)
@@ -386,24 +392,26 @@ GLOBE_LABELLER = "globe (clock dynamics, sensor emission)"
 def choose_labeller(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, unlabelled: Sequence[Day] = (),
                     options: Sequence[RecognitionSettings] | None = None) -> LabellerChoice:
     """Which recogniser labels the ``unlabelled`` days with hindsight: GLOBE's
-    (:func:`fit_recogniser`, its settings chosen on ``labelled`` read with hindsight) unless a library recogniser
+    (:func:`choose_settings` on ``labelled``, read with hindsight) unless a library recogniser
     (:mod:`globe.recognition.library`, those installed; the HMM's features chosen on ``labelled``)
     reads held-out blocks of ``labelled`` days better, beyond noise, by class accuracy. Each is
     configured on every labelled day and scored fold by fold; the winner is fitted on them all.
     With fewer than two labelled days there is nothing to hold out: GLOBE's."""
     labelled = list(labelled)
-    ours = fit_recogniser(labelled, sensors, step_minutes, unlabelled, options, reading="hindsight")
+    settings, held_out = _searched(labelled, sensors, step_minutes, unlabelled, options, "hindsight")
+    ours = Recogniser(settings).fit(labelled, sensors, step_minutes, unlabelled)
     if len(labelled) < 2:
         return LabellerChoice(ours, GLOBE_LABELLER, {})
-    makers: dict[str, Callable[[Sequence[Day]], Labeller]] = {
-        GLOBE_LABELLER: lambda days: Recogniser(ours.settings).fit(days, sensors, step_minutes, unlabelled)}
+    makers: dict[str, Callable[[Sequence[Day]], Labeller]] = {}
     installed = library.available()
     if CRF in installed:
         makers[CRF] = lambda days: CrfRecogniser().fit(days, sensors, step_minutes)
     if HMM in installed:
         features = choose_hmm_features(labelled, sensors, step_minutes)
         makers[HMM] = lambda days: PlainHmmRecogniser(features).fit(days, sensors, step_minutes)
-    scored = [(name, _held_out(labelled, make)) for name, make in makers.items()]
+    # GLOBE's held-out scores are its settings search's own (the same folds, read the same way)
+    scored = [(GLOBE_LABELLER, held_out)] + [(name, _held_out(labelled, make, _hindsight_scores))
+                                             for name, make in makers.items()]
     name = best_beyond_noise(scored)
     held = {n: float(np.mean(s)) for n, s in scored}
     return LabellerChoice(ours if name == GLOBE_LABELLER else makers[name](labelled), name, held)

@@ -47,8 +47,6 @@ def available() -> bool:
 class DiscriminativeEmission:
     """Scaled likelihoods P(a | x) / P(a) of a step's features under each activity (see module doc)."""
 
-    kind = "discriminative_emission"
-
     def __init__(self, *, weight: float = 1.0, strength: float = 1.0) -> None:
         self.weight = weight
         self.strength = strength

@@ -50,7 +50,7 @@ def _one_hot(codes: Sequence[int], width: int) -> np.ndarray:
 
 
 class _LibraryRecogniser:
-    """What both share: the home's step features of a day, and the reading as names."""
+    """What both share: the home's step features of a day, and how they describe themselves."""
 
     name = ""
     features: tuple[str, ...]
@@ -62,9 +62,6 @@ class _LibraryRecogniser:
 
     def _x(self, day: Day) -> np.ndarray:
         return step_features(self.layout_, self.sensors_.of(day.name), day.minutes, self.step_minutes_)
-
-    def decode(self, days: Sequence[Day]) -> list[np.ndarray]:  # pragma: no cover - each class's
-        raise NotImplementedError
 
     def describe(self) -> dict[str, Any]:
         return {"recogniser": self.name, "features": list(self.features)}

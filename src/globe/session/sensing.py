@@ -16,7 +16,7 @@ the day's worths of asking join the reference the question policy paces itself b
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Sequence
 
 import numpy as np
@@ -53,9 +53,7 @@ class Question:
 
 def settings_to_dict(settings: RecognitionSettings) -> dict[str, object]:
     """The recogniser's settings as stored with a household (JSON)."""
-    return {"features": list(settings.features), "weight": settings.weight, "smoothing": settings.smoothing,
-            "self_training": settings.self_training, "confidence": settings.confidence,
-            "slot_minutes": settings.slot_minutes, "shrinkage": settings.shrinkage, "emission": settings.emission}
+    return {**asdict(settings), "features": list(settings.features)}  # every field: none forgotten
 
 
 def settings_from_dict(found: object) -> RecognitionSettings:
