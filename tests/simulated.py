@@ -142,6 +142,25 @@ def random_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0) -
     return _household("Random", [_day(f"day{i:03d}", _random_blocks(rng, labels), step) for i in range(days)], test)
 
 
+def hourly_home(days: int = 40, test: int = 10, seed: int = 0) -> Household:
+    """A home whose activity follows the hour whatever went before: every 10-minute step draws its
+    activity afresh, half the time the hour's own (sleeping at night, breakfast at 7, work in the
+    morning, ...) and otherwise any of four, so nothing persists from one step to the next. The
+    time of day is all there is to learn; persistence, and a model of what follows what, learn noise."""
+    rng = random.Random(seed)
+    labels = ("idle", "relax", "grooming", "work")
+    hours = {6: "sleeping", 7: "breakfast", 8: "grooming", 12: "lunch", 18: "dinner", 19: "relax", 22: "sleeping",
+             23: "sleeping"}
+    out = []
+    for i in range(days):
+        blocks = []
+        for start in range(START, END + 1, 10):
+            own = hours.get(start // 60, labels[(start // 60) % len(labels)])
+            blocks.append(_Block(own if rng.random() < 0.5 else rng.choice(labels), float(start)))
+        out.append(_day(f"day{i:03d}", blocks, 10))
+    return _household("Hourly", out, test)
+
+
 def weekly_home(days: int = 75, test: int = 10, seed: int = 0, dated: bool = True) -> Household:
     """A home whose week has two kinds of day that look the same until after breakfast (up near
     07:00): on weekdays then at work until about 17:00; at the weekend relaxing, out in the

@@ -51,6 +51,7 @@ CLOCK_MODELS = {
     "clock_shrinkage": ("2.5", "activity", "shrinkage", 2.5),
     "clock_day_types": ("weekend", "activity", "day_types", "weekend"),
     "clock_floor": ("0.02", "activity", "floor", 0.02),
+    "clock_by_activity": ("false", "activity", "by_activity", False),
 }
 
 

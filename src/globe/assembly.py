@@ -86,7 +86,8 @@ def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
                             step_minutes=step_minutes)
     if models.activity_estimator == "clock":
         return ClockModel(slot_minutes=models.clock_slot_minutes, shrinkage=models.clock_shrinkage,
-                          step_minutes=step_minutes, day_types=models.clock_day_types, floor=models.clock_floor)
+                          step_minutes=step_minutes, day_types=models.clock_day_types, floor=models.clock_floor,
+                          by_activity=models.clock_by_activity)
     return ActivityModel(estimator=models.activity_estimator, max_order=models.activity_max_order,
                          time_weight=models.time_weight, time_window=steps(models.time_window_minutes, step_minutes))
 

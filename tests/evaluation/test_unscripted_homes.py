@@ -12,7 +12,8 @@ from globe.evaluation.experiments import run_methods
 from globe.evaluation.metrics import f1, log_loss
 from globe.evaluation.selection import Memo
 from globe.evaluation.tuning import tuned_models
-from tests.simulated import clock_home, random_home
+from globe.session.build import activity_model_summary
+from tests.simulated import clock_home, hourly_home, random_home
 
 
 def scores(household, predict) -> dict[str, float]:
@@ -57,6 +58,28 @@ def test_a_home_whose_routine_is_a_clock_gets_a_model_that_wins_clearly(seed):
     assert s["chosen"]["log_loss"] < 0.5 * s["persistence"]["log_loss"]
     assert s["chosen"]["log_loss"] < 0.8 * s["time_of_day"]["log_loss"]
     assert s["chosen"]["f1"] > s["time_of_day"]["f1"] + 0.05
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_home_whose_activity_follows_the_hour_alone_deploys_the_time_of_day(seed):
+    """Every step draws its activity afresh from the hour's: the time of day alone (the clock
+    model pooled over the current activity) is chosen on the training days, and on the test days
+    it predicts better than the clock model that also reads the current activity, than
+    persistence and than the per-step time-of-day mode it generalises."""
+    home = hourly_home(seed=seed)
+    cfg = GlobeConfig()
+    models, selections = tuned_models(home, cfg, "routine", Memo())
+    assert (models.activity_estimator, models.clock_by_activity) == ("clock", False)
+    assert models.clock_slot_minutes in (30, 60)  # the hour's pattern, not a step's few counts
+    step = assembly.step_minutes(home, cfg)
+    chosen = assembly.activity_model(models, step).fit([d.activities for d in home.train])
+    reading = assembly.activity_model(models.model_copy(update={"clock_by_activity": True}), step)
+    reading.fit([d.activities for d in home.train])
+    test = scores(home, lambda day, t: chosen.predict_proba(day[:t]))
+    assert test["log_loss"] < scores(home, lambda day, t: reading.predict_proba(day[:t]))["log_loss"]
+    _, s = compared(home)
+    assert s["chosen"]["log_loss"] < s["time_of_day"]["log_loss"] and s["chosen"]["f1"] > s["persistence"]["f1"] + 0.1
+    assert "time of day alone" in activity_model_summary(models)
 
 
 def test_the_alignment_cross_validation_chooses_is_the_best_on_test_days():

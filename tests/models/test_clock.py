@@ -170,3 +170,26 @@ def test_the_floor_keeps_every_transition_above_its_share_of_the_unigram():
     assert ClockModel(shrinkage=2.0, floor=0.0).fit(days).predict_proba(history) == p
     with pytest.raises(Exception, match="floor"):
         ClockModel(floor=1.0).fit(days)
+
+
+def test_by_the_time_of_day_alone_every_current_activity_gets_the_slots_pooled_row():
+    """``by_activity=False``: P(b | slot) = (n(. -> b, slot) + k P(b)) / (n(. -> ., slot) + k),
+    by hand, whatever is under way; the first step is the model's as before; on a weekend day
+    its own pooled counts shrink to that row. Its mode is the time-of-day baseline's."""
+    k, labels = 2.0, ("eat", "sleep", "work")
+    unigram = {"eat": 6 / 15, "sleep": 6 / 15, "work": 3 / 15}
+    in_slot = {0: {"eat": 1, "sleep": 2, "work": 0}, 1: {"eat": 4, "sleep": 0, "work": 2}}  # pairs ending in the slot
+    model = ClockModel(slot_minutes=20, shrinkage=k, by_activity=False).fit(DAYS)
+    for history, slot in ((("sleep",), 0), (("eat",), 0), (("sleep", "sleep"), 1), (("work", "work", "work"), 1)):
+        n = sum(in_slot[slot].values())
+        want = {b: (in_slot[slot][b] + k * unigram[b]) / (n + k) for b in labels}
+        assert model.predict_proba(history) == pytest.approx(want)
+    plain = ClockModel(slot_minutes=20, shrinkage=k).fit(DAYS)
+    assert model.predict_proba(()) == pytest.approx(plain.predict_proba(()))
+    typed = ClockModel(slot_minutes=20, shrinkage=k, by_activity=False, day_types="weekend").fit(DAYS, WEEKDAYS)
+    weekend = {"eat": 3, "sleep": 0, "work": 1}  # DAYS[1:]'s pairs ending in slot 1
+    below = {b: (in_slot[1][b] + k * unigram[b]) / (6 + k) for b in labels}
+    want = {b: (weekend[b] + k * below[b]) / (4 + k) for b in labels}
+    for history in (("sleep", "sleep"), ("sleep", "eat", "eat")):
+        assert typed.predict_proba(history, 6) == pytest.approx(want)
+    assert plain.predict_proba(("sleep", "sleep")) != model.predict_proba(("sleep", "sleep"))

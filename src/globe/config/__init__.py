@@ -90,6 +90,9 @@ class ModelConfig(_Section):
     clock_day_types: DayTypes = Field(
         "none", description="clock model: which days of the week it tells apart ('weekend': Monday to Friday and the "
         "weekend; 'weekday': each day; days named by their date only), each shrunk toward every day's slot")
+    clock_by_activity: bool = Field(
+        True, description="clock model: the next activity depends on the current one (False: on the time of day "
+        "alone, the time-of-day baseline as a model that cross-validation can deploy)")
     object_marginal: bool = Field(
         False, description="mix object predictions over the activity distribution instead of its argmax"
     )

@@ -205,8 +205,14 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     else:
         raise ValueError(f"unknown model family {family!r}; expected 'routine' or 'witten_bell'")
     # The simpler models are candidates too, listed first so that they win ties: a home whose
-    # routine is "the activity stays the same" gets persistence, not a model that overfits.
+    # routine is "the activity stays the same" gets persistence, not a model that overfits; one
+    # whose activity follows the clock whatever went before, the time of day alone (the clock
+    # model pooled over the current activity: the time-of-day baseline's slot of one step, then
+    # the clock model's slots).
     simpler: list[dict[str, Any]] = [{"activity_estimator": "persistence"}, {"activity_estimator": "longest"}]
+    if family == "routine":
+        simpler += grid({"activity_estimator": ["clock"], "clock_by_activity": [False],
+                         "clock_slot_minutes": sorted({step, *sel.clock_slots})})
 
     def activity_measure(params: dict[str, Any]) -> dict[str, float]:
         models = cfg.models.model_copy(update=base | params)

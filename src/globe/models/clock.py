@@ -21,6 +21,11 @@ Saturday and Sunday) or ``"weekday"`` (each day of the week),
 
 and the first step likewise; a day of no known type (no date) gets the level below.
 
+With ``by_activity=False`` the previous activity is not read: every level's counts are pooled
+over it, ``P(b | slot) = (n(. -> b, slot) + k P(b)) / (n(. -> ., slot) + k)``, the time-of-day
+baseline as a model (its mode is the most frequent activity of the slot, whatever is under way),
+so cross-validation can deploy it where it beats the models on the training days.
+
 Shrinkage vanishes where counts are large: a transition never seen after an activity seen a
 thousand times gets k P(b) / 1000. ``floor`` interpolates every row with the add-one unigram,
 ``(1 - floor) P + floor P(b)``, so nothing gets less than ``floor`` times its back-off; it is read
@@ -62,17 +67,18 @@ class ClockModel(ActivityModelBase):
     """P(a_t | a_{t-1}, time slot of t), shrunk to the time-free bigram (see module doc)."""
 
     _parameter_constraints = {"slot_minutes": int, "shrinkage": float, "step_minutes": int, "day_types": DAY_TYPES,
-                              "floor": float}
+                              "floor": float, "by_activity": bool}
     _prediction_params = frozenset({"shrinkage", "floor"})
     kind = "clock"
 
     def __init__(self, *, slot_minutes: int = 60, shrinkage: float = 5.0, step_minutes: int = 10,
-                 day_types: DayTypes = "none", floor: float = 0.0) -> None:
+                 day_types: DayTypes = "none", floor: float = 0.0, by_activity: bool = True) -> None:
         self.slot_minutes = slot_minutes
         self.shrinkage = shrinkage
         self.step_minutes = step_minutes
         self.day_types = day_types
         self.floor = floor
+        self.by_activity = by_activity
 
     def _validate_params(self) -> None:
         super()._validate_params()
@@ -154,6 +160,8 @@ class ClockStates(StateSpace):
                 if t == kind and s == slot:
                     counts[index[a] + 1, index[b]] += c
             counts[0] = [model.first_[(kind, b)] for b in labels]
+            if not model.by_activity:
+                counts[1:] = counts[1:].sum(axis=0)
             table = self._typed[(kind, slot)] = (counts + k * self._table(slot)) / (
                 counts.sum(axis=1, keepdims=True) + k)
         return table
@@ -174,7 +182,11 @@ class ClockStates(StateSpace):
                 pairs[index[a], index[b]] += c
                 if s == slot:
                     in_slot[index[a], index[b]] += c
-            bigram = (pairs + k * unigram) / (pairs.sum(axis=1, keepdims=True) + k)
+            if model.by_activity:
+                bigram = (pairs + k * unigram) / (pairs.sum(axis=1, keepdims=True) + k)
+            else:  # the time of day alone: every previous activity's counts pooled, backing off to the unigram
+                in_slot[:] = in_slot.sum(axis=0)
+                bigram = np.broadcast_to(unigram, (n, n))
             table = np.empty((n + 1, n))
             table[1:] = (in_slot + k * bigram) / (in_slot.sum(axis=1, keepdims=True) + k)
             table[0] = (first + k * unigram) / (first.sum() + k)

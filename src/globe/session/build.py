@@ -91,6 +91,8 @@ def activity_model_summary(models: ModelConfig) -> str:
     if m.activity_estimator == "routine":
         return f"the routine model (the last {m.routine_order} activities, how long each lasts, the time of day)"
     days = {"none": "", "weekend": ", weekends apart", "weekday": ", each weekday apart"}[m.clock_day_types]
+    if not m.clock_by_activity:
+        return f"the time of day alone ({m.clock_slot_minutes}-minute slots of the day{days}, whatever is under way)"
     return f"the clock model ({m.clock_slot_minutes}-minute slots of the day{days})"
 
 
