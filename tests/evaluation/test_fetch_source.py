@@ -4,23 +4,31 @@ step by step as the evaluation scores that model, and the fetch row is what the 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from globe.config import Deployment, GlobeConfig
+from globe.data.csv_logs import load_household
+from globe.evaluation.anticipation import method_models
 from globe.evaluation.deploy import choose_deployment
 from globe.evaluation.fetch import (
     evaluate_fetch,
     evaluate_uses_baseline,
     fit_uses_baseline,
+    forecast_day,
     pooled,
     replay_test_days,
 )
-from globe.inference.fetch_policy import FetchContext
+from globe.evaluation.fetch_source import choose_fetch_source, fetch_cost
+from globe.evaluation.lookahead import choose_settings, setting_of
+from globe.evaluation.selection import Memo
+from globe.inference.fetch_policy import FetchContext, FetchReport
 from globe.models.baselines import fit_uses_ahead, minutes_since_use, used_matrix
 from globe.session import build_session
 from globe.session.build import deployment_summary
-from tests.simulated import clocked_objects_home
+from tests.simulated import activity_objects_home, clocked_objects_home
 
 CONFIG = GlobeConfig().with_overrides({"llm.backend": "none", "selection.folds": 3})
 
@@ -88,3 +96,47 @@ def test_the_deployment_a_service_builds_from_chooses_the_clock_model_where_it_w
     assert deployment.fetch_objects == "clock"
     session = build_session(home, CONFIG.deployed(deployment), deployment, None)
     assert session.policy.source == "clock" and "clock-aware" in deployment_summary(deployment)
+
+
+def test_fetch_cost_counts_useless_fetches_and_uses_not_fetched_at_their_costs():
+    report = FetchReport(fetches=10, useful_fetches=7, used_objects=12, used_fetched_in_advance=5)
+    assert fetch_cost(report, CONFIG.policy) == 3.0 * 3 + 1.0 * 7
+    cheap = CONFIG.with_overrides({"policy.cost_useless": 0.5, "policy.cost_missed": 2.0}).policy
+    assert fetch_cost(report, cheap) == 0.5 * 3 + 2.0 * 7
+
+
+def _routine_source(home):
+    memo = Memo()
+    models = method_models("routine", home, CONFIG, memo)
+    return choose_fetch_source(home, CONFIG, models, setting_of(choose_settings(home, CONFIG, models, memo).best), memo)
+
+
+def test_the_source_is_chosen_by_what_its_fetches_cost_on_held_out_training_days(home):
+    chosen = _routine_source(home)
+    cost = {params["objects"]: -score for params, score in chosen.scores}
+    assert chosen.best == {"objects": "clock"} and cost["clock"] < cost["movements"]
+    assert [p["objects"] for p, _ in chosen.scores] == ["movements", "clock"] and len(chosen.metrics) == 2
+    # where the uses follow how long the activity has lasted, not the clock, the routine's forecast stays
+    kept = _routine_source(activity_objects_home())
+    cost = {params["objects"]: -score for params, score in kept.scores}
+    assert kept.best == {"objects": "movements"} and cost["movements"] <= cost["clock"]
+    # the paper's n-gram foresees those uses worse than the uses model: then the uses model is fetched by
+    worse = choose_fetch_source(activity_objects_home(), CONFIG, CONFIG.models, (True, False, False))
+    assert worse.best == {"objects": "clock"}
+
+
+def test_a_day_forecast_at_once_is_the_day_a_session_replays(home, homer_root):
+    """What the source's cross-validation reads (every step's forecast at once) is what a session
+    that learns nothing decides step by step: the same uses, candidates, untouchable objects and
+    fetches, on the clock home and on HOMER+ at 10 and 5 minutes."""
+    homes = [home]
+    for name, step in (("A", 10), ("B", 5)):
+        h = load_household(homer_root, name, step_minutes=step, resample="locf" if step != 10 else "none")
+        homes.append(replace(h, train=h.train[:12], test=h.test[:2]))
+    for h in homes:
+        deployment = Deployment.configured(CONFIG).model_copy(update={"run_end": True})
+        session = build_session(h, CONFIG, deployment, None, learn=False)
+        replayed = replay_test_days(session, h, h.test)
+        seen = [forecast_day(session.policy, h, day) for day in h.test]
+        assert seen == replayed, h.name
+        assert sum(day.report.fetches for day in seen) > 0 or h is home

@@ -50,6 +50,11 @@ def test_where_objects_follow_the_clock_cross_validation_chooses_the_clock_aware
         # the activity stays the same all afternoon: knowing it, the movement model still cannot time the uses
         assert look[("routine", minutes)] > look[(ORACLE, minutes)]
     assert "objects: clock-aware model" in lookahead_selection(clocked)
+    # the fetch policy's source has its own choice, by what the fetches cost on held-out training days
+    costs = {r["objects"]: r for r in read(clocked / "fetch_selection.csv")}
+    assert set(costs) == {MOVEMENTS, CLOCK} and {r["method"] for r in costs.values()} == {"routine"}
+    assert costs[CLOCK]["chosen"] == "True" and costs[MOVEMENTS]["chosen"] == "False"
+    assert float(costs[CLOCK]["cv_cost_per_day"]) < float(costs[MOVEMENTS]["cv_cost_per_day"])
 
 
 def test_the_oracle_rows_know_the_activity_and_say_they_are_oracles(clocked):

@@ -2,8 +2,8 @@
 
 The LLM-free half of ``globe reproduce`` (the model selections, the baseline, n-gram, smoothed
 and routine rows of Table I, calibration, activity anticipation, the lookahead and the fetch policy
-with their baseline and oracle rows, and missing labels) is run, its printed tables checked whole
-when piped, and its files compared row by row with
+with their baseline and oracle rows and the fetch policy's source, and missing labels) is run,
+its printed tables checked whole when piped, and its files compared row by row with
 ``reference/homer_plus``: choices exactly, figures to the third decimal. Ties in every selection
 are broken by an explicit order, so a changed last bit cannot flip a row; a row that moves is a
 change to explain (and to commit with new reference results).
@@ -34,6 +34,7 @@ KEYS = {
     "lookahead_selection.csv": ("method", "household", "run_end", "run_memory", "run_next", "horizon_min",
                                 "threshold", "objects"),
     "fetch_policy.csv": ("method", "household", "cost_ratio", "configured"),
+    "fetch_selection.csv": ("method", "household", "objects"),
     "fetch_lead_times.csv": ("household", "lead_min"),
     "missing_labels.csv": ("method", "household", "labels_pct"),
     "missing_labels_selection.csv": ("household", "params"),

@@ -3,8 +3,9 @@ policy, for every household, written to a results folder (``globe reproduce`` ca
 
 Every choice is made on training days: the routine model's parameters by its cross-validation
 (:func:`globe.evaluation.tuning.tuned_models`), the lookahead's change thresholds and movement
-settings by :func:`globe.evaluation.lookahead.choose_settings`. The fetch policy has no fitted parameter:
-its threshold follows from the configured costs.
+settings by :func:`globe.evaluation.lookahead.choose_settings`, the fetch policy's candidate source
+by what its fetches cost (:func:`globe.evaluation.fetch_source.choose_fetch_source`,
+``fetch_selection.csv``). The fetch policy's threshold follows from the configured costs.
 
 Both tables have a baseline row beside the models (``hour_activity``): objects by the clock and
 the activity alone (:func:`~globe.evaluation.lookahead.evaluate_moves_baseline`,
@@ -35,9 +36,10 @@ from globe.evaluation.fetch import (
     lead_time_rows,
     replay_test_days,
 )
+from globe.evaluation.fetch_source import choose_fetch_source
 from globe.evaluation.lookahead import (
     BASELINE,
-    CLOCK,
+    CLOCK_OFFERED_TO,
     LOOKAHEAD_COLUMNS,
     MOVEMENTS,
     ORACLE,
@@ -136,15 +138,19 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo,
            same: LookaheadResult | None) -> tuple[FetchEvaluation, ...]:
     """The fetch policy on ``h``'s test days: replayed through a session of the policy's method,
     whose movement model has the settings the lookahead of that method chose on training days
-    (``same``, when it ran; where that chose the clock-aware object model, the session's fetch
-    policy takes its candidates from that model's uses: ``Deployment.fetch_objects``);
+    (``same``, when it ran) and, for a method the clock-aware uses model is offered to, the
+    candidate source whose fetches cost least on held-out training days
+    (:func:`~globe.evaluation.fetch_source.choose_fetch_source`; ``Deployment.fetch_objects``);
     then the baseline's and the oracle's fetches at the same steps by the same rule."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
         run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
     else:
         run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
-    fetch_objects = CLOCK if same is not None and same.objects == CLOCK else MOVEMENTS
+    source = None
+    if config.policy.method in CLOCK_OFFERED_TO:
+        source = choose_fetch_source(h, config, models, (run_end, run_memory, run_next), memo)
+    fetch_objects = MOVEMENTS if source is None else source.best["objects"]
     deployment = Deployment.configured(config).model_copy(update={
         "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next,
         "fetch_objects": fetch_objects})
@@ -153,9 +159,27 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo,
     policy = session.policy
     ratios = config.policy.curve_ratios
     baseline = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps)
-    mine = evaluate_fetch(session, h, h.test, ratios, config.policy.method, replayed)
+    mine = replace(evaluate_fetch(session, h, h.test, ratios, config.policy.method, replayed), source=source)
     return (mine, evaluate_uses_baseline(baseline, policy, h.test, replayed, h.name, ratios),
             evaluate_oracle_fetch(policy, h.test, replayed, h.name, ratios))
+
+
+SELECTION_COLUMNS = ("method", "household", "objects", "cv_cost_per_day", "cv_precision", "cv_recall", "chosen")
+
+
+def fetch_selection_rows(evaluations: Sequence[FetchEvaluation]) -> list[dict]:
+    """``fetch_selection.csv``: per household whose candidate source was cross-validated, each
+    source's cost per held-out training day (and its pooled precision and recall there), and
+    which was chosen."""
+    rows = []
+    for ev in evaluations:
+        if ev.source is None:
+            continue
+        for (params, score), metrics in zip(ev.source.scores, ev.source.metrics):
+            rows.append({"method": ev.method, "household": ev.household, "objects": params["objects"],
+                         "cv_cost_per_day": round(-score, 4), "cv_precision": round(metrics["precision"], 4),
+                         "cv_recall": round(metrics["recall"], 4), "chosen": params == ev.source.best})
+    return rows
 
 
 def _ratio(config: GlobeConfig) -> float:
@@ -164,14 +188,15 @@ def _ratio(config: GlobeConfig) -> float:
 
 
 def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope: DataScope) -> list[Path]:
-    """``lookahead.csv`` (+ selection, timing, plot), ``fetch_policy.csv`` (+ plot) and
-    ``fetch_lead_times.csv`` (+ plot). Returns the paths written."""
+    """``lookahead.csv`` (+ selection, timing, plot), ``fetch_policy.csv`` (+ plot, and the choice
+    of its candidate source: ``fetch_selection.csv``) and ``fetch_lead_times.csv`` (+ plot).
+    Returns the paths written."""
     out_dir.mkdir(parents=True, exist_ok=True)
     step = result.step_minutes
     rows = lookahead_rows(result.lookahead, step)
     paths = {name: out_dir / name for name in ("lookahead.csv", "lookahead_selection.csv", "lookahead_timing.csv",
-                                               "lookahead.png", "fetch_policy.csv", "fetch_policy.png",
-                                               "fetch_lead_times.csv", "fetch_lead_times.png")}
+                                               "lookahead.png", "fetch_policy.csv", "fetch_selection.csv",
+                                               "fetch_policy.png", "fetch_lead_times.csv", "fetch_lead_times.png")}
     report.write_csv(paths["lookahead.csv"], rows, list(LOOKAHEAD_COLUMNS))
     report.write_csv(paths["lookahead_selection.csv"],
                      [{"method": r.method, "household": r.household,
@@ -186,6 +211,7 @@ def write_anticipation_results(out_dir: Path, result: AnticipationResult, scope:
     timing = [{"method": r.method, "household": r.household, "train_s": round(r.train_s, 4)} for r in result.lookahead]
     report.write_csv(paths["lookahead_timing.csv"], timing, ["method", "household", "train_s"])
     save_figure(lookahead_figure(rows, scope), paths["lookahead.png"])
+    report.write_csv(paths["fetch_selection.csv"], fetch_selection_rows(result.fetch), list(SELECTION_COLUMNS))
     frows = fetch_rows(result.fetch, _ratio(result.config))
     report.write_csv(paths["fetch_policy.csv"], frows, list(FETCH_COLUMNS))
     save_figure(fetch_curve_figure(frows), paths["fetch_policy.png"])

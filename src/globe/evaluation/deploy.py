@@ -6,9 +6,10 @@ service's database), so the models a robot is served are the models that won on 
 days, never the paper's defaults by accident. For ``selection.deploy = "routine"`` (the default)
 or ``"ngram_smoothed"`` that is the family's cross-validation (:func:`globe.evaluation.tuning.tuned_models`:
 the activity model, persistence and the clock model among the candidates, the object model and
-the movement alignment), the movement model's settings (:func:`globe.evaluation.lookahead.choose_settings`;
-for ``"routine"``, with the clock-aware uses model offered as the fetch policy's candidates, as
-the lookahead's routine row is)
+the movement alignment), the movement model's settings (:func:`globe.evaluation.lookahead.choose_settings`), for
+``"routine"`` the fetch policy's candidates (the movement forecast or the clock-aware uses model,
+by what the fetches cost on held-out days: :func:`globe.evaluation.fetch_source.choose_fetch_source`,
+as the fetch table's routine row)
 and the activity filter's movement evidence (:func:`globe.evaluation.missing_labels.tune_evidence`);
 ``"ngram"`` and ``"persistence"`` keep the configured settings. The LLM gate stays as configured
 (its cross-validation asks the LLM thousands of questions; ``globe evaluate`` reports it).
@@ -20,7 +21,8 @@ from typing import Any, Callable
 
 from globe.config import CV_METHODS, Deployment, DeployMethod, GlobeConfig
 from globe.data.records import Household
-from globe.evaluation.lookahead import CLOCK, CLOCK_OFFERED_TO, MOVEMENTS, choose_settings, setting_of
+from globe.evaluation.fetch_source import choose_fetch_source
+from globe.evaluation.lookahead import CLOCK_OFFERED_TO, MOVEMENTS, choose_settings, setting_of
 from globe.evaluation.selection import Memo, Selection
 from globe.evaluation.tuning import chosen_alignment, tuned_models
 
@@ -56,14 +58,18 @@ def choose_deployment(household: Household, config: GlobeConfig, memo: Memo | No
     alignment = chosen_alignment(selections, config)
     if progress:
         progress(f"{household.name}: choosing the movement model")
-    offered = (MOVEMENTS, CLOCK) if method in CLOCK_OFFERED_TO else (MOVEMENTS,)  # as the lookahead's row
-    movement = choose_settings(household, config, models, memo, objects=offered).best
-    run_end, run_memory, run_next = setting_of(movement)
+    setting = setting_of(choose_settings(household, config, models, memo).best)
+    run_end, run_memory, run_next = setting
+    fetch_objects = MOVEMENTS
+    if method in CLOCK_OFFERED_TO:  # as the fetch table's row: by what the fetches cost on held-out days
+        if progress:
+            progress(f"{household.name}: choosing the fetch policy's candidates (on held-out days)")
+        fetch_objects = choose_fetch_source(household, config, models, setting, memo).best["objects"]
     if progress:
         progress(f"{household.name}: choosing the activity filter's movement evidence")
     evidence = tune_evidence(household, config, models, memo, alignment).best
     return Deployment(method=method, models=models, alignment=alignment, run_end=run_end, run_memory=run_memory,
-                      run_next=run_next, fetch_objects=movement.get("objects", MOVEMENTS),
+                      run_next=run_next, fetch_objects=fetch_objects,
                       emission_weight=evidence["weight"],
                       emission_previous_share=evidence["previous_share"], emission_boundary=evidence["boundary"],
                       emission_switch=evidence["switch"], cross_validated=True, scores=_scores(selections))

@@ -18,10 +18,10 @@ P(o is used within the lead window | the activity at t, the clock slot) counted 
 from the clock and the activity alone; and the oracle (:data:`ORACLE`): the same steps and rule,
 its candidates from the policy's own movement model told the true activity of every step of the
 lead window (:func:`~globe.inference.forecast.forecast_known`), what perfect activity knowledge
-would give. Where the lookahead's cross-validation chose the clock-aware object model for the
-policy's method, the session is built with that model as its fetch policy's candidates
-(``Deployment.fetch_objects``, as the service builds such a home's), so that row too is what the
-session decided.
+would give. Where cross-validation on the fetch cost chose the clock-aware uses model for the
+policy's method (:mod:`globe.evaluation.fetch_source`), the session is built with that model as
+its fetch policy's candidates (``Deployment.fetch_objects``, as the service builds such a home's),
+so that row too is what the session decided.
 """
 
 from __future__ import annotations
@@ -30,12 +30,21 @@ import datetime as dt
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
-from globe.data.records import Day, Household
+from globe.data.records import IN_USE_CLASS, Day, Household
 from globe.evaluation.lookahead import ORACLE
 from globe.evaluation.online import add_report, day_observations, replay, replay_dates
-from globe.inference.fetch_policy import FetchCandidate, FetchContext, FetchPolicy, FetchReport, follow_fetches
+from globe.evaluation.selection import Selection
+from globe.inference.fetch_policy import (
+    FetchCandidate,
+    FetchContext,
+    FetchPolicy,
+    FetchReport,
+    follow_fetches,
+    left_alone,
+)
 from globe.inference.forecast import Forecast, forecast_known
 from globe.models.baselines import HOUR_ACTIVITY, HourActivityAhead, fit_uses_ahead, minutes_since_use, used_matrix
+from globe.sequences.movements import moved_objects
 from globe.session import HouseholdSession
 
 BASELINE = HOUR_ACTIVITY
@@ -69,6 +78,27 @@ def replay_day(session: HouseholdSession, household: Household, day: Day, date: 
     return ReplayedDay(minutes, tuple(session.uses()), tuple(candidates), tuple(alone), session.fetch_report())
 
 
+def forecast_day(policy: FetchPolicy, household: Household, day: Day, chunk: int = 256) -> ReplayedDay:
+    """``day`` as a session with ``policy`` (one that learns nothing, every step labelled) sees
+    it, its forecasts made for all steps at once: the same uses (:func:`~globe.sequences.movements.moved_objects`),
+    the same candidates after each step but the last (``policy``'s movement forecast of the day so
+    far) and the objects no fetch could touch, several times faster than :func:`replay_day`
+    (a test checks they are equal). For choices on training days; the scores replay."""
+    n = len(day)
+    queries = [(day.activities[: t + 1], day.locations[: t + 1]) for t in range(n - 1)]
+    candidates: list[tuple[FetchCandidate, ...]] = []
+    for lo in range(0, len(queries), chunk):
+        part = queries[lo: lo + chunk]
+        fcs = policy.forecaster.forecast_many(part, policy.window_steps - 1, weekdays=[day.weekday] * len(part))
+        candidates += [tuple(policy.candidates_from(fcs[q])) for q in range(len(part))]
+    places = frozenset(node.node for node in household.nodes if node.cls == IN_USE_CLASS)
+    rows = day.locations
+    alone = [left_alone(household.objects, rows[t - 1] if t else rows[t], rows[t], places) for t in range(n)]
+    replayed = ReplayedDay(day.minutes, tuple(moved_objects(day, household.objects)), (*candidates, ()),
+                           tuple(alone), FetchReport())
+    return replace(replayed, report=follow_policy(policy, replayed))
+
+
 def follow_policy(policy: FetchPolicy, day: ReplayedDay, report: FetchReport | None = None) -> FetchReport:
     """``policy``'s decisions over a replayed day's candidates, scored by the one rule of fetches."""
     def decide(t: int, waiting: Mapping[str, int]) -> list[str]:
@@ -86,6 +116,7 @@ class FetchEvaluation:
     report: FetchReport
     curve: tuple[tuple[float, float, FetchReport], ...]  # (cost ratio useless/missed, threshold, report)
     method: str = ""  # whose candidates: the policy's method, or BASELINE
+    source: Selection | None = None  # where cross-validated: the candidate source's choice (fetch_source)
 
 
 def replay_test_days(session: HouseholdSession, household: Household, days: Sequence[Day]) -> list[ReplayedDay]:

@@ -20,6 +20,7 @@ fetch from the same candidates (:meth:`FetchPolicy.candidates_at`).
 
 from __future__ import annotations
 
+import functools
 import statistics
 from dataclasses import dataclass, field
 from typing import Callable, Collection, Mapping, Sequence
@@ -136,9 +137,12 @@ class FetchPolicy:
         return self._ranked(uses.objects, p, [None] * len(p))
 
     def _ranked(self, objects: Sequence[str], p: np.ndarray, targets: Sequence[str | None]) -> list[FetchCandidate]:
-        ev = expected_value(p, self.cost_useless, self.cost_missed)
-        order = sorted(range(len(p)), key=lambda j: (-p[j], objects[j]))
-        return [FetchCandidate(objects[j], float(p[j]), targets[j], float(ev[j])) for j in order]
+        """Every object as a candidate, most likely useful first (ties: by name)."""
+        p = np.asarray(p, dtype=float)
+        ev = expected_value(p, self.cost_useless, self.cost_missed).tolist()
+        order = np.lexsort((_name_ranks(tuple(objects)), -p)).tolist()
+        probability = p.tolist()
+        return [FetchCandidate(objects[j], probability[j], targets[j], ev[j]) for j in order]
 
     def choose(self, candidates: Sequence[FetchCandidate], exclude: Collection[str] = ()) -> list[FetchCandidate]:
         """The candidates worth fetching: positive expected value, not already fetched, at most
@@ -162,6 +166,14 @@ class FetchPolicy:
         including the current step, on a day of ``weekday``), leaving out objects already fetched
         (``exclude``)."""
         return self.choose(self.candidates(activities, locations, weekday), exclude)
+
+
+@functools.lru_cache(maxsize=64)
+def _name_ranks(objects: tuple[str, ...]) -> np.ndarray:
+    """Each object's place in the sorted names (the candidates' tie-break), once per object list."""
+    ranks = np.empty(len(objects), dtype=np.int64)
+    ranks[sorted(range(len(objects)), key=objects.__getitem__)] = np.arange(len(objects))
+    return ranks
 
 
 def left_alone(objects: Sequence[str], before: Sequence[str], now: Sequence[str],
