@@ -144,9 +144,10 @@ def random_home(days: int = 75, test: int = 10, step: int = 10, seed: int = 0) -
 
 def hourly_home(days: int = 40, test: int = 10, seed: int = 0) -> Household:
     """A home whose activity follows the hour whatever went before: every 10-minute step draws its
-    activity afresh, half the time the hour's own (sleeping at night, breakfast at 7, work in the
-    morning, ...) and otherwise any of four, so nothing persists from one step to the next. The
-    time of day is all there is to learn; persistence, and a model of what follows what, learn noise."""
+    activity afresh, half the time the hour's own (sleeping at night, breakfast at 7, lunch at 12,
+    dinner at 18, one of four others in the other hours) and otherwise any of those four, so
+    nothing persists from one step to the next. The time of day is all there is to learn;
+    persistence, and a model of what follows what, learn noise."""
     rng = random.Random(seed)
     labels = ("idle", "relax", "grooming", "work")
     hours = {6: "sleeping", 7: "breakfast", 8: "grooming", 12: "lunch", 18: "dinner", 19: "relax", 22: "sleeping",
