@@ -20,9 +20,10 @@ from globe.config import Deployment
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
 from globe.evaluation.anticipation import method_models
-from globe.evaluation.fetch import forecast_day, replay_test_days
+from globe.evaluation.fetch import LAST_DATE, forecast_day, replay_test_days
 from globe.evaluation.fetch_source import choose_fetch_source
 from globe.evaluation.lookahead import choose_settings, setting_of
+from globe.evaluation.online import replay_dates
 from globe.evaluation.selection import Memo
 from globe.session import build_session
 
@@ -41,11 +42,12 @@ def main() -> None:
             "models": models, "run_end": setting[0], "run_memory": setting[1], "run_next": setting[2]})
         train, held_out = home.train[: -args.days], home.train[-args.days:]
         session = build_session(replace(home, train=train, test=held_out), cfg, deployment, None, learn=False)
+        dates = replay_dates(held_out, LAST_DATE)
         started = time.perf_counter()
         replayed = replay_test_days(session, home, held_out)
         replay_s = (time.perf_counter() - started) / len(held_out)
         started = time.perf_counter()
-        at_once = [forecast_day(session.policy, home, day) for day in held_out]
+        at_once = [forecast_day(session, home, day, date) for day, date in zip(held_out, dates)]
         once_s = (time.perf_counter() - started) / len(held_out)
         started = time.perf_counter()
         choose_fetch_source(home, cfg, models, setting, memo)

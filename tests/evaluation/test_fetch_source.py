@@ -14,6 +14,7 @@ from globe.data.csv_logs import load_household
 from globe.evaluation.anticipation import method_models
 from globe.evaluation.deploy import choose_deployment
 from globe.evaluation.fetch import (
+    LAST_DATE,
     evaluate_fetch,
     evaluate_uses_baseline,
     fit_uses_baseline,
@@ -23,12 +24,13 @@ from globe.evaluation.fetch import (
 )
 from globe.evaluation.fetch_source import choose_fetch_source, fetch_cost
 from globe.evaluation.lookahead import choose_settings, setting_of
+from globe.evaluation.online import replay_dates
 from globe.evaluation.selection import Memo
 from globe.inference.fetch_policy import FetchContext, FetchReport
 from globe.models.baselines import fit_uses_ahead, minutes_since_use, used_matrix
 from globe.session import build_session
 from globe.session.build import deployment_summary
-from tests.simulated import activity_objects_home, clocked_objects_home
+from tests.simulated import activity_objects_home, clocked_objects_home, weekly_home
 
 CONFIG = GlobeConfig().with_overrides({"llm.backend": "none", "selection.folds": 3})
 
@@ -128,15 +130,26 @@ def test_the_source_is_chosen_by_what_its_fetches_cost_on_held_out_training_days
 def test_a_day_forecast_at_once_is_the_day_a_session_replays(home, homer_root):
     """What the source's cross-validation reads (every step's forecast at once) is what a session
     that learns nothing decides step by step: the same uses, candidates, untouchable objects and
-    fetches, on the clock home and on HOMER+ at 10 and 5 minutes."""
-    homes = [home]
+    fetches, on the clock home (a test day cut short, so the session decides at its last row),
+    on undated days whose clock model tells weekends apart (the replay's weekdays), and on HOMER+
+    at 10 and 5 minutes; a day off the session's grid is replayed."""
+    short = replace(home.test[0], **{f: getattr(home.test[0], f)[:-5] for f in ("minutes", "activities",
+                                                                              "locations")})
+    cases = [(replace(home, test=(short, *home.test[1:3])), {})]
+    weekly = weekly_home(30, 3, dated=False)
+    cases.append((weekly, {"models": CONFIG.models.model_copy(update={
+        "activity_estimator": "clock", "clock_day_types": "weekend"})}))
     for name, step in (("A", 10), ("B", 5)):
         h = load_household(homer_root, name, step_minutes=step, resample="locf" if step != 10 else "none")
-        homes.append(replace(h, train=h.train[:12], test=h.test[:2]))
-    for h in homes:
-        deployment = Deployment.configured(CONFIG).model_copy(update={"run_end": True})
+        cases.append((replace(h, train=h.train[:12], test=h.test[:2]), {}))
+    for h, models in cases:
+        deployment = Deployment.configured(CONFIG).model_copy(update={"run_end": True, **models})
         session = build_session(h, CONFIG, deployment, None, learn=False)
         replayed = replay_test_days(session, h, h.test)
-        seen = [forecast_day(session.policy, h, day) for day in h.test]
+        dates = replay_dates(h.test, LAST_DATE)
+        seen = [forecast_day(session, h, day, date) for day, date in zip(h.test, dates)]
         assert seen == replayed, h.name
-        assert sum(day.report.fetches for day in seen) > 0 or h is home
+        if h is cases[0][0]:  # the short day: decided at its last row, as the session did
+            assert seen[0].candidates[-1] and not seen[1].candidates[-1]
+        if h.name in ("A", "B"):
+            assert sum(day.report.fetches for day in seen) > 0

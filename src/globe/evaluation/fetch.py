@@ -78,24 +78,30 @@ def replay_day(session: HouseholdSession, household: Household, day: Day, date: 
     return ReplayedDay(minutes, tuple(session.uses()), tuple(candidates), tuple(alone), session.fetch_report())
 
 
-def forecast_day(policy: FetchPolicy, household: Household, day: Day, chunk: int = 256) -> ReplayedDay:
-    """``day`` as a session with ``policy`` (one that learns nothing, every step labelled) sees
-    it, its forecasts made for all steps at once: the same uses (:func:`~globe.sequences.movements.moved_objects`),
-    the same candidates after each step but the last (``policy``'s movement forecast of the day so
-    far) and the objects no fetch could touch, several times faster than :func:`replay_day`
-    (a test checks they are equal). For choices on training days; the scores replay."""
-    n = len(day)
-    queries = [(day.activities[: t + 1], day.locations[: t + 1]) for t in range(n - 1)]
+def forecast_day(session: HouseholdSession, household: Household, day: Day, date: dt.date,
+                 chunk: int = 256) -> ReplayedDay:
+    """:func:`replay_day` of a day with every step labelled, its forecasts made for all steps at
+    once: the same uses (:func:`~globe.sequences.movements.moved_objects`), the same candidates
+    after each step the session decides at (``session.policy``'s movement forecast of the day so
+    far, as seen, on ``date``'s day of the week), the same objects no fetch could touch and the
+    same fetches, several times faster (a test checks they are equal). A day off the session's
+    grid (other minutes, or longer) is replayed. For choices on training days; the scores replay."""
+    grid, policy, n = session.grid, session.policy, len(day)
+    if n > grid.last_step + 1 or day.minutes != tuple(grid.minute(t) for t in range(n)):
+        return replay_day(session, household, day, date)
+    decided = min(n, grid.last_step)  # none after the grid's last step, as the session
+    queries = [(day.seen[: t + 1], day.locations[: t + 1]) for t in range(decided)]
     candidates: list[tuple[FetchCandidate, ...]] = []
     for lo in range(0, len(queries), chunk):
         part = queries[lo: lo + chunk]
-        fcs = policy.forecaster.forecast_many(part, policy.window_steps - 1, weekdays=[day.weekday] * len(part))
+        fcs = policy.forecaster.forecast_many(part, policy.window_steps - 1, weekdays=[date.weekday()] * len(part))
         candidates += [tuple(policy.candidates_from(fcs[q])) for q in range(len(part))]
     places = frozenset(node.node for node in household.nodes if node.cls == IN_USE_CLASS)
     rows = day.locations
-    alone = [left_alone(household.objects, rows[t - 1] if t else rows[t], rows[t], places) for t in range(n)]
-    replayed = ReplayedDay(day.minutes, tuple(moved_objects(day, household.objects)), (*candidates, ()),
-                           tuple(alone), FetchReport())
+    alone = [left_alone(household.objects, rows[t - 1] if t else rows[t], rows[t], places) if t < decided
+             else frozenset() for t in range(n)]
+    replayed = ReplayedDay(day.minutes, tuple(moved_objects(day, household.objects)),
+                           (*candidates, *[()] * (n - decided)), tuple(alone), FetchReport())
     return replace(replayed, report=follow_policy(policy, replayed))
 
 

@@ -22,8 +22,9 @@ from typing import Sequence
 
 from globe.config import Deployment, GlobeConfig, ModelConfig, PolicyConfig
 from globe.data.records import Day, Household
-from globe.evaluation.fetch import evaluate_uses_baseline, fit_uses_baseline, forecast_day, pooled
+from globe.evaluation.fetch import LAST_DATE, evaluate_uses_baseline, fit_uses_baseline, forecast_day, pooled
 from globe.evaluation.lookahead import CLOCK, MOVEMENTS, Setting
+from globe.evaluation.online import replay_dates
 from globe.evaluation.selection import DataKey, Memo, SearchKey, Selection, best_beyond_noise
 from globe.evaluation.tuning import data_folds, fold_days
 from globe.inference.fetch_policy import FetchReport
@@ -49,7 +50,8 @@ def choose_fetch_source(household: Household, config: GlobeConfig, models: Model
     movement ``setting`` (run end, run memory, next activity): ``best`` is ``{"objects": ...}``,
     one of :data:`SOURCES`; ``scores`` the mean over folds of minus the cost per held-out day;
     ``metrics`` the pooled precision and recall of each. Kept in ``memo``."""
-    key = SearchKey("fetch-source", DataKey.of(household), (config.policy, config.lookahead, setting), models,
+    key = SearchKey("fetch-source", DataKey.of(household),
+                    (config.policy, config.lookahead, config.data.step_minutes, setting), models,
                     config.selection.folds, None)
     memo = Memo() if memo is None else memo
     return memo.get(key, _choose, household, config, models, setting)
@@ -85,7 +87,8 @@ def _fold_reports(household: Household, config: GlobeConfig, deployment: Deploym
     session = build_session(replace(household, train=tuple(train), test=tuple(held_out)), config, deployment, None,
                             learn=False)
     policy = session.policy
-    seen = [forecast_day(policy, household, day) for day in held_out]
+    dates = replay_dates(held_out, LAST_DATE)  # the weekdays a replay would give them
+    seen = [forecast_day(session, household, day, date) for day, date in zip(held_out, dates)]
     clock = fit_uses_baseline(train, household.objects, policy.min_lead_steps, policy.window_steps, clock=True)
     return {MOVEMENTS: pooled([day.report for day in seen]),
             CLOCK: evaluate_uses_baseline(clock, policy, held_out, seen, household.name, ()).report}

@@ -197,7 +197,9 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
         if len(day_types) > 1:  # a home without dates keeps the candidates (and their names) it had
             clock["clock_day_types"] = day_types
         space += grid(clock)
-        base: dict[str, Any] = {"object_marginal": True}
+        # the clock candidates read the current activity whatever the configured models say; the
+        # time of day alone is its own candidates' (below)
+        base: dict[str, Any] = {"object_marginal": True, "clock_by_activity": True}
     elif family == "witten_bell":
         space = grid({"activity_estimator": ["witten_bell"], "activity_max_order": sel.activity_orders,
                       "time_weight": sel.time_weights})

@@ -173,6 +173,7 @@ def _name_ranks(objects: tuple[str, ...]) -> np.ndarray:
     """Each object's place in the sorted names (the candidates' tie-break), once per object list."""
     ranks = np.empty(len(objects), dtype=np.int64)
     ranks[sorted(range(len(objects)), key=objects.__getitem__)] = np.arange(len(objects))
+    ranks.flags.writeable = False  # shared by every call with these objects
     return ranks
 
 

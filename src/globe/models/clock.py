@@ -23,7 +23,8 @@ and the first step likewise; a day of no known type (no date) gets the level bel
 
 With ``by_activity=False`` the previous activity is not read: every level's counts are pooled
 over it, ``P(b | slot) = (n(. -> b, slot) + k P(b)) / (n(. -> ., slot) + k)``, the time-of-day
-baseline as a model (its mode is the most frequent activity of the slot, whatever is under way),
+baseline as a model (with ample counts its mode is the slot's most frequent activity, whatever
+is under way),
 so cross-validation can deploy it where it beats the models on the training days.
 
 Shrinkage vanishes where counts are large: a transition never seen after an activity seen a
