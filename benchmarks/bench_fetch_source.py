@@ -16,12 +16,11 @@ import time
 from dataclasses import replace
 
 from common import setup
-from globe.config import Deployment
 from globe.data.csv_logs import load_household
 from globe.data.locate import resolve_data_root
 from globe.evaluation.anticipation import method_models
 from globe.evaluation.fetch import LAST_DATE, forecast_day, replay_test_days
-from globe.evaluation.fetch_source import choose_fetch_source
+from globe.evaluation.fetch_source import choose_fetch_source, policy_deployment
 from globe.evaluation.lookahead import choose_settings, setting_of
 from globe.evaluation.online import replay_dates
 from globe.evaluation.selection import Memo
@@ -38,8 +37,7 @@ def main() -> None:
         memo = Memo()
         models = method_models("routine", home, cfg, memo)
         setting = setting_of(choose_settings(home, cfg, models, memo).best)
-        deployment = Deployment.configured(cfg).model_copy(update={
-            "models": models, "run_end": setting[0], "run_memory": setting[1], "run_next": setting[2]})
+        deployment = policy_deployment(cfg, models, setting)
         train, held_out = home.train[: -args.days], home.train[-args.days:]
         session = build_session(replace(home, train=train, test=held_out), cfg, deployment, None, learn=False)
         dates = replay_dates(held_out, LAST_DATE)

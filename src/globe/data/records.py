@@ -123,6 +123,12 @@ class Household:
         """Every label an object may be at."""
         return frozenset(self._node_index)
 
+    @property
+    def use_places(self) -> frozenset[str]:
+        """The places of class ``in_use``: an object there is held by the person, and none is
+        fetched from one or just put back to one (:func:`~globe.inference.fetch_policy.left_alone`)."""
+        return frozenset(n.node for n in self.nodes if n.cls == IN_USE_CLASS)
+
     def days(self, split: Split) -> tuple[Day, ...]:
         return self.train if split == "train" else self.test
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from globe import assembly
-from globe.config import Deployment, GlobeConfig, ModelConfig
+from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation import report
 from globe.evaluation.fetch import (
@@ -36,7 +36,7 @@ from globe.evaluation.fetch import (
     lead_time_rows,
     replay_test_days,
 )
-from globe.evaluation.fetch_source import choose_fetch_source
+from globe.evaluation.fetch_source import choose_fetch_source, policy_deployment
 from globe.evaluation.lookahead import (
     BASELINE,
     CLOCK_OFFERED_TO,
@@ -144,16 +144,13 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo,
     then the baseline's and the oracle's fetches at the same steps by the same rule."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
-        run_end, run_memory, run_next = setting_of(choose_settings(h, config, models, memo).best)
+        setting = setting_of(choose_settings(h, config, models, memo).best)
     else:
-        run_end, run_memory, run_next = same.run_end, same.run_memory, same.run_next
+        setting = (same.run_end, same.run_memory, same.run_next)
     source = None
     if config.policy.method in CLOCK_OFFERED_TO:
-        source = choose_fetch_source(h, config, models, (run_end, run_memory, run_next), memo)
-    fetch_objects = MOVEMENTS if source is None else source.best["objects"]
-    deployment = Deployment.configured(config).model_copy(update={
-        "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next,
-        "fetch_objects": fetch_objects})
+        source = choose_fetch_source(h, config, models, setting, memo)
+    deployment = policy_deployment(config, models, setting, MOVEMENTS if source is None else source.best["objects"])
     session = build_session(h, config, deployment, None, learn=False)
     replayed = replay_test_days(session, h, h.test)
     policy = session.policy

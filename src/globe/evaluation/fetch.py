@@ -30,7 +30,7 @@ import datetime as dt
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
-from globe.data.records import IN_USE_CLASS, Day, Household
+from globe.data.records import Day, Household
 from globe.evaluation.lookahead import ORACLE
 from globe.evaluation.online import add_report, day_observations, replay, replay_dates
 from globe.evaluation.selection import Selection
@@ -96,8 +96,7 @@ def forecast_day(session: HouseholdSession, household: Household, day: Day, date
         part = queries[lo: lo + chunk]
         fcs = policy.forecaster.forecast_many(part, policy.window_steps - 1, weekdays=[date.weekday()] * len(part))
         candidates += [tuple(policy.candidates_from(fcs[q])) for q in range(len(part))]
-    places = frozenset(node.node for node in household.nodes if node.cls == IN_USE_CLASS)
-    rows = day.locations
+    rows, places = day.locations, household.use_places
     alone = [left_alone(household.objects, rows[t - 1] if t else rows[t], rows[t], places) if t < decided
              else frozenset() for t in range(n)]
     replayed = ReplayedDay(day.minutes, tuple(moved_objects(day, household.objects)),

@@ -44,6 +44,16 @@ def fetch_cost(report: FetchReport, policy: PolicyConfig) -> float:
     return policy.cost_useless * useless + policy.cost_missed * missed
 
 
+def policy_deployment(config: GlobeConfig, models: ModelConfig, setting: Setting,
+                      fetch_objects: str = MOVEMENTS) -> Deployment:
+    """The configured deployment with activity ``models``, the movement ``setting`` and the fetch
+    source: what a fetch policy's session is built from, here and in the fetch table."""
+    run_end, run_memory, run_next = setting
+    return Deployment.configured(config).model_copy(update={
+        "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next,
+        "fetch_objects": fetch_objects})
+
+
 def choose_fetch_source(household: Household, config: GlobeConfig, models: ModelConfig, setting: Setting,
                         memo: Memo | None = None) -> Selection:
     """The fetch policy's candidate source for ``household`` with activity ``models`` and the
@@ -61,10 +71,7 @@ def _choose(household: Household, config: GlobeConfig, models: ModelConfig, sett
     started = time.perf_counter()
     per_fold: dict[str, list[float]] = {s: [] for s in SOURCES}
     reports: dict[str, list[FetchReport]] = {s: [] for s in SOURCES}
-    run_end, run_memory, run_next = setting
-    deployment = Deployment.configured(config).model_copy(update={
-        "models": models, "run_end": run_end, "run_memory": run_memory, "run_next": run_next,
-        "fetch_objects": MOVEMENTS})
+    deployment = policy_deployment(config, models, setting)
     for fold in data_folds(household, config.selection.folds):
         train, held_out = fold_days(household, fold)
         if not held_out or not train:

@@ -55,7 +55,7 @@ import numpy as np
 from globe.config import Deployment
 from globe.data.csv_logs import activity_label
 from globe.data.labels import known_activity
-from globe.data.records import IN_USE_CLASS, Day, Household
+from globe.data.records import Day, Household
 from globe.data.sensors import SensorDay
 from globe.errors import DataError, UnknownLabelError
 from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
@@ -109,7 +109,7 @@ class HouseholdSession(SensorSteps):
         self.lock = threading.RLock()
         self._locations = {label: label for label in household.locations}  # interned labels
         self._object_index = {o: i for i, o in enumerate(household.objects)}
-        self._use_places = frozenset(n.node for n in household.nodes if n.cls == IN_USE_CLASS)
+        self._use_places = household.use_places
         starts: dict[str, list[str]] = {}  # each object's movable nodes' start locations, in map order
         for n in household.nodes:
             if n.movable:
