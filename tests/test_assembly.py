@@ -52,6 +52,7 @@ CLOCK_MODELS = {
     "clock_day_types": ("weekend", "activity", "day_types", "weekend"),
     "clock_floor": ("0.02", "activity", "floor", 0.02),
     "clock_by_activity": ("false", "activity", "by_activity", False),
+    "object_model": ("hour_activity", "objects", "kind", "HourActivityObjects"),
 }
 
 

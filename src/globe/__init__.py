@@ -32,6 +32,7 @@ _LAZY: dict[str, tuple[str, str]] = {
     "ClockModel": ("globe.models.clock", "ClockModel"),
     "PersistenceModel": ("globe.models.baselines", "PersistenceModel"),
     "ObjectModel": ("globe.models.objects", "ObjectModel"),
+    "HourActivityObjects": ("globe.models.baselines", "HourActivityObjects"),
     # inference: forecasting, filtering, the robot's decision
     "Forecaster": ("globe.inference.forecast", "Forecaster"),
     "Forecast": ("globe.inference.forecast", "Forecast"),
@@ -76,6 +77,7 @@ __all__ = [
     "GlobeConfig",
     "GlobeError",
     "Household",
+    "HourActivityObjects",
     "LLMBackend",
     "LLMError",
     "load_config",
@@ -119,7 +121,7 @@ if TYPE_CHECKING:  # what type checkers and editors see for the lazy names
     from globe.inference.forecast import Forecast, Forecaster
     from globe.inference.movements import MovementModel
     from globe.models.activity import ActivityModel
-    from globe.models.baselines import PersistenceModel
+    from globe.models.baselines import HourActivityObjects, PersistenceModel
     from globe.models.clock import ClockModel
     from globe.models.objects import ObjectModel
     from globe.models.routine import RoutineModel

@@ -30,14 +30,15 @@ from globe.inference.forecast import Forecaster
 from globe.inference.movements import MovementModel
 from globe.models.activity import ActivityModel
 from globe.models.base import ActivityModelBase
-from globe.models.baselines import PersistenceModel
+from globe.models.baselines import HourActivityObjects, PersistenceModel
 from globe.models.clock import ClockModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import NextObjectModel, ObjectChooser
 from globe.reasoning.gate import UncertaintyGate
-from globe.sequences.runs import TrainingSequences, training_sequences
+from globe.sequences.movements import Alignment
+from globe.sequences.runs import TrainingSequences, object_runs, training_sequences
 
 if TYPE_CHECKING:
     from globe.inference.fetch_policy import FetchPolicy
@@ -92,16 +93,28 @@ def activity_model(models: ModelConfig, step_minutes: int) -> ActivityModelBase:
                          time_weight=models.time_weight, time_window=steps(models.time_window_minutes, step_minutes))
 
 
-def object_model(models: ModelConfig) -> ObjectModel:
-    """An unfitted next-object model for the ``models`` section."""
+def object_model(models: ModelConfig) -> ObjectModel | HourActivityObjects:
+    """An unfitted next-object model for the ``models`` section: the n-gram, or the object
+    baseline (``models.object_model``)."""
+    if models.object_model == "hour_activity":
+        return HourActivityObjects()
     return ObjectModel(estimator=models.object_estimator, max_order=models.object_max_order,
                        run_start_token=models.run_start_token)
+
+
+def fit_object_model(models: ModelConfig, household: Household, days: Sequence[Day], alignment: Alignment,
+                     seqs: TrainingSequences) -> ObjectModel | HourActivityObjects:
+    """The object model of ``models`` counted on ``days`` (``seqs``: their training sequences)."""
+    model = object_model(models)
+    if isinstance(model, ObjectModel):
+        return model.fit(seqs.runs)
+    return model.fit(object_runs(days, household.objects, alignment, True, seqs.moves or None))
 
 
 @dataclass(frozen=True, slots=True)
 class FittedHousehold:
     activity: ActivityModelBase
-    objects: ObjectModel
+    objects: ObjectModel | HourActivityObjects
     train_s: float  # model fitting only (preprocessing excluded)
     preprocess_s: float
     sequences: TrainingSequences  # what was counted
@@ -111,10 +124,11 @@ def fit_household(household: Household, config: GlobeConfig, days: Sequence[Day]
     """Preprocess the training days (``household.train`` unless ``days`` is given) and fit both
     models of ``config.models``, timing each part."""
     t0 = time.perf_counter()
-    seqs = training_sequences(household, household.train if days is None else days, config.sequences.alignment)
+    days = household.train if days is None else days
+    seqs = training_sequences(household, days, config.sequences.alignment)
     t1 = time.perf_counter()
     activity = activity_model(config.models, step_minutes(household, config)).fit(seqs.activities, seqs.weekdays)
-    objects = object_model(config.models).fit(seqs.runs)
+    objects = fit_object_model(config.models, household, days, config.sequences.alignment, seqs)
     return FittedHousehold(activity, objects, time.perf_counter() - t1, t1 - t0, seqs)
 
 

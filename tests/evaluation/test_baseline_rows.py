@@ -6,6 +6,7 @@ rule of the clock beats persistence."""
 from __future__ import annotations
 
 import csv
+import datetime as dt
 from pathlib import Path
 
 import numpy as np
@@ -14,10 +15,14 @@ import pytest
 from globe.config import GlobeConfig
 from globe.data.records import Day, Household
 from globe.evaluation import main_job
+from globe.evaluation.deploy import choose_deployment
 from globe.evaluation.experiments import run_methods, table1_rows
 from globe.evaluation.lookahead import BASELINE, ORACLE, baseline_days, first_moves, fit_moves_baseline
 from globe.evaluation.methods import BASELINES, METHODS, object_baseline, with_baselines
+from globe.evaluation.online import day_observations, replay
 from globe.evaluation.relocation import LookaheadRun, reference_queries
+from globe.session import build_session
+from globe.session.build import deployment_summary
 from tests.simulated import HOME_PLACES, IN_USE, OBJECTS, _nodes, random_home
 
 CONFIG = GlobeConfig().with_overrides({"llm.backend": "none", "selection.folds": 3})
@@ -60,6 +65,41 @@ def test_on_a_home_of_clocked_objects_the_object_baseline_wins_table_one():
     # the n-gram knows objects by activity only: one meal's object is right, the other's never
     assert rows["ngram"]["object_f1"] < 0.7
     assert rows["hour_activity"]["object_f1"] == 1.0 and rows["time_of_day"]["object_f1"] == 1.0
+
+
+def test_cross_validation_deploys_the_object_baseline_where_it_wins_and_the_session_serves_it(tmp_path):
+    """On the clocked-objects home the object baseline is an object model cross-validation offers
+    beside the n-gram (``models.object_model``): chosen there, it is the routine row's object model
+    (object F1 1.0 where the n-gram's is below 0.7), the one the deployment names, and the one the
+    household's session serves: the kettle before breakfast, the microwave before dinner, read
+    from the clock of the step predicted; it is learnt from each finished day and saved with its
+    minutes. A session over the n-gram says one object for both meals."""
+    home = hour_home()
+    rows = weighted(run_methods(CONFIG, [home], ["routine"], None))
+    assert rows["routine"]["object_f1"] == 1.0
+    deployment = choose_deployment(home, CONFIG)
+    assert deployment.models.object_model == "hour_activity"
+    assert "objects by the most frequent use given the hour and the activity" in deployment_summary(deployment)
+
+    def meals(dep):
+        session = build_session(home, CONFIG, dep, None)
+        day = home.test[0]
+        steps = [(day.name, t, obs) for t, obs in day_observations(home, day, dt.date(2026, 3, 2))]
+        records, _ = replay(session, steps)
+        out = {day.minutes[r.decision.step]: r.decision.choice.obj for r in records
+               if r.decision.activity == "meal" and r.decision.step < len(day) and r.decision.choice is not None}
+        return out, session
+
+    served, session = meals(deployment)
+    assert served and all(obj == ("kettle" if minute < 720 else "microwave") for minute, obj in served.items())
+    assert {minute // 600 for minute in served} == {0, 1}  # both meals were asked
+    learnt = len(session.chooser.model.training_data_)
+    session.learn([home.test[1]])
+    new = session.chooser.model.training_data_[learnt:]
+    assert sorted(m for _, _, minutes in new for m in minutes) == [430, 1150]  # each use with its step's minute
+    ngram, _ = meals(deployment.model_copy(update={"models": deployment.models.model_copy(
+        update={"object_model": "ngram"})}))
+    assert len(set(ngram.values())) == 1
 
 
 def test_on_a_home_with_no_routine_no_rule_of_the_clock_beats_persistence():

@@ -36,8 +36,9 @@ def test_hour_activity_one_step_ahead_reads_the_clock_of_the_day():
 
 
 def test_object_baseline_backs_off_from_the_hour_to_the_activity_to_every_use():
-    uses = [("meal", 420, "kettle")] * 3 + [("meal", 1140, "microwave")] * 2 + [("work", 600, "laptop")]
-    model = HourActivityObjects().fit(uses)
+    runs = [("meal", ("kettle",), (420,))] * 3 + [("meal", ("microwave",), (1140,))] * 2 \
+        + [("work", ("laptop",), (600,))]
+    model = HourActivityObjects().fit(runs)
     assert model.predict("meal", minute=425) == "kettle" and model.predict("meal", minute=1150) == "microwave"
     assert model.predict("meal", minute=800) == "kettle"  # an unseen hour: the activity's most frequent
     assert model.predict("meal") == "kettle"  # no clock given: the activity's level
@@ -48,8 +49,7 @@ def test_object_baseline_backs_off_from_the_hour_to_the_activity_to_every_use():
 
 
 def test_object_baseline_ties_go_to_the_coarser_level():
-    uses = [("meal", 420, "kettle"), ("meal", 420, "fridge"), ("meal", 1140, "fridge")]
-    model = HourActivityObjects().fit(uses)
+    model = HourActivityObjects().fit([("meal", ("kettle", "fridge"), (420, 420)), ("meal", ("fridge",), (1140,))])
     assert model.predict("meal", minute=420) == "fridge"  # 1:1 at 07:xx, fridge ahead over the activity
 
 

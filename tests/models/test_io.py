@@ -198,6 +198,25 @@ def test_single_model_files_are_checked(tmp_path, content, message):
         load_model(path)
 
 
+def test_the_object_baseline_round_trips_with_its_minutes(tiny, tmp_path):
+    """The object model cross-validation may deploy instead of the n-gram (``models.object_model``)
+    is saved with each use's clock minute and answers the same after loading; a minute that is no
+    clock minute, or one missing, is refused."""
+    h, _ = tiny
+    fitted = fit_household(h, GlobeConfig().with_overrides({"models.object_model": "hour_activity"}))
+    assert fitted.objects.kind == "hour_activity_objects" and fitted.objects.training_data_
+    _save((h, fitted), tmp_path / "m")
+    loaded = load_household_model(tmp_path / "m")
+    assert loaded.objects.training_data_ == fitted.objects.training_data_
+    for minute in (None, 420, 1150):
+        assert loaded.objects.predict_proba("breakfast", (), minute) == fitted.objects.predict_proba("breakfast", (),
+                                                                                                     minute)
+    payload = model_to_dict(fitted.objects)
+    for bad in ([["breakfast", ["cup"], [-5]]], [["breakfast", ["cup"], []]], [["breakfast", ["cup"], [True]]]):
+        with pytest.raises(ModelFileError, match=r"data\[0\] is not \[activity, \[objects\.\.\.\], \[minutes"):
+            model_from_dict({**payload, "data": bad})
+
+
 def test_single_model_round_trip_and_unwritable_target(tiny, tmp_path):
     _, fitted = tiny
     save_model(fitted.activity, tmp_path / "a.json")

@@ -44,6 +44,7 @@ CLOCK = {  # the clock model's fields
     "clock_day_types": ("weekend", ("models", "activity", "day_types"), "weekend"),
     "clock_floor": ("0.02", ("models", "activity", "floor"), 0.02),
     "clock_by_activity": ("false", ("models", "activity", "by_activity"), False),
+    "object_model": ("hour_activity", ("models", "objects", "kind"), "HourActivityObjects"),
 }
 
 

@@ -20,6 +20,7 @@ from globe.errors import ConfigError
 Alignment = Literal["previous", "current", "hybrid", "most"]
 ActivityEstimator = Literal["persistence", "longest", "witten_bell", "routine", "clock"]
 ObjectEstimator = Literal["longest", "witten_bell"]
+ObjectModelKind = Literal["ngram", "hour_activity"]
 DayTypes = Literal["none", "weekend", "weekday"]
 DEFAULT_STEP_MINUTES = 10  # a household created without days (HOMER+'s step)
 DEFAULT_DAY_START = 360  # 06:00, HOMER+'s first row
@@ -64,6 +65,10 @@ class ModelConfig(_Section):
     activity_max_order: int | None = Field(
         None, ge=1, le=10_000, description="maximum n of the activity n-gram; None = the longest training day "
         "(109 on HOMER+'s 10-minute days, the paper's n), whatever the step")
+    object_model: ObjectModelKind = Field(
+        "ngram", description="'ngram' = the paper's per-activity object n-gram over the run's objects; 'hour_activity' "
+        "= the object baseline, the most frequent use given the clock hour and the activity (the run's earlier "
+        "objects unread)")
     object_estimator: ObjectEstimator = Field("longest", description="object n-gram estimator")
     object_max_order: int = Field(109, ge=1, le=10_000, description="maximum n of the object n-gram")
     run_start_token: bool = Field(
@@ -136,6 +141,9 @@ class SelectionConfig(_Section):
     day_types_min_days: int = Field(
         14, ge=7, le=3660, description="training days named by distinct dates before day types are tried")
     object_estimators: tuple[str, ...] = Field(("longest", "witten_bell"), description="object estimators tried")
+    object_models: tuple[ObjectModelKind, ...] = Field(
+        ("ngram", "hour_activity"), description="object models tried: the n-gram (with each estimator and run-start "
+        "setting) and the object baseline beside it, by selection.object_criterion")
     alignments: tuple[Alignment, ...] = Field(
         ("previous", "current", "hybrid", "most"), description="routine family: movement alignments tried after the "
         "models (sequences.alignment first, winning ties; one value = no search; 'most' only where every training day "

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Sequence
 
 from globe import assembly
 from globe.assembly import FittedHousehold
@@ -31,9 +31,10 @@ from globe.models.baselines import (
     TimeOfDayBaseline,
 )
 from globe.reasoning.backends.base import LLMBackend
-from globe.reasoning.choice import ContextFor, ObjectChooser, Ranking
+from globe.reasoning.choice import ObjectChooser
 from globe.reasoning.gate import LLMOnlyChooser
-from globe.sequences.movements import Alignment, extract_movements
+from globe.sequences.movements import Alignment
+from globe.sequences.runs import object_runs
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,41 +80,24 @@ def _persistence(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, mem
     return Prepared(model, ObjectChooser(fitted.objects), time.perf_counter() - t + fitted.train_s)
 
 
-class HourActivityChooser(ObjectChooser):
-    """The object baseline as a chooser: the most frequent use given the clock and the predicted
-    activity (:class:`~globe.models.baselines.HourActivityObjects`). The protocol tells it when
-    the object moved (``ranking_at``); asked without the clock it answers from the activity alone."""
-
-    name = HOUR_ACTIVITY
-
-    def __init__(self, model: HourActivityObjects) -> None:
-        super().__init__(model)
-        self.clock_model = model
-
-    def ranking_at(self, minute: int, activity: str, belief: Mapping[str, float] | None,
-                   context_for: ContextFor) -> Ranking:
-        dist = self.clock_model.predict_proba(activity, (), minute)
-        return self.clock_model.ranked(activity, dist), dist
-
-
 def object_baseline(h: Household, alignment: Alignment) -> HourActivityObjects:
     """The object baseline counted on ``h``'s training days: every use (:mod:`globe.sequences.movements`:
-    a return from a use place is none), credited to its activity by ``alignment`` and to its minute."""
-    return HourActivityObjects().fit((ev.activity, ev.minute, ev.obj) for day in h.train
-                                     for ev in extract_movements(day, h.objects, alignment))
+    a return from a use place is none), credited to its activity by ``alignment`` and to that step's
+    minute."""
+    return HourActivityObjects().fit(object_runs(h.train, h.objects, alignment, timed=True))
 
 
 def _time_of_day(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
     t = time.perf_counter()
     model = TimeOfDayBaseline().fit(h.train)
-    chooser = HourActivityChooser(object_baseline(h, cfg.sequences.alignment))
+    chooser = ObjectChooser(object_baseline(h, cfg.sequences.alignment))
     return Prepared(model, chooser, time.perf_counter() - t)
 
 
 def _hour_activity(h: Household, cfg: GlobeConfig, backend: LLMBackend | None, memo: Memo) -> Prepared:
     t = time.perf_counter()
     model = HourActivityBaseline(1).fit(h.train)
-    chooser = HourActivityChooser(object_baseline(h, cfg.sequences.alignment))
+    chooser = ObjectChooser(object_baseline(h, cfg.sequences.alignment))
     return Prepared(model, chooser, time.perf_counter() - t)
 
 

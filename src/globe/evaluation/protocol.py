@@ -7,8 +7,9 @@ Object: at every movement event, predict the object from the *predicted* activit
 event's activity step and the objects already moved in the current (true) activity run; that
 context is reset when the predicted activity differs from the true one. Candidates are O(â).
 ``oracle=True`` conditions on the true activity instead. A predictor or chooser that reads the
-clock (the hour + activity baselines) is told the day as seen (``scan_day``) and each movement's
-minute (``ranking_at``).
+clock (the hour + activity baselines) is told the day as seen (``scan_day``); every chooser is
+told the clock minute of the event's activity step (the step its activity is predicted for, as
+the household session tells it at that step), which an object model that reads the clock uses.
 """
 
 from __future__ import annotations
@@ -136,7 +137,7 @@ class _Query:
     belief: dict[str, float]
     context_for: ContextFor
     injected: bool
-    minute: int  # when the object moved: what a chooser that reads the clock is told (``ranking_at``)
+    minute: int  # the clock minute of the event's activity step: what an object model that reads the clock is told
 
 
 def evaluate_days(
@@ -179,21 +180,18 @@ def evaluate_days(
                     run.activity if oracle else predicted[ev.activity_step],
                     {run.activity: 1.0} if oracle else dists[ev.activity_step],
                     run_context(run.activity, run.objects[:i]),
-                    injected(day.name, ev.step, ev.obj) if injected else False, ev.minute))
+                    injected(day.name, ev.step, ev.obj) if injected else False, day.minutes[ev.activity_step]))
         if progress:
             progress(1)
     # The n-gram ranking of each event is computed once: the dry pass below and the real one
     # share it, and so do callers that pass ``rankings`` for several choosers over the same models.
     memo: dict = {} if rankings is None else rankings
-    at = getattr(chooser, "ranking_at", None)  # a chooser that reads the clock (the object baseline)
-
     def ranking(q: _Query) -> Ranking | None:
         if not chooser.uses_ranking:
             return None
         key = (household.name, q.day, q.step, q.true, oracle)
         if key not in memo:
-            memo[key] = at(q.minute, q.activity, q.belief, q.context_for) if at is not None else \
-                chooser.ngram_ranking(q.activity, q.belief, q.context_for)
+            memo[key] = chooser.ngram_ranking(q.activity, q.belief, q.context_for, q.minute)
         return memo[key]
 
     backend = getattr(chooser, "backend", None)
@@ -203,7 +201,7 @@ def evaluate_days(
         dry = copy.copy(chooser)
         dry.backend = recorder  # type: ignore[attr-defined]
         for q in queries:
-            dry.choose_given(q.activity, q.belief, q.context_for, ranking(q))
+            dry.choose_given(q.activity, q.belief, q.context_for, ranking(q), q.minute)
         prefetch_started = time.perf_counter()
         backend.prefetch(recorder.questions)
         prefetch_s = time.perf_counter() - prefetch_started
@@ -212,7 +210,8 @@ def evaluate_days(
         ranked = ranking(q)
         obj_records.append(ObjectRecord(household=household.name, day=q.day, step=q.step, true_activity=q.true_activity,
                                         predicted_activity=q.activity, context=q.context_for(q.activity), true=q.true,
-                                        choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranked),
+                                        choice=chooser.choose_given(q.activity, q.belief, q.context_for, ranked,
+                                                                    q.minute),
                                         injected=q.injected,
                                         p_true=None if ranked is None else ranked[1].get(q.true, 0.0)))
     return Evaluation(act_records, obj_records, time.perf_counter() - started, prefetch_s)

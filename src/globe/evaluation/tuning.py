@@ -35,6 +35,7 @@ from globe.evaluation.selection import (
     select_widening,
 )
 from globe.models.base import ActivityModelBase, stay_or_change
+from globe.models.baselines import HourActivityObjects
 from globe.models.objects import ObjectModel
 from globe.reasoning.backends.base import LLMBackend
 from globe.reasoning.choice import ObjectChooser
@@ -76,10 +77,12 @@ def fitted_activity(household: Household, fold: Fold | None, models: ModelConfig
 
 
 def fitted_objects(household: Household, fold: Fold | None, models: ModelConfig, alignment: str,
-                   memo: Memo) -> ObjectModel:
+                   memo: Memo) -> ObjectModel | HourActivityObjects:
     model = assembly.object_model(models)
-    key = FitKey("ObjectModel", DataKey.of(household), fold, frozen_params(model.get_params()), alignment)
-    return memo.get(key, lambda: model.fit(sequences(household, fold, alignment, memo).runs))
+    key = FitKey(type(model).__name__, DataKey.of(household), fold, frozen_params(model.get_params()), alignment)
+    days = household.train if fold is None else fold_days(household, fold)[0]
+    return memo.get(key, lambda: assembly.fit_object_model(models, household, days, cast(Alignment, alignment),
+                                                           sequences(household, fold, alignment, memo)))
 
 
 class ScanMemo:
@@ -245,8 +248,7 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
     def object_measure(params: dict[str, Any]) -> dict[str, float]:
         return object_cv_scores(h, cfg, models.model_copy(update=params), alignment, memo, step)
 
-    obj = select_by(grid({"object_estimator": sel.object_estimators, "run_start_token": sel.run_start_token}),
-                    object_measure, sel.object_criterion)
+    obj = select_by(object_candidates(sel), object_measure, sel.object_criterion)
     models = models.model_copy(update=obj.best)
     selections["objects"] = obj
     offered = [a for a in sel.alignments if a != "most" or all(d.covering is not None for d in h.train)]
@@ -265,6 +267,19 @@ def tuned_models(h: Household, cfg: GlobeConfig, family: str, memo: Memo) -> tup
         selections["alignment"] = select_by(tried, alignment_measure, sel.object_criterion)
     out = (models, selections)
     memo.put(key, out)
+    return out
+
+
+def object_candidates(sel: SelectionConfig) -> list[dict[str, Any]]:
+    """The object models cross-validation tries (``selection.object_models``): the n-gram with each
+    estimator and run-start setting, then the object baseline (one candidate: it has neither)."""
+    out: list[dict[str, Any]] = []
+    for kind in sel.object_models:
+        if kind == "ngram":
+            out += [{"object_model": "ngram", **c} for c in grid({"object_estimator": sel.object_estimators,
+                                                                    "run_start_token": sel.run_start_token})]
+        else:
+            out.append({"object_model": kind})
     return out
 
 

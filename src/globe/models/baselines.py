@@ -11,7 +11,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from globe.data.records import Day
-from globe.models.base import ActivityModelBase, Weekdays, rank
+from globe.models.base import ActivityModelBase, CountingModel, Weekdays, rank
 from globe.models.state_space import StateSpace
 from globe.sequences.movements import moved_objects
 
@@ -237,12 +237,15 @@ class TimeOfDayBaseline(_TableRow):
         return [self.at(t) for t in range(len(day))]
 
 
-class HourActivityObjects:
+class HourActivityObjects(CountingModel):
     """"The most frequent departure given the hour and the activity": the object baseline, with the
     per-activity object n-gram's interface (:class:`~globe.models.objects.ObjectModel`) plus the
-    clock. Counted from the uses of training days (a move that counts as a use: a departure for an
-    imported home, every relocation for HOMER+), each credited to its activity and the clock slot
-    of its step, the levels shrunk into each other as :class:`HourActivityBaseline`'s,
+    clock, so cross-validation offers it as the household's object model beside the n-gram
+    (``models.object_model``). Counted from the runs of training days, each use (a move that
+    counts as one: a departure for an imported home, every relocation for HOMER+) credited to its
+    run's activity and to the clock slot of the step whose activity it is credited to (the step a
+    prediction of the next activity is for), the levels shrunk into each other as
+    :class:`HourActivityBaseline`'s,
 
         P(o | a, slot) = (n(a, slot, o) + k P(o | a)) / (n(a, slot) + k)
         P(o | a)       = (n(a, o) + k P(o)) / (n(a) + k)
@@ -251,29 +254,42 @@ class HourActivityObjects:
     so the mode of a seen (activity, slot) wins and the coarser levels break its ties. It ignores
     what moved earlier in the run: what a robot would know from the clock and the activity alone."""
 
+    _parameter_constraints = {"slot_minutes": int, "shrinkage": float}
     kind = "hour_activity_objects"
+    reads_clock = True  # trained on timed runs (:func:`~globe.sequences.runs.timed_run_objects`)
 
     def __init__(self, *, slot_minutes: int = 60, shrinkage: float = 0.5) -> None:
         self.slot_minutes = slot_minutes
         self.shrinkage = shrinkage
 
-    def get_params(self) -> dict[str, Any]:
-        return {"slot_minutes": self.slot_minutes, "shrinkage": self.shrinkage}
+    def fit(self, runs: Iterable[tuple[str, Sequence[str], Sequence[int]]]) -> "HourActivityObjects":
+        """Count ``runs`` from scratch: (activity, objects used in the run, the clock minute each
+        is credited to)."""
+        self._reset()
+        return self.partial_fit(runs)
 
-    def fit(self, uses: Iterable[tuple[str, int, str]]) -> "HourActivityObjects":
-        """Count ``uses``: (activity credited, clock minute of the step, object)."""
-        self.pair_: dict[tuple[str, int], Counter[str]] = {}
-        self.frequency_: dict[str, Counter[str]] = {}
-        self.overall_: Counter[str] = Counter()
-        for activity, minute, obj in uses:
-            self.pair_.setdefault((activity, minute // self.slot_minutes), Counter())[obj] += 1
-            self.frequency_.setdefault(activity, Counter())[obj] += 1
-            self.overall_[obj] += 1
+    def partial_fit(self, runs: Iterable[tuple[str, Sequence[str], Sequence[int]]]) -> "HourActivityObjects":
+        if not hasattr(self, "training_data_"):
+            self._validate_params()
+            self.training_data_: list[tuple[str, tuple[str, ...], tuple[int, ...]]] = []
+            self.pair_: dict[tuple[str, int], Counter[str]] = {}
+            self.frequency_: dict[str, Counter[str]] = {}
+            self.overall_: Counter[str] = Counter()
+        for activity, objects, minutes in runs:
+            objects, minutes = tuple(objects), tuple(minutes)
+            if len(objects) != len(minutes):
+                raise ValueError(f"a run of {activity!r} with {len(objects)} objects and {len(minutes)} minutes")
+            self.training_data_.append((activity, objects, minutes))
+            for obj, minute in zip(objects, minutes):
+                self.pair_.setdefault((activity, minute // self.slot_minutes), Counter())[obj] += 1
+                self.frequency_.setdefault(activity, Counter())[obj] += 1
+                self.overall_[obj] += 1
         self._answers: dict[tuple[str, int | None], dict[str, float]] = {}
         return self
 
     def candidates(self, activity: str) -> tuple[str, ...]:
         """O(a): every object used during ``activity`` in training, sorted."""
+        self._check_fitted()
         return tuple(sorted(self.frequency_.get(activity, ())))
 
     def recent_runs(self, activity: str, k: int) -> tuple[tuple[str, ...], ...]:
@@ -284,6 +300,7 @@ class HourActivityObjects:
                       ) -> dict[str, float]:
         """P(the object used | ``activity`` at clock ``minute``); without a minute, the activity's
         level. ``history`` is ignored. Memoised: the dict returned is shared, to be read only."""
+        self._check_fitted()
         slot = None if minute is None else minute // self.slot_minutes
         found = self._answers.get((activity, slot))
         if found is None:

@@ -26,7 +26,7 @@ from globe.data.records import Day, Node, map_fingerprint
 from globe.errors import DataError, GlobeError, ModelFileError
 from globe.models.activity import ActivityModel
 from globe.models.base import check_is_fitted
-from globe.models.baselines import PersistenceModel
+from globe.models.baselines import HourActivityObjects, PersistenceModel
 from globe.models.clock import ClockModel
 from globe.models.objects import ObjectModel
 from globe.models.routine import RoutineModel
@@ -39,14 +39,19 @@ MODEL_FILE = "model.json"
 LEGACY_FILES = ("activity.json", "objects.json")
 _TRAIN = "globe train --household NAME --model-dir DIR"
 MAX_MODEL_BYTES = 256 << 20
-_KINDS = {cls.kind: cls for cls in (ActivityModel, ClockModel, ObjectModel, PersistenceModel, RoutineModel)}
-_ACTIVITY_KINDS = frozenset(k for k in _KINDS if k != "object")
+_KINDS = {cls.kind: cls for cls in (ActivityModel, ClockModel, ObjectModel, HourActivityObjects, PersistenceModel,
+                                     RoutineModel)}
+_OBJECT_KINDS = frozenset({ObjectModel.kind, HourActivityObjects.kind})
+_TIMED = HourActivityObjects.kind  # its runs carry each object's clock minute
+_ACTIVITY_KINDS = frozenset(_KINDS) - _OBJECT_KINDS
 
 
 def model_to_dict(model: Any) -> dict[str, Any]:
     check_is_fitted(model)
     data = model.training_data_
-    if model.kind == "object":
+    if model.kind == _TIMED:
+        data = [[a, list(objs), list(minutes)] for a, objs, minutes in data]
+    elif model.kind in _OBJECT_KINDS:
         data = [[a, list(objs)] for a, objs in data]
     else:
         data = [list(d) for d in data]
@@ -66,6 +71,14 @@ def _is_labels(value: Any) -> bool:
     return isinstance(value, list) and all(isinstance(x, str) and 0 < len(x) <= MAX_LABEL and _fine(x) for x in value)
 
 
+MAX_MINUTE = 7 * 24 * 60  # a day may run past midnight; no step of a sane day is a week past its start
+
+
+def _is_minutes(value: Any) -> bool:
+    """A list of clock minutes: whole numbers (not bools) in 0..MAX_MINUTE."""
+    return isinstance(value, list) and all(type(m) is int and 0 <= m <= MAX_MINUTE for m in value)
+
+
 def _fine(label: str) -> bool:
     try:
         return activity_label(label) == label
@@ -78,12 +91,16 @@ def _check_data(kind: str, data: Any, source: str) -> None:
     if not isinstance(data, list):
         raise ModelFileError(f"{source}: malformed model file: 'data' is {type(data).__name__}, expected a list")
     for i, item in enumerate(data):
-        if kind == "object":
+        if kind == _TIMED:
+            ok = isinstance(item, list) and len(item) == 3 and _is_labels(item[:1]) and _is_labels(item[1]) \
+                and _is_minutes(item[2]) and len(item[2]) == len(item[1])
+        elif kind in _OBJECT_KINDS:
             ok = isinstance(item, list) and len(item) == 2 and _is_labels(item[:1]) and _is_labels(item[1])
         else:
             ok = _is_labels(item) and len(item) > 0
         if not ok:
-            expected = "[activity, [objects...]]" if kind == "object" else "a non-empty list of activity labels"
+            expected = ("[activity, [objects...], [minutes...]]" if kind == _TIMED else
+                        "[activity, [objects...]]" if kind in _OBJECT_KINDS else "a non-empty list of activity labels")
             raise ModelFileError(f"{source}: malformed model file: data[{i}] is not {expected}")
 
 
@@ -138,7 +155,7 @@ def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
         raise ModelFileError(f"{source}: malformed model file: no 'data'")
     _check_data(cls.kind, payload["data"], source)
     weekdays = payload.get("weekdays")
-    if weekdays is not None and (cls.kind == "object" or not isinstance(weekdays, list)
+    if weekdays is not None and (cls.kind in _OBJECT_KINDS or not isinstance(weekdays, list)
                                  or len(weekdays) != len(payload["data"])
                                  or not all(w is None or (type(w) is int and 0 <= w <= 6) for w in weekdays)):
         raise ModelFileError(f"{source}: malformed model file: 'weekdays' is not one day of the week (0-6 or null) "
@@ -146,7 +163,9 @@ def model_from_dict(payload: Any, source: str = "<dict>") -> Any:
     try:
         model: Any = cls(**params)
         data = payload["data"]
-        if cls.kind == "object":
+        if cls.kind == _TIMED:
+            return model.fit([(a, tuple(o), tuple(m)) for a, o, m in data])
+        if cls.kind in _OBJECT_KINDS:
             return model.fit([(a, tuple(o)) for a, o in data])
         return model.fit([tuple(d) for d in data], weekdays)
     except (GlobeError, TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError,
@@ -348,10 +367,10 @@ def load_household_model(model_dir: Path, *, fingerprint: str | None = None,
         raise ModelFileError(f"{src}: trained for household {name!r}, not {household!r}")
     activity = model_from_dict(payload.get("activity"), f"{src} (activity)")
     objects = model_from_dict(payload.get("objects"), f"{src} (objects)")
-    if activity.kind not in _ACTIVITY_KINDS or objects.kind != "object":
+    if activity.kind not in _ACTIVITY_KINDS or objects.kind not in _OBJECT_KINDS:
         raise ModelFileError(f"{src}: malformed model file: parts are {activity.kind!r} and {objects.kind!r}, "
                              "expected an activity model and an object model")
-    foreign = sorted({o for _, run in objects.training_data_ for o in run} - set(columns)) if columns else []
+    foreign = sorted({o for run in objects.training_data_ for o in run[1]} - set(columns)) if columns else []
     if foreign:
         raise ModelFileError(f"{src}: malformed model file: its object model names {foreign[0][:64]!r}, not an object "
                              "of the household (objects_columns)")

@@ -26,6 +26,7 @@ class ObjectModel(CountingModel):
 
     _parameter_constraints = {"estimator": ESTIMATORS, "max_order": int, "run_start_token": (True, False)}
     kind = "object"
+    reads_clock = False  # trained on (activity, objects) runs; the clock minute it is asked with is ignored
 
     def __init__(self, *, estimator: str = "longest", max_order: int = 109, run_start_token: bool = False) -> None:
         self.estimator = estimator
@@ -90,9 +91,11 @@ class ObjectModel(CountingModel):
         self._check_fitted()
         return tuple(sorted(self.frequency_.get(activity, ())))
 
-    def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]:
-        """Distribution over O(activity) of the next object, given the run's objects so far.
-        Memoised until the model learns (the protocol asks each context many times): the dict
+    def predict_proba(self, activity: str, history: Sequence[str] = (), minute: int | None = None
+                      ) -> dict[str, float]:
+        """Distribution over O(activity) of the next object, given the run's objects so far (the
+        clock ``minute`` is part of the object models' interface, unread here). Memoised until the
+        model learns (the protocol asks each context many times): the dict
         returned is shared, to be read and never modified."""
         self._check_fitted()
         key = (activity, tuple(history))

@@ -7,9 +7,12 @@ from typing import Callable, Mapping, Protocol, Sequence
 
 
 class NextObjectModel(Protocol):
-    """What choosers need of an object model (:class:`globe.models.objects.ObjectModel`)."""
+    """What choosers need of an object model (:class:`globe.models.objects.ObjectModel`, or the
+    object baseline :class:`globe.models.baselines.HourActivityObjects`, which reads ``minute``:
+    the clock minute of the step the activity is predicted for)."""
 
-    def predict_proba(self, activity: str, history: Sequence[str] = ()) -> dict[str, float]: ...
+    def predict_proba(self, activity: str, history: Sequence[str] = (), minute: int | None = None
+                      ) -> dict[str, float]: ...
 
     def ranked(self, activity: str, distribution: dict[str, float]) -> list[str]: ...
 
@@ -51,16 +54,17 @@ MIN_BELIEF = 1e-3  # activities less likely than this cannot change the mixed ob
 
 
 def object_distribution(model: NextObjectModel, activity: str, belief: Mapping[str, float] | None,
-                        context_for: ContextFor, marginal: bool) -> dict[str, float]:
+                        context_for: ContextFor, marginal: bool, minute: int | None = None) -> dict[str, float]:
     """The next-object distribution for the predicted ``activity``, or, with ``marginal``, mixed
-    over every activity the activity model finds possible: sum_a P(a) P(o | a, context(a))."""
+    over every activity the activity model finds possible: sum_a P(a) P(o | a, context(a)), at
+    the clock ``minute`` of the step predicted for (read by a model that reads the clock)."""
     if not marginal or not belief:
-        return model.predict_proba(activity, context_for(activity))
+        return model.predict_proba(activity, context_for(activity), minute)
     mixed: dict[str, float] = {}
     for a, pa in belief.items():
         if pa < MIN_BELIEF:
             continue
-        for o, po in model.predict_proba(a, context_for(a)).items():
+        for o, po in model.predict_proba(a, context_for(a), minute).items():
             mixed[o] = mixed.get(o, 0.0) + pa * po
     total = sum(mixed.values())
     return {o: p / total for o, p in mixed.items()} if total > 0 else {}
@@ -74,7 +78,8 @@ class ObjectChooser:
     model's whole distribution and, for any activity, the objects that count as context
     (the current run's objects if that activity continues the run, else none); ``ranking``,
     when given, is :meth:`ngram_ranking` of the same, computed once by an evaluation that asks
-    several choosers over the same models.
+    several choosers over the same models; ``minute``, the clock minute of the step the activity
+    is predicted for (the protocol's and the session's alike).
     """
 
     name = "ngram"
@@ -84,17 +89,18 @@ class ObjectChooser:
         self.model = model
         self.marginal = marginal
 
-    def ngram_ranking(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor) -> Ranking:
-        dist = object_distribution(self.model, activity, belief, context_for, self.marginal)
+    def ngram_ranking(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
+                      minute: int | None = None) -> Ranking:
+        dist = object_distribution(self.model, activity, belief, context_for, self.marginal, minute)
         return self.model.ranked(activity, dist), dist
 
     def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
-                     ranking: Ranking | None = None) -> ObjectChoice:
-        ranked, dist = ranking or self.ngram_ranking(activity, belief, context_for)
+                     ranking: Ranking | None = None, minute: int | None = None) -> ObjectChoice:
+        ranked, dist = ranking or self.ngram_ranking(activity, belief, context_for, minute)
         if not ranked:
             return ObjectChoice(None, 0.0)
         return ObjectChoice(ranked[0], dist[ranked[0]], ngram_choice=ranked[0])
 
-    def choose(self, activity: str, history: tuple[str, ...]) -> ObjectChoice:
+    def choose(self, activity: str, history: tuple[str, ...], minute: int | None = None) -> ObjectChoice:
         """The next object for a known activity and the objects moved so far in its run."""
-        return self.choose_given(activity, None, run_context(activity, history))
+        return self.choose_given(activity, None, run_context(activity, history), minute=minute)

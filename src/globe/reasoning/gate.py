@@ -43,8 +43,8 @@ class UncertaintyGate(ObjectChooser):
         return tuple(o for o in ranked[: self.top_k] if dist[o] > self.min_prob)
 
     def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
-                     ranking: Ranking | None = None) -> ObjectChoice:
-        ranked, dist = ranking or self.ngram_ranking(activity, belief, context_for)
+                     ranking: Ranking | None = None, minute: int | None = None) -> ObjectChoice:
+        ranked, dist = ranking or self.ngram_ranking(activity, belief, context_for, minute)
         if not ranked:
             return ObjectChoice(None, 0.0)
         top = ranked[0]
@@ -85,7 +85,7 @@ class LLMOnlyChooser(ObjectChooser):
         self.backend = backend
 
     def choose_given(self, activity: str, belief: Mapping[str, float] | None, context_for: ContextFor,
-                     ranking: Ranking | None = None) -> ObjectChoice:
+                     ranking: Ranking | None = None, minute: int | None = None) -> ObjectChoice:
         candidates = tuple(sorted(self.model.candidates(activity)))
         if not candidates:
             return ObjectChoice(None, 0.0)

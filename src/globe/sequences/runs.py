@@ -69,10 +69,34 @@ def run_objects(day: Day, objects: tuple[str, ...], alignment: Alignment = "prev
     events: what the models count, a third of the time. ``moves``: the day's moved steps, when
     the caller has them."""
     acts = day.activities
+    return [(acts[s], moved) for s, _, moved in _per_run(acts, _credited(day, objects, alignment, moves))]
+
+
+def timed_run_objects(day: Day, objects: tuple[str, ...], alignment: Alignment = "previous",
+                      moves: Moves | None = None) -> list[tuple[str, tuple[str, ...], tuple[int, ...]]]:
+    """:func:`run_objects` with, per object, the clock minute of the step whose activity it is
+    credited to: what an object model that reads the clock counts
+    (:class:`~globe.models.baselines.HourActivityObjects`)."""
+    acts, minutes = day.activities, day.minutes
+    timed = {s: [(o, minutes[s]) for o in moved] for s, moved in _credited(day, objects, alignment, moves).items()}
+    return [(acts[s], tuple(o for o, _ in used), tuple(m for _, m in used)) for s, _, used in _per_run(acts, timed)]
+
+
+def object_runs(days: Sequence[Day], objects: tuple[str, ...], alignment: Alignment, timed: bool,
+                moves: Sequence[Moves] | None = None) -> list[tuple]:
+    """What an object model counts of ``days``: :func:`run_objects`, or :func:`timed_run_objects`
+    for a model that reads the clock (``timed``); ``moves``: each day's moved steps, when known."""
+    runs = timed_run_objects if timed else run_objects
+    found = [None] * len(days) if moves is None else moves
+    return [run for d, m in zip(days, found) for run in runs(d, objects, alignment, m)]
+
+
+def _credited(day: Day, objects: tuple[str, ...], alignment: Alignment, moves: Moves | None) -> dict[int, list[str]]:
+    """The objects used, by the step whose activity each is credited to."""
     by_step: dict[int, list[str]] = defaultdict(list)
     for t, moved in moved_steps(day, objects) if moves is None else moves:
-        by_step[activity_step_for(acts, t, alignment, day.covering)].extend(moved)
-    return [(acts[s], moved) for s, _, moved in _per_run(acts, by_step)]
+        by_step[activity_step_for(day.activities, t, alignment, day.covering)].extend(moved)
+    return by_step
 
 
 @dataclass(frozen=True, slots=True)

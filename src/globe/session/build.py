@@ -99,8 +99,10 @@ def activity_model_summary(models: ModelConfig) -> str:
 def deployment_summary(deployment: Deployment) -> str:
     """What a household runs, in words: its activity and object models and how they were chosen."""
     d = deployment
-    objects = "Witten-Bell" if d.models.object_estimator == "witten_bell" else "longest-context"
+    estimator = "Witten-Bell" if d.models.object_estimator == "witten_bell" else "longest-context"
+    objects = "the most frequent use given the hour and the activity" if d.models.object_model == "hour_activity" \
+        else f"a {estimator} n-gram per activity"
     how = "chosen by cross-validation on its training days" if d.cross_validated else "as configured"
     note = f" ({d.note})" if d.note else ""
     fetch = "; fetches by the clock-aware uses model" if d.fetch_objects == "clock" else ""
-    return f"{activity_model_summary(d.models)}; objects by a {objects} n-gram per activity{fetch}; {how}{note}"
+    return f"{activity_model_summary(d.models)}; objects by {objects}{fetch}; {how}{note}"

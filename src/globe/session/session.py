@@ -74,7 +74,7 @@ from globe.models.baselines import HourActivityBaseline, minutes_since_use, mode
 from globe.reasoning.choice import ObjectChooser, run_context
 from globe.recognition.asking import DayAsker
 from globe.sequences.movements import Alignment, used_between
-from globe.sequences.runs import activity_runs
+from globe.sequences.runs import activity_runs, object_runs
 from globe.session.grid import DayGrid
 from globe.session.recognising import SensorSteps
 from globe.session.records import Decision, NewActivities, Observation, Placement, Settled, instant
@@ -432,7 +432,8 @@ class HouseholdSession(SensorSteps):
             return nothing
         nxt, probability = top
         activity, objects = self._current_run()
-        choice = self.chooser.choose_given(nxt, self.belief(), run_context(activity, objects))
+        choice = self.chooser.choose_given(nxt, self.belief(), run_context(activity, objects),
+                                           minute=self.grid.minute(step))
         fetches, candidates, alone = self._fetches()
         return Decision(self.status, self.days_learned, self._day or "", step, nxt, probability, choice, fetches,
                         candidates, alone, found, labelled, recognised, question)
@@ -442,7 +443,7 @@ class HouseholdSession(SensorSteps):
         probabilities, given the objects already moved in the run under way (``run``: as the
         objects of a run of ``activity``; default: today's)."""
         context = run_context(activity, tuple(run)) if run is not None else run_context(*self._current_run())
-        return self.chooser.ngram_ranking(activity, self.belief(), context)
+        return self.chooser.ngram_ranking(activity, self.belief(), context, self.grid.minute(len(self._labels)))
 
     def _current_run(self) -> tuple[str | None, tuple[str, ...]]:
         """The activity under way and the objects moved in its run so far (the runs of the day
@@ -560,8 +561,8 @@ class HouseholdSession(SensorSteps):
         """Add whole days to every model (the same counts as training on them from the start)."""
         objects = self.household.objects
         self.activity_model.partial_fit([d.activities for d in days], [d.weekday for d in days])
-        runs = [r for d in days for r in activity_runs(d, objects, self.alignment)]
-        self.chooser.model.partial_fit([(r.activity, r.objects) for r in runs])  # type: ignore[attr-defined]
+        model = self.chooser.model
+        model.partial_fit(object_runs(days, objects, self.alignment, model.reads_clock))  # type: ignore[attr-defined]
         self.emission.partial_fit(days, objects)
         self.policy.learn(days)
         self.hour_activity.partial_fit(days)
