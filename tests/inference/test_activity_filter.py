@@ -11,7 +11,7 @@ import pytest
 from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Day
-from globe.inference.activity_filter import ActivityFilter, as_dicts, filtered_beliefs, label_mask
+from globe.inference.activity_filter import ActivityFilter, HistoryMemo, as_dicts, filtered_beliefs, label_mask
 from globe.inference.emission import MovementEmission
 from globe.models.activity import ActivityModel
 from globe.models.baselines import PersistenceModel
@@ -245,6 +245,32 @@ def test_beliefs_are_distributions_without_labels(households):
     assert 0 < len(kept) <= 16 and sum(hyp.weight for hyp in kept) == pytest.approx(1.0)
     assert all(len(hyp.history) == len(day) for hyp in kept)
     assert [hyp.weight for hyp in kept] == sorted((hyp.weight for hyp in kept), reverse=True)
+
+
+def test_histories_read_through_a_memo_are_the_histories_read_whole(households):
+    """A session reads the most probable history at every step and a forecast the few most
+    probable: through one :class:`HistoryMemo` each read walks back only to where it meets the
+    last one; every history equals the one walked whole, whichever entries are read in turn, and
+    a belief recomputed from an earlier step (a label arriving late) shares nothing it changed."""
+    h = households["B"]
+    model = RoutineModel().fit([d.activities for d in h.train])
+    emission = MovementEmission(previous_share=0.5, weight=0.5).fit(h.train, h.objects)
+    day = h.test[0]
+    flt = ActivityFilter(model, emission, max_hypotheses=16)
+    moved = moved_objects(day, h.objects)
+    memo, beliefs = HistoryMemo(), [flt.start()]
+    rng = np.random.default_rng(0)
+    for t in range(len(day)):
+        beliefs.append(flt.update(beliefs[-1], t, None, [moved[t]]))
+        belief = beliefs[-1]
+        entries = [int(np.argmax(belief.beam.weight)), *rng.integers(0, len(belief.beam.weight), 2).tolist()]
+        for entry in entries:
+            assert flt.history(belief, entry, memo=memo) == flt.history(belief, entry)
+        top = flt.top_histories(belief, 4, memo=memo)
+        assert [hyp.history for hyp in top] == [hyp.history for hyp in flt.top_histories(belief, 4)]
+    again = flt.update(beliefs[20], 20, [day.activities[20]], [moved[20]])  # step 20 read again, now labelled
+    entry = int(np.argmax(again.beam.weight))
+    assert flt.history(again, entry, memo=memo) == flt.history(again, entry) and memo.beams is again.beams
 
 
 def _day(name, activities, cup, plate):

@@ -53,6 +53,29 @@ def test_object_baseline_ties_go_to_the_coarser_level():
     assert model.predict("meal", minute=420) == "fridge"  # 1:1 at 07:xx, fridge ahead over the activity
 
 
+def test_last_uses_read_step_by_step_are_minutes_since_use_of_the_day_so_far():
+    """A session reads each object's minutes since its last use at every step of a growing day
+    (:class:`LastUses` folds the final steps once); each read equals the whole day's pass, the step
+    under way read afresh (its uses may still change), a new day's list starting over."""
+    import numpy as np
+
+    from globe.models.baselines import LastUses, minutes_since_use
+
+    objects = ("kettle", "fridge", "cup")
+    rng = np.random.default_rng(1)
+    minute = lambda s: 360 + 10 * s  # noqa: E731
+    last = LastUses({o: i for i, o in enumerate(objects)})
+    for _day in range(2):
+        uses: list[frozenset[str]] = []
+        for t in range(40):
+            uses.append(frozenset(o for o in objects if rng.random() < 0.1))
+            for _again in range(2):  # the step under way observed twice, its uses changed
+                used = np.array([[o in u for o in objects] for u in uses], dtype=bool)
+                want = minutes_since_use(used, [minute(s) for s in range(t + 1)])[-1]
+                assert last.since(uses, t, minute).tolist() == want.tolist()
+                uses[t] = frozenset(o for o in objects if rng.random() < 0.1)
+
+
 def test_ahead_counts_the_share_of_references_with_the_event_and_backs_off():
     ahead = HourActivityAhead(("kettle", "fridge"), 2, shrinkage=1e-9)
     events = np.array([[[True, False], [True, True]], [[False, False], [True, False]]])

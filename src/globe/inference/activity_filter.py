@@ -201,24 +201,60 @@ class ActivityFilter:
             out.append(Hypothesis(float(beam.weight[i]), self.history(belief, i)))
         return out
 
-    def top_histories(self, belief: Belief, most: int, query: int = 0) -> list[Hypothesis]:
+    def top_histories(self, belief: Belief, most: int, query: int = 0,
+                      memo: "HistoryMemo | None" = None) -> list[Hypothesis]:
         """The ``most`` most probable histories a_0..a_step of day ``query`` (ties: in history
-        order), their weights renormalised over those kept: what a forecast mixes over."""
+        order), their weights renormalised over those kept: what a forecast mixes over. They
+        share most of their past, so each is read through one ``memo`` (:meth:`history`)."""
         beam = belief.beam
         mine = np.flatnonzero(beam.query == query)
         order = mine[np.lexsort((beam.lex[mine], -tie_key(beam.weight[mine])))][:most]
         total = float(beam.weight[order].sum())
-        return [Hypothesis(float(beam.weight[i]) / total, self.history(belief, int(i))) for i in order.tolist()]
+        memo = HistoryMemo() if memo is None else memo
+        return [Hypothesis(float(beam.weight[i]) / total, self.history(belief, int(i), memo=memo, keep=k == 0))
+                for k, i in enumerate(order.tolist())]
 
-    def history(self, belief: Belief, entry: int, steps: int | None = None) -> tuple[str, ...]:
-        """The activities of the last beam's ``entry``, the first ``steps`` of them (all: None)."""
-        codes = []
-        for beam in reversed(belief.beams[1:]):
-            codes.append(int(beam.act[entry]))
+    def history(self, belief: Belief, entry: int, steps: int | None = None,
+                memo: "HistoryMemo | None" = None, keep: bool = True) -> tuple[str, ...]:
+        """The activities of the last beam's ``entry``, the first ``steps`` of them (all: None).
+        With ``memo`` (the last history read through it), the walk back stops where this history
+        meets that one: a session reading its most probable history at every step walks a step
+        or two, not the whole day; ``keep=False`` leaves the memo as it was (the histories that
+        branch off the most probable one are read against it)."""
+        if memo is None:
+            memo = HistoryMemo()
+        beams, names = belief.beams, self.space.labels
+        level, found = len(beams) - 1, []
+        while level >= 1 and not (level < len(memo.beams) and memo.beams[level] is beams[level]
+                                  and memo.entries[level - 1] == entry):
+            beam = beams[level]
+            found.append((entry, names[int(beam.act[entry])]))
             entry = int(beam.parent[entry])
-        names = self.space.labels
-        history = tuple(names[c] for c in reversed(codes))
+            level -= 1
+        if not keep:
+            history = (*memo.names[:level], *(name for _, name in reversed(found)))
+            return history if steps is None else history[:steps]
+        del memo.entries[level:], memo.names[level:]
+        for entry, name in reversed(found):
+            memo.entries.append(entry)
+            memo.names.append(name)
+        memo.beams = beams
+        history = tuple(memo.names)
         return history if steps is None else history[:steps]
+
+
+class HistoryMemo:
+    """The last history :meth:`ActivityFilter.history` read through it: the beams it was read
+    from and, per step, the entry and the activity of its path. Histories of one growing belief
+    share their past (its beams are kept, never changed), so two paths that pass through the
+    same entry of the same beam agree on every step before it."""
+
+    __slots__ = ("beams", "entries", "names")
+
+    def __init__(self) -> None:
+        self.beams: tuple[Beam, ...] = ()
+        self.entries: list[int] = []
+        self.names: list[str] = []
 
 
 def _with_likelihood(evidence: Evidence | None, likelihood: np.ndarray, queries: int, width: int) -> Evidence:

@@ -73,13 +73,12 @@ class TreeBatch:
     def activity(self, q: int) -> tuple[dict[str, float], ...]:
         """P(activity at m + k) for k = 0..horizon of query ``q``."""
         out: list[dict[str, float]] = []
+        names = self.names
         for level in self.levels[: self.horizon + 1]:
             lo, hi = np.searchsorted(level.query, [q, q + 1])
-            marg: dict[str, float] = {}
-            for a, w in zip(level.act[lo:hi].tolist(), level.weight[lo:hi].tolist()):
-                name = self.names[a]
-                marg[name] = marg.get(name, 0.0) + w
-            out.append(marg)
+            acts = level.act[lo:hi]
+            sums = np.bincount(acts, weights=level.weight[lo:hi]).tolist()  # summed in entry order, as one by one
+            out.append({names[a]: sums[a] for a in dict.fromkeys(acts.tolist())})  # in the order first seen
         return tuple(out)
 
     def activity_matrix(self) -> np.ndarray:
@@ -92,8 +91,17 @@ class TreeBatch:
         return out
 
 
+SMALL = 160
+"""Below this many keys a dict finds the first-seen order faster than sorting them (a session's
+forecast asks for it at every level of every step, each time over a few dozen paths)."""
+
+
 def _first_seen(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(the distinct keys in the order they first appear, each element's index into them)."""
+    if keys.ndim == 1 and len(keys) <= SMALL:
+        index: dict[int, int] = {}
+        where = [index.setdefault(k, len(index)) for k in keys.tolist()]
+        return np.array(list(index), dtype=keys.dtype), np.array(where, dtype=np.int64)
     uniq, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     order = np.argsort(first, kind="stable")
     rank = np.empty(len(uniq), dtype=np.int64)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections import Counter
 from itertools import repeat
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Callable, Collection, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -340,6 +340,33 @@ def minutes_since_use(used: np.ndarray, minutes: Sequence[int]) -> np.ndarray:
     last = np.maximum.accumulate(np.where(used, steps, -1), axis=0) if len(used) else np.zeros_like(used, dtype=int)
     clock = np.asarray(minutes, dtype=float)
     return np.where(last >= 0, clock[:, None] - clock[np.maximum(last, 0)], -1.0)
+
+
+class LastUses:
+    """The last row of :func:`minutes_since_use` for a day that grows step by step, each step's
+    uses final once a later step exists (a household session's day): the steps before ``t`` are
+    folded in once, so reading it at every step costs the new steps, not the whole day."""
+
+    def __init__(self, index: Mapping[str, int]) -> None:
+        self.index = index  # object -> column
+        self.uses: Sequence[Collection[str]] | None = None  # the day folded (its list of per-step uses)
+        self.folded = 0  # steps 0..folded-1 are in ``last``
+        self.last = np.full(len(index), -1, dtype=np.int64)  # each object's last use step among them
+
+    def since(self, uses: Sequence[Collection[str]], t: int, minute: Callable[[int], int]) -> np.ndarray:
+        """Minutes from each object's last use at or before step ``t`` to step ``t``'s clock
+        ``minute(t)``; -1 before its first use (``uses[s]``: the objects used at step s)."""
+        if uses is not self.uses or self.folded > t:
+            self.uses, self.folded, self.last = uses, 0, np.full(len(self.index), -1, dtype=np.int64)
+        for s in range(self.folded, t):
+            for obj in uses[s]:
+                self.last[self.index[obj]] = s
+        self.folded = t
+        last = self.last.copy()
+        for obj in uses[t]:
+            last[self.index[obj]] = t
+        clock = float(minute(t))
+        return np.array([clock - minute(s) if s >= 0 else -1.0 for s in last.tolist()])
 
 
 def since_band(since: np.ndarray) -> np.ndarray:

@@ -217,9 +217,13 @@ class ClockStates(StateSpace):
         slots = self._model.slot(step)
         out = np.empty((len(states), len(self.labels)))
         keys = (kind << 32) | slots
-        for key in np.unique(keys).tolist():
-            mine = keys == key
-            out[mine] = self._typed_table(key >> 32, key & 0xFFFFFFFF)[previous[mine]]
+        if len(keys) and (keys == keys[0]).all():  # a filter's step: every state at one slot of one day type
+            key = int(keys[0])
+            out[:] = self._typed_table(key >> 32, key & 0xFFFFFFFF)[previous]
+        else:
+            for key in np.unique(keys).tolist():
+                mine = keys == key
+                out[mine] = self._typed_table(key >> 32, key & 0xFFFFFFFF)[previous[mine]]
         floor = self._model.floor
         if floor > 0:
             if self._unigram is None or len(self._unigram) != len(self.labels):

@@ -172,7 +172,7 @@ class SensorSteps:
 
     def step_counts(self) -> tuple[int, int]:
         """(today's labelled steps, today's steps recognised from the sensors) up to the last observed."""
-        labelled = sum(a is not None for a in self._labels)
+        labelled = len(self._labels) - self._labels.count(None)
         return labelled, (len(self._labels) - labelled if self.sensing is not None and self._filter is not None else 0)
 
     def _learn_sensors(self) -> None:

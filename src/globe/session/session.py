@@ -58,7 +58,7 @@ from globe.data.labels import known_activity
 from globe.data.records import Day, Household
 from globe.data.sensors import SensorDay
 from globe.errors import DataError, UnknownLabelError
-from globe.inference.activity_filter import ActivityFilter, Belief, as_dicts
+from globe.inference.activity_filter import ActivityFilter, Belief, HistoryMemo, as_dicts
 from globe.inference.emission import MovementEmission
 from globe.inference.fetch_policy import (
     FetchCandidate,
@@ -70,7 +70,7 @@ from globe.inference.fetch_policy import (
 )
 from globe.inference.forecast import Forecast, mixture
 from globe.models.base import ActivityModelBase, stay_or_change
-from globe.models.baselines import HourActivityBaseline, minutes_since_use, mode
+from globe.models.baselines import HourActivityBaseline, LastUses, mode
 from globe.reasoning.choice import ObjectChooser, run_context
 from globe.recognition.asking import DayAsker
 from globe.sequences.movements import Alignment, used_between
@@ -238,7 +238,9 @@ class HouseholdSession(SensorSteps):
         if self._filter is None:
             return None
         if self._stale is not None:
-            kept = [b for b in self._beliefs if b.step < self._stale]
+            kept = self._beliefs  # in step order: those the stale steps changed are dropped from the end
+            while kept and kept[-1].step >= self._stale:
+                kept.pop()
             sensing = self.sensing
             features = None if sensing is None else sensing.features(
                 self._today_events(), [self.grid.minute(t) for t in range(self._stale, len(self._labels))])
@@ -303,7 +305,7 @@ class HouseholdSession(SensorSteps):
             return tuple(self._labels)  # type: ignore[arg-type]
         belief = self._filtered()
         if self._filter is not None and belief is not None and belief.step >= 0:
-            return self._filter.history(belief, int(np.argmax(belief.beam.weight)))
+            return self._filter.history(belief, int(np.argmax(belief.beam.weight)), memo=self._history_memo)
         return _nearest_labels(self._labels)
 
     def current_day(self) -> Day:
@@ -448,12 +450,13 @@ class HouseholdSession(SensorSteps):
     def _current_run(self) -> tuple[str | None, tuple[str, ...]]:
         """The activity under way and the objects moved in its run so far (the runs of the day
         from two steps before it began: which activity a movement belongs to looks one step away)."""
-        day = self.current_day()
-        start = len(day) - 1
-        while start > 0 and day.activities[start - 1] == day.activities[-1]:
+        acts = self.activity_history()
+        start = len(acts) - 1
+        while start > 0 and acts[start - 1] == acts[-1]:
             start -= 1
         lo = max(0, start - 2)
-        tail = Day(day.name, day.minutes[lo:], day.activities[lo:], day.locations[lo:])
+        minutes = tuple(range(self.grid.minute(lo), self.grid.minute(len(acts)), self.grid.step_minutes))
+        tail = Day(f"live/{self._day}", minutes, acts[lo:], tuple(self._states[lo:]))
         runs = activity_runs(tail, self.household.objects, self.alignment)
         return (runs[-1].activity, runs[-1].objects) if runs else (None, ())
 
@@ -485,10 +488,8 @@ class HouseholdSession(SensorSteps):
         its last use today: the uses seen so far)."""
         since = np.empty(0)
         uses = self.policy.uses
-        if uses is not None and uses.clock:  # read only by the clock-aware uses model (a whole day's pass)
-            minutes = [self.grid.minute(s) for s in range(t + 1)]
-            used = np.array([[o in u for o in self.household.objects] for u in self._uses[: t + 1]], dtype=bool)
-            since = minutes_since_use(used.reshape(t + 1, len(self.household.objects)), minutes)[-1]
+        if uses is not None and uses.clock:  # read only by the clock-aware uses model
+            since = self._last_uses.since(self._uses, t, self.grid.minute)
         activity = self._labels[t] or next(reversed(self.activity_history()), "")
         return FetchContext(activity, self.grid.minute(t), self.weekday, since, self.forecast)
 
@@ -502,7 +503,7 @@ class HouseholdSession(SensorSteps):
         if self._filter is None or belief is None:
             histories, weights = [self.activity_history()], np.ones(1)
         else:
-            found = self._filter.top_histories(belief, self.forecast_hypotheses)
+            found = self._filter.top_histories(belief, self.forecast_hypotheses, memo=self._history_memo)
             histories, weights = [h.history for h in found], np.array([h.weight for h in found])
         many = fc.forecast_many([(h, states) for h in histories], horizon, weekdays=[self.weekday] * len(histories))
         return mixture(many, weights)
@@ -529,6 +530,8 @@ class HouseholdSession(SensorSteps):
         self._belief_dist = None
         self._filter = None
         self._beliefs, self._stale = [], None
+        self._history_memo = HistoryMemo()  # the most probable history read last (its walk back stops there)
+        self._last_uses = LastUses(self._object_index)
         self._events: list[tuple[int, float, float]] = []  # today's sensor activations (sensor, start, end)
         self._sensor_day = None
         self._asker = None
