@@ -80,9 +80,13 @@ def fitted_objects(household: Household, fold: Fold | None, models: ModelConfig,
                    memo: Memo) -> ObjectModel | HourActivityObjects:
     model = assembly.object_model(models)
     key = FitKey(type(model).__name__, DataKey.of(household), fold, frozen_params(model.get_params()), alignment)
-    days = household.train if fold is None else fold_days(household, fold)[0]
-    return memo.get(key, lambda: assembly.fit_object_model(models, household, days, cast(Alignment, alignment),
-                                                           sequences(household, fold, alignment, memo)))
+
+    def fit() -> ObjectModel | HourActivityObjects:
+        days = household.train if fold is None else fold_days(household, fold)[0]
+        return assembly.fit_object_model(models, household, days, cast(Alignment, alignment),
+                                         sequences(household, fold, alignment, memo))
+
+    return memo.get(key, fit)
 
 
 class ScanMemo:

@@ -196,10 +196,9 @@ class ActivityFilter:
     def hypotheses(self, belief: Belief, query: int = 0) -> list[Hypothesis]:
         """The weighted histories a_0..a_step kept for day ``query`` (most probable first)."""
         beam = belief.beam
-        out = []
-        for i in np.flatnonzero(beam.query == query).tolist():
-            out.append(Hypothesis(float(beam.weight[i]), self.history(belief, i)))
-        return out
+        memo = HistoryMemo()  # they share most of their past: each is read against the first
+        return [Hypothesis(float(beam.weight[i]), self.history(belief, i, memo=memo, keep=k == 0))
+                for k, i in enumerate(np.flatnonzero(beam.query == query).tolist())]
 
     def top_histories(self, belief: Belief, most: int, query: int = 0,
                       memo: "HistoryMemo | None" = None) -> list[Hypothesis]:
@@ -221,8 +220,8 @@ class ActivityFilter:
         meets that one: a session reading its most probable history at every step walks a step
         or two, not the whole day; ``keep=False`` leaves the memo as it was (the histories that
         branch off the most probable one are read against it)."""
-        if memo is None:
-            memo = HistoryMemo()
+        if memo is None:  # nothing read before: the whole walk, nothing kept
+            memo, keep = HistoryMemo(), False
         beams, names = belief.beams, self.space.labels
         level, found = len(beams) - 1, []
         while level >= 1 and not (level < len(memo.beams) and memo.beams[level] is beams[level]
