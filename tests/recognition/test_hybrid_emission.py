@@ -103,14 +103,16 @@ def test_cross_validation_offers_the_discriminative_emission_over_the_features_n
             return super().fit(*args, **kwargs)
     monkeypatch.setattr(R, "Recogniser", Spy)
     chosen = R.choose_settings(home.train, sensors, 10)
-    first = [s for s in tried if s.emission == "naive_bayes"]
-    later = [s for s in tried if s.emission == "discriminative"]
+    first = [s for s in tried if s.emission == "naive_bayes" and not s.edges]
+    later = [s for s in tried if s.emission == "discriminative" and not s.edges]
     assert set(first) == set(R.candidates()) and all(s.emission == "naive_bayes" for s in R.candidates())
     assert tried.index(later[0]) > max(tried.index(s) for s in first)  # offered after the first search
+    edged = {s for s in tried if s.edges}  # then the evidence on changes, over the one chosen so far
+    assert len(edged) == 1 and min(tried.index(s) for s in edged) > tried.index(later[0])
     assert chosen.emission in ("naive_bayes", "discriminative")
     tried.clear()
     naive = R.choose_settings(home.train, sensors, 10, options=R.candidates())  # a search of one's own: as asked
-    assert {s.emission for s in tried} == {"naive_bayes"}
+    assert {s.emission for s in tried} == {"naive_bayes"} and not any(s.edges for s in tried)
     assert set(later) == {replace(naive, emission="discriminative")}  # one: naive Bayes's features and weight
 
 

@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import datetime as dt
 from collections import Counter
+from dataclasses import replace
 
 import pytest
 
 from globe.config import Deployment, GlobeConfig
 from globe.errors import DataError, UnknownLabelError
+from globe.inference.activity_filter import as_dicts
 from globe.recognition.recogniser import RecognitionSettings
 from globe.session import Observation, build_session
 from globe.session.sensing import SensorEvent, settings_from_dict, settings_to_dict
@@ -117,3 +119,26 @@ def test_the_settings_travel_as_json():
     assert settings_from_dict(settings_to_dict(SETTINGS)) == SETTINGS
     with pytest.raises(ValueError):
         settings_from_dict({"features": ["smell"]})
+
+
+def test_with_evidence_on_changes_a_day_reported_late_reads_as_one_reported_live(home):
+    """Each step's features are also evidence on the change into the next step: a session that
+    gets the day's activations only with its last observation re-reads every step and recognises
+    each as the session that got them step by step; the next activity it expects takes the last
+    step's evidence on the change after it."""
+    h, sensors = home
+    edged = replace(SETTINGS, edges=True)
+    day, midnight = h.test[0], dt.datetime(2026, 3, 2)
+    sessions = [build_session(h, CFG, Deployment.configured(CFG, "ngram"), None, sensors=sensors,
+                              recognition=edged, questions_per_day=0, learn=False) for _ in range(2)]
+    live_one, late = sessions
+    assert live_one.sensing.edges is not None and live_one.sensing.edges.training_data_ > 0
+    events = [step_events(sensors, day, t, midnight) for t in range(len(day))]
+    for t, minute in enumerate(day.minutes):
+        at = midnight + dt.timedelta(minutes=minute)
+        live_one.observe(Observation(at, None, {}, events[t]))
+        last = t == len(day) - 1
+        late.observe(Observation(at, None, {}, [e for step in events for e in step] if last else []))
+    assert late.recognised_today() == live_one.recognised_today()
+    assert late.belief() == live_one.belief()
+    assert live_one.belief() != as_dicts(live_one._filter.predictive(live_one._filtered()), live_one._filter.labels)[0]

@@ -132,9 +132,10 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
     Bayes's weight because the weight tempers more than sensors firing together: at short steps
     the same reading repeats over many steps, evidence neither emission counts once (measured,
     1-minute steps, 7 labelled days: untempered, test-day time-slice accuracy 0.784; at naive
-    Bayes's weight 0.898); then whether self-training on the ``unlabelled`` days beats the
-    one chosen beyond noise. With fewer than two labelled days, nothing to hold out: the first
-    option, the default."""
+    Bayes's weight 0.898); then, by the same rule, the one chosen reading each step's features
+    also as evidence on the change after it (``edges``: :class:`~globe.recognition.edges.SensorEdges`);
+    then whether self-training on the ``unlabelled`` days beats the one chosen beyond noise. With
+    fewer than two labelled days, nothing to hold out: the first option, the default."""
     return _searched(labelled, sensors, step_minutes, unlabelled, options, reading)[0]
 
 
@@ -153,7 +154,7 @@ def _searched(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, u
               ) -> tuple[RecognitionSettings, list[float]]:
     """:func:`choose_settings`' choice and its held-out scores, fold by fold (none with fewer than
     two labelled days)."""
-    offer_discriminative = options is None
+    default_search = options is None
     options = list(options or candidates())
     if len(labelled) < 2:
         return options[0], []
@@ -163,10 +164,14 @@ def _searched(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, u
                          lambda fitted, days: _score(fitted, days, smooth=reading == "hindsight"))
     first = [(settings, per_fold(settings)) for settings in options]
     chosen = best_beyond_noise(first)
-    if offer_discriminative and chosen.emission == "naive_bayes" and hybrid.available():
+    if default_search and chosen.emission == "naive_bayes" and hybrid.available():
         other = replace(chosen, emission="discriminative")  # at naive Bayes's weight (see the doc)
         first.append((other, per_fold(other)))
         chosen = best_beyond_noise(first)  # by the same rule: against the default, the best mean beyond noise
+    if default_search and not chosen.edges:
+        edged = replace(chosen, edges=True)
+        first.append((edged, per_fold(edged)))
+        chosen = best_beyond_noise(first)
     kept = next(f for f in first if f[0] == chosen)
     if not unlabelled or chosen.self_training:
         return kept

@@ -109,19 +109,23 @@ class ActivityFilter:
                       None if emissions is None else tuple(emissions))
 
     def update(self, belief: Belief, step: int, labels: Sequence[str | None] | None = None,
-               moved: Sequence[Moved] | None = None, likelihood: np.ndarray | None = None) -> Belief:
+               moved: Sequence[Moved] | None = None, likelihood: np.ndarray | None = None,
+               edges: np.ndarray | None = None) -> Belief:
         """``belief`` conditioned on what was seen at ``step`` in each day (see the class doc);
         ``likelihood`` (days x :attr:`labels`, at most 1): other evidence of the activity at
         ``step`` in each day, such as what the home's sensors showed
-        (:class:`~globe.recognition.emission.SensorEmission`)."""
+        (:class:`~globe.recognition.emission.SensorEmission`); ``edges`` (days x :attr:`labels`
+        x :attr:`labels`, at most 1): evidence on each change from the activity at the step before
+        to the one at ``step``, such as what the step before showed of the change
+        (:class:`~globe.recognition.edges.SensorEdges`)."""
         if step <= belief.step:
             raise ValueError(f"step {step} is not after the last updated step {belief.step}")
         while belief.step + 1 < step:
             belief = self._advance(belief, None, None)
-        return self._advance(belief, labels, moved, likelihood)
+        return self._advance(belief, labels, moved, likelihood, edges)
 
     def _advance(self, belief: Belief, labels: Sequence[str | None] | None, moved: Sequence[Moved] | None,
-                 likelihood: np.ndarray | None = None) -> Belief:
+                 likelihood: np.ndarray | None = None, edges: np.ndarray | None = None) -> Belief:
         space, beam = self.space, belief.beam
         pinned = None
         if labels is not None:
@@ -133,6 +137,8 @@ class ActivityFilter:
         if likelihood is not None:
             evidence = _with_likelihood(evidence, np.asarray(likelihood, dtype=np.float64), belief.queries,
                                         len(space.labels))
+        if edges is not None and belief.step >= 0:
+            evidence = _with_edges(evidence, np.asarray(edges, dtype=np.float64), belief.queries, len(space.labels))
         nxt = advance(beam, space, merge=True, floor=self.min_weight, keep=self.max_hypotheses, rows=rows,
                       evidence=evidence, labels=pinned)
         same = nxt.act == beam.act[nxt.parent]
@@ -176,10 +182,18 @@ class ActivityFilter:
         return Belief(belief.step, len(pick), (part,), belief.duration[mine], emissions)
 
     # -- reading a belief ----------------------------------------------------------------------
-    def predictive(self, belief: Belief) -> np.ndarray:
-        """(days x labels): P(the activity at the next step | everything seen so far)."""
+    def predictive(self, belief: Belief, edges: np.ndarray | None = None) -> np.ndarray:
+        """(days x labels): P(the activity at the next step | everything seen so far); ``edges``
+        (days x labels x labels, as :meth:`update` takes them): what the last step showed of each
+        change after it, which the next update would take in."""
         beam = belief.beam
         rows = self.space.rows(beam.state) * beam.weight[:, None]
+        if edges is not None and belief.step >= 0:
+            e = np.asarray(edges, dtype=np.float64)
+            k = e.shape[1]
+            rows = rows.copy()
+            here = (beam.act >= 0) & (beam.act < k)
+            rows[here, :k] *= e[beam.query[here], beam.act[here]]
         out = np.zeros((belief.queries, rows.shape[1]))
         np.add.at(out, beam.query, rows)
         total = out.sum(axis=1, keepdims=True)
@@ -264,6 +278,18 @@ def _with_likelihood(evidence: Evidence | None, likelihood: np.ndarray, queries:
         else:
             raise ValueError(f"likelihoods of shape {likelihood.shape} for {queries} days and {width} activities")
     rows = np.broadcast_to(likelihood[:, None, :], (queries, width + 1, width))
+    if evidence is None:
+        return Evidence(np.concatenate([np.ones((1, width + 1, width)), rows]), np.arange(1, queries + 1))
+    return Evidence(evidence.tables[evidence.table_of] * rows, np.arange(queries))
+
+
+def _with_edges(evidence: Evidence | None, edges: np.ndarray, queries: int, width: int) -> Evidence:
+    """``evidence`` times each day's evidence on each (previous activity, activity) pair; labels
+    the edges do not name (the filter's grew) read 1, as does a history with no previous activity."""
+    if edges.ndim != 3 or edges.shape[0] != queries or edges.shape[1] != edges.shape[2] or edges.shape[1] > width:
+        raise ValueError(f"edges of shape {edges.shape} for {queries} days and {width} activities")
+    rows = np.ones((queries, width + 1, width))
+    rows[:, : edges.shape[1], : edges.shape[2]] = edges
     if evidence is None:
         return Evidence(np.concatenate([np.ones((1, width + 1, width)), rows]), np.arange(1, queries + 1))
     return Evidence(evidence.tables[evidence.table_of] * rows, np.arange(queries))

@@ -14,6 +14,10 @@ hindsight (labelling past days, self-training) the labels are the most probable 
 step's label is comes from exact forward-backward (:meth:`Recogniser.smooth`: the dynamics are
 first order, so P(a_t | the whole day) sums over every path).
 
+With ``edges``, a step's features are also read as evidence on the change after it
+(:class:`~globe.recognition.edges.SensorEdges`): the filter takes them on each transition into
+the next step, so a change is recognised with what the step before showed of it.
+
 Few labels: with ``self_training``, days without labels are recognised (smoothed) and their
 confident steps (posterior at least ``confidence``) counted into the emission, weighted by their
 posterior; whether that helps is for cross-validation to say (:mod:`globe.recognition.selection`).
@@ -31,6 +35,7 @@ from globe.data.records import Day
 from globe.data.sensors import SensorData
 from globe.inference.activity_filter import ActivityFilter, smoothed
 from globe.models.clock import ClockModel
+from globe.recognition.edges import SensorEdges
 from globe.recognition.emission import SensorEmission
 from globe.recognition.features import Layout, step_features
 from globe.recognition.hybrid import DiscriminativeEmission
@@ -54,6 +59,7 @@ class RecognitionSettings:
     slot_minutes: int = 60
     shrinkage: float = 5.0
     emission: EmissionKind = "naive_bayes"
+    edges: bool = False  # each step's features also read as evidence on the change after it
 
 
 def sensor_emission(settings: RecognitionSettings) -> SensorEmission | DiscriminativeEmission:
@@ -63,6 +69,11 @@ def sensor_emission(settings: RecognitionSettings) -> SensorEmission | Discrimin
     if settings.emission != "naive_bayes":
         raise ValueError(f"unknown sensor emission {settings.emission!r}; expected one of {', '.join(EMISSIONS)}")
     return SensorEmission(smoothing=settings.smoothing, weight=settings.weight)
+
+
+def sensor_edges(settings: RecognitionSettings) -> SensorEdges | None:
+    """The (unfitted) evidence on changes ``settings`` ask for (None: none), tempered as the emission."""
+    return SensorEdges(smoothing=settings.smoothing, weight=settings.weight) if settings.edges else None
 
 
 class Recogniser:
@@ -129,8 +140,10 @@ class Recogniser:
         s = self.settings
         self.dynamics_ = ClockModel(slot_minutes=s.slot_minutes, shrinkage=s.shrinkage, step_minutes=self.step_minutes_)
         self.dynamics_.fit(sequences, weekdays)
-        self.emission_ = sensor_emission(s).fit(
-            features, sequences if labels is None else labels, self.layout_.sizes, weights)
+        counted = sequences if labels is None else labels
+        self.emission_ = sensor_emission(s).fit(features, counted, self.layout_.sizes, weights)
+        edges = sensor_edges(s)
+        self.edges_ = None if edges is None else edges.fit(features, counted, self.layout_.sizes, weights)
         self.filter_ = ActivityFilter(self.dynamics_, max_hypotheses=self.max_hypotheses, min_weight=self.min_weight)
 
     def features(self, day: Day) -> np.ndarray:
@@ -176,14 +189,23 @@ class Recogniser:
         rows = self._run(days, answers, "decode" if smooth else "filter")
         return [[names[i] for i in r.argmax(axis=1).tolist()] for r in rows]
 
+    def _evidence(self, day: Day, labels: Sequence[str]) -> tuple[np.ndarray, np.ndarray | None]:
+        """The day's sensor likelihoods (steps x ``labels``) and, with edges, each step's evidence
+        on the change after it (steps x ``labels`` x ``labels``)."""
+        features = self.features(day)
+        edges = None if self.edges_ is None else self.edges_.tables(features, labels)
+        return self.emission_.likelihoods(features, labels), edges
+
     def _run(self, days: Sequence[Day], answers: Answers | None, mode: Mode) -> list[np.ndarray]:
         labels = list(self.filter_.labels)
-        likes = [self.emission_.likelihoods(self.features(d), labels) for d in days]
+        read = [self._evidence(d, labels) for d in days]
+        likes = [lk for lk, _ in read]
+        edges = None if self.edges_ is None else [e for _, e in read if e is not None]
         if mode == "smooth":
             said = answers if answers is not None else [()] * len(days)
-            return [forward_backward(self.filter_, pinned(lk, a, labels), d.weekday)
-                    for d, lk, a in zip(days, likes, said)]
-        return run_days(self.filter_, likes, [d.weekday for d in days], answers, mode)
+            return [forward_backward(self.filter_, pinned(lk, a, labels), d.weekday, e)
+                    for d, (lk, e), a in zip(days, read, said)]
+        return run_days(self.filter_, likes, [d.weekday for d in days], answers, mode, edges)
 
     def filter_asking(self, day: Day, ask: Callable[[int, np.ndarray], bool],
                       answer: Callable[[int], str | None]) -> tuple[np.ndarray, list[str | None]]:
@@ -193,18 +215,19 @@ class Recogniser:
         (steps x :attr:`labels`) posteriors after any answer, and the answers per step."""
         flt = self.filter_
         names = list(flt.labels)
-        likes = self.emission_.likelihoods(self.features(day), names)
+        likes, edges = self._evidence(day, names)
         belief = flt.start(1, weekdays=[day.weekday])
         out = np.zeros((len(day), len(names)))
         said: list[str | None] = [None] * len(day)
         for t in range(len(day)):
             like = likes[t][None, :]
-            after = flt.update(belief, t, None, likelihood=like)
+            edge = edges[t - 1][None] if edges is not None and t else None
+            after = flt.update(belief, t, None, likelihood=like, edges=edge)
             post = flt.posterior(after)[0]
             if ask(t, post):
                 said[t] = answer(t)
                 if said[t] is not None:
-                    after = flt.update(belief, t, [said[t]], likelihood=like)
+                    after = flt.update(belief, t, [said[t]], likelihood=like, edges=edge)
                     post = flt.posterior(after)[0]
             out[t, : len(post)] = post[: out.shape[1]]
             belief = after
@@ -213,7 +236,7 @@ class Recogniser:
     def describe(self) -> dict[str, Any]:
         s = self.settings
         return {"features": list(s.features), "emission": s.emission, "weight": s.weight, "smoothing": s.smoothing,
-                "self_training": s.self_training, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
+                "self_training": s.self_training, "edges": s.edges, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
 
 
 def spread_answers(best: Sequence[int], said: Sequence[str | None]) -> list[str | None]:
@@ -251,11 +274,13 @@ def pinned(likelihoods: np.ndarray, said: Sequence[str | None], labels: Sequence
     return out
 
 
-def forward_backward(flt: ActivityFilter, likelihoods: np.ndarray, weekday: int | None) -> np.ndarray:
+def forward_backward(flt: ActivityFilter, likelihoods: np.ndarray, weekday: int | None,
+                     edges: np.ndarray | None = None) -> np.ndarray:
     """(steps x ``flt.labels``): P(a_t | every step's evidence, ``likelihoods`` steps x labels) under
     ``flt``'s first-order dynamics (the clock model: the next activity depends on the current one
     and the time), summed over every path by scaled forward and backward passes; the transition at
-    step t is the dynamics' row for each previous activity."""
+    step t is the dynamics' row for each previous activity, times ``edges[t - 1]`` where given
+    (steps x labels x labels: each step's evidence on the change after it)."""
     flt.start(1, weekdays=[weekday])  # a state space where the dynamics grew
     space, n, steps = flt.space, len(flt.labels), len(likelihoods)
     if not steps:
@@ -268,7 +293,12 @@ def forward_backward(flt: ActivityFilter, likelihoods: np.ndarray, weekday: int 
     moves: list[np.ndarray] = []  # moves[t - 1]: (previous x next) at step t
     for _ in range(1, steps):
         after = space.children(np.repeat(state[:1], n), codes)  # each previous activity, one step on
-        moves.append(space.rows(after)[:, :n])
+        move = space.rows(after)[:, :n]
+        if edges is not None:  # a copy: the rows may be the state space's own
+            move = move.copy()
+            k = edges.shape[1]
+            move[:k, :k] *= edges[len(moves)]
+        moves.append(move)
         state = after
     uniform = np.full(n, 1.0 / n)
     forward = np.zeros((steps, n))
@@ -287,12 +317,26 @@ def forward_backward(flt: ActivityFilter, likelihoods: np.ndarray, weekday: int 
     return post / np.maximum(post.sum(axis=1, keepdims=True), 1e-300)
 
 
+def _edges_at(edges: Sequence[np.ndarray] | None, t: int, width: int) -> np.ndarray | None:
+    """(days x width x width): each day's evidence of its step ``t`` on the change after it (1 past
+    a day's end), or None without edges."""
+    if edges is None:
+        return None
+    out = np.ones((len(edges), width, width))
+    for q, e in enumerate(edges):
+        if t < len(e):
+            out[q, : e.shape[1], : e.shape[2]] = e[t]
+    return out
+
+
 def run_days(flt: ActivityFilter, likelihoods: Sequence[np.ndarray], weekdays: Sequence[int | None],
-             answers: Answers | None = None, mode: Literal["filter", "decode", "predictive"] = "filter"
-             ) -> list[np.ndarray]:
+             answers: Answers | None = None, mode: Literal["filter", "decode", "predictive"] = "filter",
+             edges: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
     """Run ``flt`` over days at once, each step taking in that day's sensor ``likelihoods`` (steps x
-    ``flt.labels``) and its answer, if any. Per day, (steps x ``flt.labels``): P(a_t | up to t)
-    (``filter``), the kept histories' weight through each activity at the day's end (``decode``:
+    ``flt.labels``), with ``edges`` what the step before showed of each change (per day, steps x
+    labels x labels: :meth:`~globe.recognition.edges.SensorEdges.tables`), and its answer, if any.
+    Per day, (steps x ``flt.labels``): P(a_t | up to t) (``filter``), the kept histories' weight
+    through each activity at the day's end (``decode``:
     :func:`~globe.inference.activity_filter.smoothed`) or P(a_{t+1} | up to t) (``predictive``)."""
     if not likelihoods:
         return []
@@ -305,9 +349,10 @@ def run_days(flt: ActivityFilter, likelihoods: Sequence[np.ndarray], weekdays: S
             if t < len(lk):
                 like[q, : lk.shape[1]] = lk[t]
         said = None if answers is None else [a[t] if t < len(a) else None for a in answers]
-        belief = flt.update(belief, t, said, likelihood=like)
-        if mode != "decode":
-            post = flt.posterior(belief) if mode == "filter" else flt.predictive(belief)
+        into = _edges_at(edges, t - 1, width) if t else None  # the step before's, on each change into t
+        belief = flt.update(belief, t, said, likelihood=like, edges=into)
+        if mode != "decode":  # the predictive also takes this step's, on each change after it
+            post = flt.posterior(belief) if mode == "filter" else flt.predictive(belief, _edges_at(edges, t, width))
             for q, lk in enumerate(likelihoods):
                 if t < len(lk):
                     out[q][t, : post.shape[1]] = post[q]

@@ -116,6 +116,15 @@ class SensorSteps:
             self._sensor_day = SensorDay.of(self._day or "", self._events)
         return self._sensor_day
 
+    def _edges_after(self) -> np.ndarray | None:
+        """(1 x labels x labels): the last observed step's evidence on the change after it (what
+        the next step's update takes in), or None where the sensors read none."""
+        sensing, flt = self.sensing, self._filter
+        if sensing is None or sensing.edges is None or flt is None or not self._labels:
+            return None
+        features = sensing.features(self._today_events(), [self.grid.minute(len(self._labels) - 1)])
+        return sensing.edge_tables(features, list(flt.labels))
+
     def recognised(self) -> tuple[str, float] | None:
         """The activity under way at the last observed step and its probability, recognised from
         the sensors (and movements) where the step has no label; None otherwise."""
@@ -154,13 +163,14 @@ class SensorSteps:
         after = {b.step: b for b in self._beliefs}
         features = sensing.features(self._today_events(), [self.grid.minute(t) for t in range(n)])
         labels = list(flt.labels)
-        likes = sensing.likelihoods(features, labels)
+        likes, edges = sensing.likelihoods(features, labels), sensing.edge_tables(features, labels)
         out: list[tuple[str, float] | None] = []
         for t in range(n):
             found, before = after.get(t), after.get(t - 1)
             if found is not None and self._labels[t] is not None and before is not None:
                 moved = self._uses[t] if t and self._looked[t] and self._looked[t - 1] else None
-                found = flt.update(before, t, [None], [moved], likelihood=likes[t][None, :])
+                found = flt.update(before, t, [None], [moved], likelihood=likes[t][None, :],
+                                   edges=edges[t - 1][None] if edges is not None and t else None)
             if found is None:
                 out.append(None)
                 continue

@@ -6,9 +6,10 @@ A household whose folder has sensors (``sensors.csv``, ``events/<day>.csv``;
 cross-validation on the labelled training days where the household is created,
 :func:`globe.evaluation.recognition.choose_settings`, and passed down as the deployment is) and a
 :class:`~globe.recognition.emission.SensorEmission` (or the discriminative emission, where chosen)
-counted on the labelled training days. The
-session's one activity filter takes each step's likelihood from it beside the step's label and
-object movements; the emission learns each finished day from its labelled and answered steps (an
+counted on the labelled training days, with, where chosen, each step's evidence on the change after
+it (:class:`~globe.recognition.edges.SensorEdges`). The session's one activity filter takes each
+step's likelihood from it beside the step's label and object movements (and the step before's
+evidence on each change into it); the emission learns each finished day from its labelled and answered steps (an
 answer labels the whole stretch read as one activity, as :meth:`Recogniser.fit` reads answers), and
 the day's worths of asking join the reference the question policy paces itself by.
 """
@@ -26,7 +27,7 @@ from globe.data.sensors import Sensor, SensorData, SensorDay
 from globe.inference.activity_filter import ActivityFilter
 from globe.recognition.asking import QuestionPolicy, worth
 from globe.recognition.features import Layout, step_features
-from globe.recognition.recogniser import RecognitionSettings, run_days, sensor_emission
+from globe.recognition.recogniser import RecognitionSettings, run_days, sensor_edges, sensor_emission
 
 MAX_OPTIONS = 5
 """The likely activities a question offers, at most."""
@@ -89,6 +90,8 @@ class SessionSensors:
         self.reference = np.zeros(0)  # worths of asking seen on the days lived so far
         self._days = 0
         self.emission = sensor_emission(settings).fit([], [], self.layout.sizes)
+        edges = sensor_edges(settings)
+        self.edges = None if edges is None else edges.fit([], [], self.layout.sizes)
 
     def features(self, day: SensorDay | None, minutes: Sequence[int]) -> np.ndarray:
         """(steps x columns) features of the steps starting at ``minutes``."""
@@ -99,9 +102,16 @@ class SessionSensors:
         most 1; every step of a stretch at once, one array operation)."""
         return self.emission.likelihoods(features, labels)
 
+    def edge_tables(self, features: np.ndarray, labels: Sequence[str]) -> np.ndarray | None:
+        """(steps x ``labels`` x ``labels``): each step's evidence on the change after it (the
+        filter takes step t's at step t + 1), or None where the settings read none."""
+        return None if self.edges is None else self.edges.tables(features, labels)
+
     def learn(self, features: Sequence[np.ndarray], labels: Sequence[Sequence[str | None]]) -> None:
         """Count days' features against their labels (None: an unlabelled step) into the emission."""
         self.emission.partial_fit(features, labels, self.layout.sizes)
+        if self.edges is not None:
+            self.edges.partial_fit(features, labels, self.layout.sizes)
         self._days += len(features)
 
     def learn_days(self, days: Sequence[Day], data: SensorData) -> None:
@@ -129,8 +139,10 @@ class SessionSensors:
         if not recorded or self.budget <= 0:
             return
         labels = list(flt.labels)
-        likes = [self.emission.likelihoods(self.features(e, d.minutes), labels) for d, e in recorded]
-        posteriors = run_days(flt, likes, [d.weekday for d, _ in recorded])
+        features = [self.features(e, d.minutes) for d, e in recorded]
+        likes = [self.emission.likelihoods(x, labels) for x in features]
+        edges = None if self.edges is None else [self.edges.tables(x, labels) for x in features]
+        posteriors = run_days(flt, likes, [d.weekday for d, _ in recorded], edges=edges)
         counts = self.emission.labelled_steps(labels)
         self.add_reference(np.concatenate([worth(p, counts) for p in posteriors]))
 

@@ -242,20 +242,24 @@ class HouseholdSession(SensorSteps):
             while kept and kept[-1].step >= self._stale:
                 kept.pop()
             sensing = self.sensing
+            first = max(self._stale - 1, 0)  # the step before: its evidence on the change into the first
             features = None if sensing is None else sensing.features(
-                self._today_events(), [self.grid.minute(t) for t in range(self._stale, len(self._labels))])
+                self._today_events(), [self.grid.minute(t) for t in range(first, len(self._labels))])
             labels: list[str] = []
-            likes = None
+            likes = edges = None
             for t in range(self._stale, len(self._labels)):
                 if self._looked[t] or features is not None:  # the sensors watched every step
                     moved = self._uses[t] if t and self._looked[t] and self._looked[t - 1] else None
-                    like = None
+                    like = edge = None
                     if features is not None and sensing is not None:
                         if likes is None or len(labels) != len(self._filter.labels):  # (again when a label is new)
                             labels = list(self._filter.labels)
                             likes = sensing.likelihoods(features, labels)
-                        like = likes[t - self._stale][None, :]
-                    kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved], likelihood=like))
+                            edges = sensing.edge_tables(features, labels)
+                        like = likes[t - first][None, :]
+                        edge = edges[t - 1 - first][None] if edges is not None and t else None
+                    kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved], likelihood=like,
+                                                    edges=edge))
             self._beliefs, self._stale = kept, None
         return self._beliefs[-1]
 
@@ -390,8 +394,8 @@ class HouseholdSession(SensorSteps):
         state = self._state()
         if self._belief_dist is None or self._belief_dist[0] != state:
             belief = self._filtered() if None in self._labels else None
-            if belief is not None:
-                dist = as_dicts(self._filter.predictive(belief), self._filter.labels)[0]
+            if belief is not None:  # with what the last step showed of the change after it
+                dist = as_dicts(self._filter.predictive(belief, self._edges_after()), self._filter.labels)[0]
             else:
                 dist = self.activity_model.predict_proba(tuple(self._labels), self.weekday)  # type: ignore[arg-type]
             self._belief_dist = (state, dist)
