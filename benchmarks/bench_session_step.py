@@ -3,7 +3,8 @@
 On the simulated sensor home (tests/simulated_sensors.py: 21 labelled days, its test days lived
 with their sensors and no label), a session is built as ``POST /households`` builds one (the
 clock model as the dynamics, the recogniser's default settings, no questions; fixed, so every
-version runs the same models) and each step is timed as the service serves it: the observation
+version runs the same models; ``--settings`` for others, such as the evidence on changes) and
+each step is timed as the service serves it: the observation
 taken in, the activity recognised, the decision (next activity, object, fetches) read. Printed
 per step size (10 and 1 minutes): milliseconds per step over the test days after the first
 (recognising: the observation and the recognised activity; deciding: the decision), for
@@ -11,7 +12,7 @@ this checkout and, with ``--baseline DIR`` (another checkout, e.g. ``git worktre
 /tmp/before HEAD~1``, built with ``pip install -e`` or with its compiled modules beside its
 sources), for that one too, each in a fresh process, alternating ``--repeat`` times; the best of
 each and their ratio. The issue's target: recognition within 1 ms a step per household.
-Usage: python benchmarks/bench_session_step.py [--baseline DIR] [--repeat 3] [--steps 10,1]
+Usage: python benchmarks/bench_session_step.py [--baseline DIR] [--repeat 3] [--steps 10,1] [--settings JSON]
 """
 
 from __future__ import annotations
@@ -38,11 +39,12 @@ from tests.simulated_sensors import sensor_home
 import datetime as dt
 
 step = int(sys.argv[1])
+settings = RecognitionSettings(**json.loads(sys.argv[2]))
 test = 3 if step < 5 else 12  # about the same number of steps timed
 home, sensors = sensor_home(days=21 + test, test=test, step=step, seed=0)
 config = GlobeConfig().with_overrides({"llm.backend": "none", "models.activity_estimator": "clock"})
 deployment = choose_deployment(home, config, method="ngram")  # the [models] section as written: no search
-session = build_session(home, config, deployment, None, sensors=sensors, recognition=RecognitionSettings(),
+session = build_session(home, config, deployment, None, sensors=sensors, recognition=settings,
                         questions_per_day=0)
 first = dt.date(2026, 3, 2)
 recognising, deciding, steps = 0.0, 0.0, 0
@@ -62,12 +64,12 @@ print(json.dumps([recognising / steps, deciding / steps]))
 """
 
 
-def timed(source: Path, step: int) -> tuple[float, float]:
+def timed(source: Path, step: int, settings: dict) -> tuple[float, float]:
     """Seconds per step (recognising, deciding) in a fresh process running the GLOBE of
-    ``source`` (a checkout)."""
+    ``source`` (a checkout), its recogniser built with ``settings`` (RecognitionSettings' fields)."""
     env = dict(os.environ, PYTHONPATH=f"{source / 'src'}{os.pathsep}{source}")
-    out = subprocess.run([sys.executable, "-c", PART, str(step)], env=env, capture_output=True, text=True,
-                         cwd=source)
+    out = subprocess.run([sys.executable, "-c", PART, str(step), json.dumps(settings)], env=env,
+                         capture_output=True, text=True, cwd=source)
     if out.returncode:
         raise SystemExit(f"the {step}-minute session of {source} failed:\n{out.stderr[-3000:]}")
     recognising, deciding = json.loads(out.stdout.strip().splitlines()[-1])
@@ -85,13 +87,16 @@ def main() -> None:
     parser.add_argument("--baseline", type=Path, default=None, help="another checkout to time beside this one")
     parser.add_argument("--repeat", type=int, default=3, help="runs of each, alternating (the best is kept)")
     parser.add_argument("--steps", default="10,1", help="step sizes in minutes, comma-separated")
+    parser.add_argument("--settings", default="{}", help="the recogniser's settings as JSON (RecognitionSettings' "
+                        "fields, default its defaults; every checkout timed must know them), e.g. '{\"edges\": true}'")
     args = parser.parse_args()
+    settings = json.loads(args.settings)
     sources = [("this", ROOT)] + ([("baseline", args.baseline.resolve())] if args.baseline else [])
     for step in (int(s) for s in args.steps.split(",")):
         best = {name: (math.inf, math.inf) for name, _ in sources}
         for _ in range(args.repeat):
             for name, source in sources:
-                best[name] = min(best[name], timed(source, step), key=sum)
+                best[name] = min(best[name], timed(source, step, settings), key=sum)
         line = f"{step:>2}-minute steps: {said(best['this'])}"
         if args.baseline:
             ratio = sum(best["baseline"]) / sum(best["this"])

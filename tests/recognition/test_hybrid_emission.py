@@ -108,7 +108,9 @@ def test_cross_validation_offers_the_discriminative_emission_over_the_features_n
     assert set(first) == set(R.candidates()) and all(s.emission == "naive_bayes" for s in R.candidates())
     assert tried.index(later[0]) > max(tried.index(s) for s in first)  # offered after the first search
     edged = {s for s in tried if s.edges}  # then the evidence on changes, over the one chosen so far
-    assert len(edged) == 1 and min(tried.index(s) for s in edged) > tried.index(later[0])
+    assert {s.edge_strength for s in edged} == set(R.EDGE_STRENGTHS) and len({replace(s, edges=False,
+            edge_strength=RecognitionSettings().edge_strength) for s in edged}) == 1
+    assert min(tried.index(s) for s in edged) > tried.index(later[0])
     assert chosen.emission in ("naive_bayes", "discriminative")
     tried.clear()
     naive = R.choose_settings(home.train, sensors, 10, options=R.candidates())  # a search of one's own: as asked

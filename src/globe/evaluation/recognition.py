@@ -53,6 +53,9 @@ LEARNING_DAYS = (1, 3, 7, 14, None)
 BUDGETS = (0, 1, 2, 5)
 """Questions a day of the asking curve."""
 WEIGHTS = (1.0, 0.5, 0.3)
+EDGE_STRENGTHS = (2.0, 10.0, 50.0)
+"""How strongly the evidence on changes is shrunk to each activity's own (pseudo-steps) in the
+candidates cross-validation offers: few changes of a kind say little, many say much."""
 CV_FOLDS = 4
 
 
@@ -132,8 +135,9 @@ def choose_settings(labelled: Sequence[Day], sensors: SensorData, step_minutes: 
     Bayes's weight because the weight tempers more than sensors firing together: at short steps
     the same reading repeats over many steps, evidence neither emission counts once (measured,
     1-minute steps, 7 labelled days: untempered, test-day time-slice accuracy 0.784; at naive
-    Bayes's weight 0.898); then, by the same rule, the one chosen reading each step's features
-    also as evidence on the change after it (``edges``: :class:`~globe.recognition.edges.SensorEdges`);
+    Bayes's weight 0.898); then the one chosen reading each step's features also as evidence on
+    the change after it (``edges``: :class:`~globe.recognition.edges.SensorEdges`, at each
+    strength of :data:`EDGE_STRENGTHS`), where it beats the one chosen itself beyond noise;
     then whether self-training on the ``unlabelled`` days beats the one chosen beyond noise. With
     fewer than two labelled days, nothing to hold out: the first option, the default."""
     return _searched(labelled, sensors, step_minutes, unlabelled, options, reading)[0]
@@ -168,10 +172,11 @@ def _searched(labelled: Sequence[Day], sensors: SensorData, step_minutes: int, u
         other = replace(chosen, emission="discriminative")  # at naive Bayes's weight (see the doc)
         first.append((other, per_fold(other)))
         chosen = best_beyond_noise(first)  # by the same rule: against the default, the best mean beyond noise
-    if default_search and not chosen.edges:
-        edged = replace(chosen, edges=True)
-        first.append((edged, per_fold(edged)))
-        chosen = best_beyond_noise(first)
+    if default_search and not chosen.edges:  # a refinement of the one chosen: it must beat that one
+        edged = [(e, per_fold(e)) for e in (replace(chosen, edges=True, edge_strength=strength)
+                                            for strength in EDGE_STRENGTHS)]
+        first += edged
+        chosen = best_beyond_noise([next(f for f in first if f[0] == chosen), *edged])
     kept = next(f for f in first if f[0] == chosen)
     if not unlabelled or chosen.self_training:
         return kept

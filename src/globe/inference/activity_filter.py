@@ -191,7 +191,6 @@ class ActivityFilter:
         if edges is not None and belief.step >= 0:
             e = np.asarray(edges, dtype=np.float64)
             k = e.shape[1]
-            rows = rows.copy()
             here = (beam.act >= 0) & (beam.act < k)
             rows[here, :k] *= e[beam.query[here], beam.act[here]]
         out = np.zeros((belief.queries, rows.shape[1]))

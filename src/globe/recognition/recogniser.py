@@ -60,6 +60,7 @@ class RecognitionSettings:
     shrinkage: float = 5.0
     emission: EmissionKind = "naive_bayes"
     edges: bool = False  # each step's features also read as evidence on the change after it
+    edge_strength: float = 10.0  # pseudo-steps shrinking a change's evidence to its activity's own
 
 
 def sensor_emission(settings: RecognitionSettings) -> SensorEmission | DiscriminativeEmission:
@@ -73,7 +74,9 @@ def sensor_emission(settings: RecognitionSettings) -> SensorEmission | Discrimin
 
 def sensor_edges(settings: RecognitionSettings) -> SensorEdges | None:
     """The (unfitted) evidence on changes ``settings`` ask for (None: none), tempered as the emission."""
-    return SensorEdges(smoothing=settings.smoothing, weight=settings.weight) if settings.edges else None
+    if not settings.edges:
+        return None
+    return SensorEdges(strength=settings.edge_strength, smoothing=settings.smoothing, weight=settings.weight)
 
 
 class Recogniser:
@@ -235,8 +238,9 @@ class Recogniser:
 
     def describe(self) -> dict[str, Any]:
         s = self.settings
+        edges = {"edges": s.edges, **({"edge_strength": s.edge_strength} if s.edges else {})}
         return {"features": list(s.features), "emission": s.emission, "weight": s.weight, "smoothing": s.smoothing,
-                "self_training": s.self_training, "edges": s.edges, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
+                "self_training": s.self_training, **edges, "dynamics": f"clock ({s.slot_minutes}-min slots)"}
 
 
 def spread_answers(best: Sequence[int], said: Sequence[str | None]) -> list[str | None]:

@@ -9,9 +9,9 @@ cross-validation on the labelled training days where the household is created,
 counted on the labelled training days, with, where chosen, each step's evidence on the change after
 it (:class:`~globe.recognition.edges.SensorEdges`). The session's one activity filter takes each
 step's likelihood from it beside the step's label and object movements (and the step before's
-evidence on each change into it); the emission learns each finished day from its labelled and answered steps (an
-answer labels the whole stretch read as one activity, as :meth:`Recogniser.fit` reads answers), and
-the day's worths of asking join the reference the question policy paces itself by.
+evidence on each change into it); both learn each finished day from its labelled and answered
+steps (an answer labels the whole stretch read as one activity, as :meth:`Recogniser.fit` reads
+answers), and the day's worths of asking join the reference the question policy paces itself by.
 """
 
 from __future__ import annotations
