@@ -276,10 +276,7 @@ def _with_likelihood(evidence: Evidence | None, likelihood: np.ndarray, queries:
             likelihood = np.pad(likelihood, ((0, 0), (0, width - likelihood.shape[1])), constant_values=1.0)
         else:
             raise ValueError(f"likelihoods of shape {likelihood.shape} for {queries} days and {width} activities")
-    rows = np.broadcast_to(likelihood[:, None, :], (queries, width + 1, width))
-    if evidence is None:
-        return Evidence(np.concatenate([np.ones((1, width + 1, width)), rows]), np.arange(1, queries + 1))
-    return Evidence(evidence.tables[evidence.table_of] * rows, np.arange(queries))
+    return _times(evidence, np.broadcast_to(likelihood[:, None, :], (queries, width + 1, width)))
 
 
 def _with_edges(evidence: Evidence | None, edges: np.ndarray, queries: int, width: int) -> Evidence:
@@ -289,9 +286,14 @@ def _with_edges(evidence: Evidence | None, edges: np.ndarray, queries: int, widt
         raise ValueError(f"edges of shape {edges.shape} for {queries} days and {width} activities")
     rows = np.ones((queries, width + 1, width))
     rows[:, : edges.shape[1], : edges.shape[2]] = edges
+    return _times(evidence, rows)
+
+
+def _times(evidence: Evidence | None, tables: np.ndarray) -> Evidence:
+    """``evidence`` times each day's own table (days x (previous activity or none) x activity)."""
     if evidence is None:
-        return Evidence(np.concatenate([np.ones((1, width + 1, width)), rows]), np.arange(1, queries + 1))
-    return Evidence(evidence.tables[evidence.table_of] * rows, np.arange(queries))
+        return Evidence(np.concatenate([np.ones((1, *tables.shape[1:])), tables]), np.arange(1, len(tables) + 1))
+    return Evidence(evidence.tables[evidence.table_of] * tables, np.arange(len(tables)))
 
 
 def smoothed(flt: "ActivityFilter", belief: Belief) -> np.ndarray:

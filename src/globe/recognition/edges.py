@@ -35,6 +35,8 @@ import numpy as np
 
 from globe.errors import ConfigError
 from globe.models.base import CountingModel
+from globe.recognition.emission import home_shares, shrunk_shares
+from globe.recognition.features import column_offsets
 
 
 class SensorEdges(CountingModel):
@@ -71,8 +73,8 @@ class SensorEdges(CountingModel):
         if not hasattr(self, "training_data_"):
             self._validate_params()
             self.sizes_ = sizes
-            self.offsets_ = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-            self.pairs_: dict[tuple[str, str], np.ndarray] = {}  # (a, b) -> counts of each cell, then the steps
+            self.offsets_ = column_offsets(sizes)
+            self.pairs_: dict[tuple[str, str], np.ndarray] = {}  # (a, b) -> the (weighted) count of each cell
             self.training_data_ = 0.0
         elif not np.array_equal(sizes, self.sizes_):
             raise ValueError(f"features of {len(sizes)} columns for edges of {len(self.sizes_)}")
@@ -88,9 +90,8 @@ class SensorEdges(CountingModel):
                     continue
                 row = self.pairs_.get((a, b))
                 if row is None:
-                    row = self.pairs_[(a, b)] = np.zeros(cells_total + 1)
+                    row = self.pairs_[(a, b)] = np.zeros(cells_total)
                 np.add.at(row, cells[t], w[t])
-                row[-1] += w[t]
                 self.training_data_ += float(w[t])
         self._derive()
         return self
@@ -98,24 +99,19 @@ class SensorEdges(CountingModel):
     def _derive(self) -> None:
         """Each pair's log-ratio per cell (see the module doc)."""
         sizes = self.sizes_
-        column = np.repeat(np.arange(len(sizes)), sizes)
         pairs = sorted(self.pairs_)
         self.pair_list_: tuple[tuple[str, str], ...] = tuple(pairs)
         if not pairs:
             self.log_ratio_ = np.zeros((0, int(sizes.sum())))
             return
         counts = np.stack([self.pairs_[p] for p in pairs])
-        overall = counts[:, :-1].sum(axis=0)
-        base = (overall + 1.0) / np.bincount(column, weights=overall + 1.0, minlength=len(sizes))[column]
-        own: dict[str, np.ndarray] = {}
-        for (a, _), row in zip(pairs, counts):
-            own[a] = own.get(a, 0.0) + row
-        usual = {a: (row[:-1] + self.smoothing * base) / (row[-1] + self.smoothing) for a, row in own.items()}
-        ratio = np.empty((len(pairs), len(column)))
-        for i, ((a, _), row) in enumerate(zip(pairs, counts)):
-            given = (row[:-1] + self.strength * usual[a]) / (row[-1] + self.strength)
-            ratio[i] = np.log(given) - np.log(usual[a])
-        self.log_ratio_ = ratio
+        first = sorted({a for a, _ in pairs})  # the activities changes are counted from
+        of = np.array([first.index(a) for a, _ in pairs])
+        own = np.zeros((len(first), counts.shape[1]))
+        np.add.at(own, of, counts)  # every pair from a pooled: a's steps, whatever follows
+        usual = shrunk_shares(own, home_shares(counts.sum(axis=0), sizes)[None, :], self.smoothing, sizes)
+        given = shrunk_shares(counts, usual[of], self.strength, sizes)
+        self.log_ratio_ = np.log(given) - np.log(usual[of])
 
     def tables(self, features: np.ndarray, labels: Sequence[str]) -> np.ndarray:
         """(steps x ``labels`` x ``labels``): R(x_t; a, b) of each step's features for each pair

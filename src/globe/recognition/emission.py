@@ -18,6 +18,23 @@ import numpy as np
 
 from globe.errors import ConfigError
 from globe.models.base import CountingModel
+from globe.recognition.features import column_offsets
+
+
+def home_shares(overall: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """Each value's share of its column over every step counted (``overall``: per cell), add-one
+    smoothed: the home at large, which a level seen on few steps is shrunk toward."""
+    column = np.repeat(np.arange(len(sizes)), sizes)
+    return (overall + 1.0) / np.bincount(column, weights=overall + 1.0, minlength=len(sizes))[column]
+
+
+def shrunk_shares(counts: np.ndarray, prior: np.ndarray, strength: float, sizes: np.ndarray) -> np.ndarray:
+    """Per row of ``counts`` (rows x cells), each value's share of its column shrunk toward
+    ``prior`` (cells, or rows x cells) by ``strength`` pseudo-steps: (n(v) + s prior(v)) / (n + s)."""
+    column = np.repeat(np.arange(len(sizes)), sizes)
+    totals = np.add.reduceat(counts, column_offsets(sizes), axis=1) if counts.size else np.zeros(
+        (len(counts), len(sizes)))
+    return (counts + strength * prior) / (totals[:, column] + strength)
 
 
 class SensorEmission(CountingModel):
@@ -53,7 +70,7 @@ class SensorEmission(CountingModel):
         if not hasattr(self, "training_data_"):
             self._validate_params()
             self.sizes_ = sizes
-            self.offsets_ = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            self.offsets_ = column_offsets(sizes)
             self.counts_ = np.zeros((0, int(sizes.sum())))
             self.overall_ = np.zeros(int(sizes.sum()))
             self.classes_: tuple[str, ...] = ()
@@ -82,13 +99,8 @@ class SensorEmission(CountingModel):
 
     def _derive(self) -> None:
         """The smoothed log-probabilities from the counts (see the class doc)."""
-        sizes, offsets = self.sizes_, self.offsets_
-        column = np.repeat(np.arange(len(sizes)), sizes)
-        base = (self.overall_ + 1.0) / np.bincount(column, weights=self.overall_ + 1.0, minlength=len(sizes))[column]
-        totals = np.add.reduceat(self.counts_, offsets, axis=1) if self.counts_.size else np.zeros(
-            (len(self.classes_), len(sizes)))
-        prob = (self.counts_ + self.smoothing * base[None, :]) / (totals[:, column] + self.smoothing)
-        self.log_table_ = np.log(prob)
+        base = home_shares(self.overall_, self.sizes_)
+        self.log_table_ = np.log(shrunk_shares(self.counts_, base[None, :], self.smoothing, self.sizes_))
         self.log_base_ = np.log(base)
 
     def log_likelihoods(self, features: np.ndarray, labels: Sequence[str]) -> np.ndarray:

@@ -72,7 +72,13 @@ class Layout:
     @property
     def offsets(self) -> np.ndarray:
         """Where each column's values start in a flat table of all columns' values."""
-        return np.concatenate([[0], np.cumsum(self.sizes)[:-1]]).astype(np.int64)
+        return column_offsets(self.sizes)
+
+
+def column_offsets(sizes: np.ndarray) -> np.ndarray:
+    """Where each column's values start in a flat table of all columns' values (``sizes``: each
+    column's number of values)."""
+    return np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
 
 
 def step_features(layout: Layout, day: SensorDay | None, minutes: Sequence[int], step_minutes: int) -> np.ndarray:

@@ -30,6 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from globe.errors import ConfigError
+from globe.recognition.features import column_offsets
 
 FLOOR = 1e-6
 """The least posterior a classifier's answer is read as (a log of 0 would veto an activity)."""
@@ -72,7 +73,7 @@ class DiscriminativeEmission:
         if not hasattr(self, "sizes_"):
             self._validate_params()
             self.sizes_ = sizes
-            self.offsets_ = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            self.offsets_ = column_offsets(sizes)
             self.classes_: tuple[str, ...] = ()
             self._x = np.zeros((0, len(sizes)), dtype=np.int32)
             self._y = np.zeros(0, dtype=np.int64)

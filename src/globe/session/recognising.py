@@ -40,6 +40,7 @@ class SensorSteps:
     grid: DayGrid
     _filter: ActivityFilter | None
     _beliefs: list[Belief]
+    _edges_last: np.ndarray | None  # the last observed step's evidence on the change after it (1 x labels x labels)
     _labels: list[str | None]
     _looked: list[bool]
     _uses: list[frozenset[str]]
@@ -115,15 +116,6 @@ class SensorSteps:
         if self._sensor_day is None:
             self._sensor_day = SensorDay.of(self._day or "", self._events)
         return self._sensor_day
-
-    def _edges_after(self) -> np.ndarray | None:
-        """(1 x labels x labels): the last observed step's evidence on the change after it (what
-        the next step's update takes in), or None where the sensors read none."""
-        sensing, flt = self.sensing, self._filter
-        if sensing is None or sensing.edges is None or flt is None or not self._labels:
-            return None
-        features = sensing.features(self._today_events(), [self.grid.minute(len(self._labels) - 1)])
-        return sensing.edge_tables(features, list(flt.labels))
 
     def recognised(self) -> tuple[str, float] | None:
         """The activity under way at the last observed step and its probability, recognised from

@@ -260,7 +260,8 @@ class HouseholdSession(SensorSteps):
                         edge = edges[t - 1 - first][None] if edges is not None and t else None
                     kept.append(self._filter.update(kept[-1], t, [self._labels[t]], [moved], likelihood=like,
                                                     edges=edge))
-            self._beliefs, self._stale = kept, None
+            last = None if edges is None else edges[-1][None]  # the last step's, on the change after it
+            self._beliefs, self._stale, self._edges_last = kept, None, last
         return self._beliefs[-1]
 
     def moved(self, step: int) -> frozenset[str]:
@@ -395,7 +396,7 @@ class HouseholdSession(SensorSteps):
         if self._belief_dist is None or self._belief_dist[0] != state:
             belief = self._filtered() if None in self._labels else None
             if belief is not None:  # with what the last step showed of the change after it
-                dist = as_dicts(self._filter.predictive(belief, self._edges_after()), self._filter.labels)[0]
+                dist = as_dicts(self._filter.predictive(belief, self._edges_last), self._filter.labels)[0]
             else:
                 dist = self.activity_model.predict_proba(tuple(self._labels), self.weekday)  # type: ignore[arg-type]
             self._belief_dist = (state, dist)
@@ -533,7 +534,7 @@ class HouseholdSession(SensorSteps):
         self.step_predictions: dict[int, tuple[str, float]] = {}  # today's one-step predictions (by the service)
         self._belief_dist = None
         self._filter = None
-        self._beliefs, self._stale = [], None
+        self._beliefs, self._stale, self._edges_last = [], None, None
         self._history_memo = HistoryMemo()  # the most probable history read last (its walk back stops there)
         self._last_uses = LastUses(self._object_index)
         self._events: list[tuple[int, float, float]] = []  # today's sensor activations (sensor, start, end)
