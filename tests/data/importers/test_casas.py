@@ -170,6 +170,7 @@ def test_a_bad_line_names_file_line_and_field(tmp_path, line, field, message):
 def test_an_activity_left_open_names_the_line_that_began_it(tmp_path):
     err = _error(tmp_path, "2010-11-04 05:00:00 M001 ON\n" + GOOD.replace("05:00:00.000000", "05:01:00"))
     assert (err.line, err.field) == (2, "activity") and "never ends" in err.message
+    assert "--skip-bad-lines leaves it out" in err.message  # the way out for a log cut off mid-activity
 
 
 def test_binary_garbage_empty_files_and_other_encodings_are_refused(tmp_path):
@@ -472,3 +473,61 @@ def test_a_sensor_that_goes_on_while_on_counts_the_earlier_on_as_a_firing(tmp_pa
     assert [e for e in _events(tmp_path / "home", "2010-11-04") if e[0] == "M003"] == [
         ("M003", 43200, 43200), ("M003", 43260, 43320)]
     assert any("a sensor of no object went on while on" in n and "M003 1x" in n for n in result.notes)
+
+
+def test_one_timestamp_corrupted_to_a_later_date_costs_its_own_line_only(tmp_path):
+    """A line dated a year late in the middle of a log: with --skip-bad-lines every later line was
+    left out as 'before the previous event' (the corrupt line kept, 11 of 12 days lost); now that
+    line alone is left out, named, and the household is the one the log without it gives."""
+    lines = _month(None).splitlines()
+    at = next(i for i in range(len(lines) // 3, len(lines)) if lines[i].endswith("ABSENT"))
+    moved = lines[at].replace("2010-11-", "2011-11-", 1)
+    dirty = lines[:at] + [moved] + lines[at + 1:]
+    clean_dir, dirty_dir = tmp_path / "clean", tmp_path / "dirty"
+    clean_dir.mkdir(), dirty_dir.mkdir()
+    _, want = _import(clean_dir, "\n".join(lines[:at] + lines[at + 1:]) + "\n")
+    result, got = _import(dirty_dir, "\n".join(dirty) + "\n", skip_bad_lines=True)
+    assert [d.name for d in got.train + got.test] == [d.name for d in want.train + want.test]
+    assert [d.locations for d in got.train + got.test] == [d.locations for d in want.train + want.test]
+    [bad] = json.loads(result.report.read_text())["bad_lines"]
+    assert (bad["line"], bad["field"]) == (at + 1, "time") and "out of time order" in bad["why"]
+    # a line dated early is left out alone, as before
+    early = lines[:at] + [lines[at].replace("2010-11-", "2009-11-", 1)] + lines[at + 1:]
+    (tmp_path / "early").mkdir()
+    result, _ = _import(tmp_path / "early", "\n".join(early) + "\n", skip_bad_lines=True)
+    assert [r["line"] for r in json.loads(result.report.read_text())["bad_lines"]] == [at + 1]
+
+
+def test_out_of_order_keeps_the_longest_run_in_time_order_and_the_earlier_of_two():
+    from datetime import datetime
+
+    from globe.data.importers.text import out_of_order
+
+    def at(hours):
+        return [datetime(2010, 11, 4, h) if h is not None else None for h in hours]
+
+    assert out_of_order(at([1, 2, 20, 3, 4])) == [2]  # one far ahead
+    assert out_of_order(at([9, 1, 2, 3])) == [0]  # the first line far ahead
+    assert out_of_order(at([1, 3, 2, 4])) == [2]  # two swapped: the later line is the odd one
+    assert out_of_order(at([1, None, 0, 5, 5])) == [2] and out_of_order([]) == []
+
+
+def test_an_activity_of_several_words_as_cairo_writes_them(tmp_path):
+    """Cairo names activities in words ('Bed to toilet begin', 'R1 sleep end'): every such line was
+    '7 fields' or '8 fields' and stopped the import. The words make one activity; 'R1 sleep' is
+    R1's, as 'R1_sleep' is."""
+    text = GOOD.replace("Sleeping begin", "Night wandering begin") + (
+        "2010-11-04 06:20:00.000000 M002 OFF Night  wandering\tend\n"
+        "2010-11-04 07:00:00.000000 M003 ON R1 work in office begin\n"
+        "2010-11-04 07:30:00.000000 M003 OFF R2 take medicine begin\n"
+        "2010-11-04 07:40:00.000000 M003 ON R2 take medicine end\n"
+        "2010-11-04 09:00:00.000000 M004 OFF R1 work in office end\n"
+        "2010-11-05 00:00:00.000000 M004 ON\n")
+    result, home = _import(tmp_path, text, resident="R1")
+    assert result.activities == ("Night wandering", "idle", "work in office")
+    assert _rows(home.train[0], {360, 420, 480, 540}) == {360: "Night wandering", 420: "work in office",
+                                                          480: "work in office", 540: "idle"}
+    assert any("other residents left out (--resident R1): R2 1" in n for n in result.notes)
+    (tmp_path / "x").mkdir()
+    err = _error(tmp_path / "x", GOOD + "2010-11-04 06:00:00 M001 ON Night wandering stop\n")
+    assert (err.line, err.field) == (2, "begin/end") and "4 fields" not in err.message and "7 fields" in err.message

@@ -284,3 +284,25 @@ def test_the_type_rule(entity, device_class, kind):
     from globe.data.importers.home_assistant import sensor_type
 
     assert sensor_type(entity, device_class) == kind
+
+
+def test_rows_may_stop_short_of_the_attribute_columns_a_climate_entity_adds(tmp_path):
+    """The History panel adds a column per attribute of a climate (humidifier, water heater)
+    entity and writes them on its rows only: every other row was 'ragged' and stopped the import.
+    A row that holds the columns read is read; one with more fields than the header is still an
+    error naming its line."""
+    header = "entity_id,state,last_changed,current_temperature,hvac_action,target_temp_high,target_temp_low,temperature"
+    climate = ["climate.living_room,heat,2024-03-01T04:00:00.000Z,20.5,heating,,,21",
+               "climate.living_room,heat,2024-03-01T09:00:00.000Z,20.5,idle"]
+    rows = HISTORY.splitlines()
+    result, home = _import(tmp_path, "\n".join([header, *climate, *rows[1:]]) + "\n")
+    (tmp_path / "plain").mkdir()
+    _, want = _import(tmp_path / "plain")
+    assert [(d.name, d.activities, d.locations) for d in home.train + home.test] == \
+        [(d.name, d.activities, d.locations) for d in want.train + want.test]
+    assert "columns not used: current_temperature, hvac_action, target_temp_high, target_temp_low, temperature" \
+        in result.notes
+    (tmp_path / "long").mkdir()
+    with pytest.raises(DataError) as err:
+        _import(tmp_path / "long", "\n".join([header, *climate, rows[1] + ",1,2,3,4,5,6"]) + "\n")
+    assert err.value.line == 4 and "ragged row" in err.value.message

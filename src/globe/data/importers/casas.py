@@ -8,7 +8,8 @@ One event a line, fields separated by spaces or tabs::
     2010-11-04 00:05:01.000000 M004 OFF Bed_to_Toilet end
 
 ``date time sensor value``, then optionally ``activity begin`` or ``activity end`` (on any
-event line). Values are ON/OFF, OPEN/CLOSE, ABSENT/PRESENT (item sensors) or numbers
+event line; an activity may be several words, as Cairo's ``Bed to toilet begin``: one space
+between them). Values are ON/OFF, OPEN/CLOSE, ABSENT/PRESENT (item sensors) or numbers
 (temperature, light level, analog sensors); anything else is an error. Events must be in time
 order (given the log's time zone, the hour logged twice when the clocks go back is read in
 order); an activity may not begin twice before it ends, end without beginning, or be left open
@@ -46,7 +47,14 @@ from globe.data.importers.grid import ImportResult, write_import
 from globe.data.importers.objects import Choice, ObjectSelection, Sensor, read_mapping
 from globe.data.importers.options import GridOptions
 from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
-from globe.data.importers.text import clocks_went_back, parse_date_time, read_lines, show, time_zone
+from globe.data.importers.text import (
+    clocks_went_back,
+    out_of_order,
+    parse_date_time,
+    read_lines,
+    show,
+    time_zone,
+)
 from globe.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
@@ -69,7 +77,7 @@ _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _SENSOR = re.compile(r"[\w.-]+")
 _LETTERS = re.compile(r"[A-Za-z]+")
 _RESIDENT_ID = r"R\d+"  # a resident of a multi-resident log, as its labels name one
-_RESIDENT = re.compile(rf"({_RESIDENT_ID})_(.+)", re.IGNORECASE)  # R1_Sleep, R2_Meal
+_RESIDENT = re.compile(rf"({_RESIDENT_ID})[_ ](.+)", re.IGNORECASE)  # R1_Sleep, R2_Meal; Cairo: R1 sleep
 
 
 def sensor_kind(key: str) -> str:
@@ -115,10 +123,13 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     lost_others: Counter[str] = Counter()  # the same for the other sensors
     residents: Counter[str] = Counter()  # annotations named for each resident (with --resident)
     lines = read_lines(path)
+    disordered = _disordered(lines, source, zone) if skip_bad_lines else {}
     for count, (line, text) in enumerate(lines, start=1):
         named: str | None = None  # the resident this line's annotation names
         try:  # every check first: a line left out changes nothing
             moment, key, value, choice, marker = _event(text, source, line, previous, selection, zone)
+            if line in disordered:
+                raise disordered[line]
             begins = marker is not None and marker[1].lower() == "begin"
             if marker is not None and resident is not None:
                 marker, named = _of_resident(marker, resident)
@@ -153,8 +164,9 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
         if count % PROGRESS_EVERY == 0:
             log.info("%s: %d of %d lines read", source, count, len(lines))
     for activity, (start, line) in list(begun.items()):
+        hint = "" if skip_bad_lines else "; if the log was cut off while it lasted, --skip-bad-lines leaves it out"
         unended = DataError(f"{show(activity)} begins here (at {start}) but never ends (no end of it before the end "
-                            "of the file)", source=source, line=line, field="activity")
+                            f"of the file){hint}", source=source, line=line, field="activity")
         sensor_log.bad(unended)
     still_on = []  # sensors of no object still on at the end
     for key, start in open_since.items():
@@ -193,6 +205,42 @@ def read_casas(path: Path, selection: ObjectSelection, skip_bad_lines: bool = Fa
     return sensor_log
 
 
+def _disordered(lines: list[tuple[int, str]], source: str, zone: tzinfo | None) -> dict[int, DataError]:
+    """The lines to leave out (``--skip-bad-lines``) so that the others are in time order, each
+    with its error: the fewest, so that one timestamp corrupted to a later date costs its own line,
+    not every line after it (see :func:`out_of_order`). The hour logged twice when the clocks go
+    back is read as :func:`_event` reads it."""
+    times: list[datetime | None] = []
+    previous: datetime | None = None
+    for line, text in lines:
+        fields = text.split()
+        moment: datetime | None = None
+        if len(fields) == 4 or len(fields) >= 6:  # as _event reads them
+            try:
+                moment = parse_date_time(fields[0], fields[1], source=source, line=line)
+            except DataError:
+                moment = None  # a bad time: _event names it
+        if moment is not None and previous is not None and moment < previous and zone is not None \
+                and clocks_went_back(previous, moment, zone):
+            moment = previous
+        previous = moment if moment is not None else previous
+        times.append(moment)
+    dropped = out_of_order(times)
+    errors: dict[int, DataError] = {}
+    kept: tuple[datetime, int] | None = None
+    gone = set(dropped)
+    for i, ((line, _), moment) in enumerate(zip(lines, times)):
+        if moment is None:
+            continue
+        if i not in gone:
+            kept = (moment, line)
+            continue
+        after = f" (the event before it, line {kept[1]}, is at {kept[0]})" if kept is not None else ""
+        errors[line] = DataError(f"{moment} is out of time order with the events around it{after}: the log is in order "
+                                 "without this line (a corrupt timestamp?)", source=source, line=line, field="time")
+    return errors
+
+
 def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | None, selection: ObjectSelection,
            zone: tzinfo | None = None) -> tuple[datetime, str, str, Choice, tuple[str, str] | None]:
     """One line checked: (time, sensor, value in upper case, what the sensor is, (activity,
@@ -204,9 +252,9 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
     if len(fields) == 5:
         raise DataError(f"{show(fields[4])} after the value must be followed by 'begin' or 'end'", source=source,
                         line=line, field="begin/end")
-    if len(fields) > 6:
-        raise DataError(f"{len(fields)} fields; a CASAS event has 4, or 6 with 'activity begin|end'", source=source,
-                        line=line, field="begin/end")
+    if len(fields) > 6 and fields[-1].lower() not in ("begin", "end"):  # Cairo's 'Bed to toilet begin': 8 fields
+        raise DataError(f"{len(fields)} fields; a CASAS event has 4, or more with 'activity begin|end' (an activity "
+                        "may be several words)", source=source, line=line, field="begin/end")
     moment = parse_date_time(fields[0], fields[1], source=source, line=line)
     if previous is not None and moment < previous[0] and not (zone and clocks_went_back(previous[0], moment, zone)):
         fold_like = previous[0] - moment <= timedelta(hours=1) and moment.hour < 4  # clocks go back at night
@@ -226,7 +274,7 @@ def _event(text: str, source: str, line: int, previous: tuple[datetime, int] | N
     if choice.object is not None and not binary:
         raise DataError(f"{show(fields[3])} is a reading, not a use: sensor {key!r} (object {choice.object!r}) "
                         "must be ON/OFF, OPEN/CLOSE or ABSENT/PRESENT", source=source, line=line, field="value")
-    marker = (unicodedata.normalize("NFC", fields[4]), fields[5]) if len(fields) == 6 else None  # one spelling
+    marker = (unicodedata.normalize("NFC", " ".join(fields[4:-1])), fields[-1]) if len(fields) >= 6 else None
     return moment, key, value, choice, marker
 
 

@@ -19,6 +19,9 @@ changes; ``off`` and ``closed`` are not in use, ``unavailable`` and ``unknown`` 
 are counted in the report; any other state is an error. Other entities are left out. A row that
 breaks a rule (a bad entity id or timestamp, a row before its entity's previous one) is an error
 naming its line and column, or with ``--skip-bad-lines`` left out and listed in the report.
+When the export holds a climate, humidifier or water heater entity, the panel adds a column per
+attribute it writes (``current_temperature``, ``hvac_action``, ...) and leaves them out of every
+other row: a row may stop short of the header, as long as it holds the columns read.
 
 Timestamps with a UTC offset (HA writes UTC) are put on the home's clock with ``timezone`` (an
 IANA name such as ``Europe/Amsterdam``), which is then required: the day starts at 06:00 where
@@ -149,7 +152,7 @@ def read_home_assistant(path: Path, selection: ObjectSelection, *, activity_enti
         sensor_log.heard(moment, line=line)
         if choice is not None or entity.split(".", 1)[0] in SENSOR_DOMAINS:
             if entity not in sensor_log.sensors:
-                cell = {name: _clean(row[i]) for name, i in optional.items()}
+                cell = {name: _clean(row[i]) for name, i in optional.items() if i < len(row)}
                 sensor_log.sensor(entity, sensor_type(entity, cell.get("device_class", "")),
                                   selection.mapped_room(entity) or slug(cell.get("area", "")))
             if state.lower() in ON_STATES:
@@ -190,7 +193,7 @@ def _row(row: list[str], header: list[str], column: dict[str, int], line: int, s
          activity_entity: str) -> tuple[str, str, datetime, str | None]:
     """One row checked: (entity, state, its time as written, the object it is or None). Changes
     nothing but the selection's record of the entity."""
-    if len(row) != len(header):
+    if len(row) > len(header) or len(row) <= max(column.values()):  # short: cells of attribute columns left out
         raise _ragged(source, line, row, header)
     entity = _clean(row[column["entity_id"]])
     state = _clean(row[column["state"]])

@@ -10,6 +10,7 @@ passed to a lenient parser that would accept ``2010-11-4`` or a bare date.
 from __future__ import annotations
 
 import re
+from bisect import bisect_right
 from datetime import datetime, timedelta, tzinfo
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -23,6 +24,7 @@ _CLOCK = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,6}))?")
 _MONTHS = {name: i for i, name in enumerate(
     ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec"), start=1)}
 _DMY_DATE = re.compile(r"(\d{1,2})-([A-Za-z]{3})-(\d{4})")
+_EPOCH, _MICROSECOND = datetime(1970, 1, 1), timedelta(microseconds=1)
 _ISO_8601 = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{1,9})?)?(?:Z|[+-]\d{2}:?\d{2})?")
 
 
@@ -49,6 +51,35 @@ def clocks_went_back(before: datetime, moment: datetime, zone: tzinfo) -> bool:
     second pass of the hour the clocks went back over."""
     fold = repeated_for(moment, zone)
     return bool(fold) and bool(repeated_for(before, zone)) and timedelta(0) < before - moment <= fold
+
+
+def out_of_order(times: Sequence[datetime | None]) -> list[int]:
+    """The indices of the fewest records to leave out so that the others are in time order
+    (``None``: a record without a time, never counted), keeping the earlier of two records out of
+    order with each other: one corrupt timestamp far ahead is left out alone, not every good record
+    after it. The longest non-decreasing run, earliest records first, in O(n log n)."""
+    keys = [(t - _EPOCH) // _MICROSECOND if t is not None else None for t in times]
+    longest = [0] * len(keys)  # the longest in-order run starting at each record
+    tails: list[int] = []  # -(latest start) of a run of each length found so far, ascending
+    for i in range(len(keys) - 1, -1, -1):
+        key = keys[i]
+        if key is None:
+            continue
+        at = bisect_right(tails, -key)
+        longest[i] = at + 1
+        if at == len(tails):
+            tails.append(-key)
+        else:
+            tails[at] = -key
+    left, last, dropped = len(tails), None, []
+    for i, key in enumerate(keys):
+        if key is None:
+            continue
+        if left and longest[i] == left and (last is None or key >= last):
+            left, last = left - 1, key
+        else:
+            dropped.append(i)
+    return dropped
 
 
 def show(text: str, limit: int = 48) -> str:
