@@ -17,12 +17,17 @@ from globe.data.records import Day, Household
 from globe.errors import ConfigError
 from globe.evaluation import main_job
 from globe.evaluation.activity_anticipation import score_anticipation
+from globe.evaluation.deploy import choose_deployment
+from globe.evaluation.experiments import run_methods
+from globe.evaluation.fetch import LAST_DATE
 from globe.evaluation.methods import METHODS
 from globe.evaluation.metrics import records_f1
+from globe.evaluation.online import day_observations, replay_dates
 from globe.evaluation.protocol import evaluate_days, seen_day
 from globe.evaluation.recognised import recognise_households, recognise_test_days, scope_of, sensors_of
 from globe.evaluation.selection import Memo
 from globe.recognition.recogniser import RecognitionSettings
+from globe.session import build_session
 from tests.simulated_sensors import sensor_home, write_home
 
 FAST = [RecognitionSettings()]  # one candidate: the settings' cross-validation is tested in tests/recognition
@@ -166,3 +171,32 @@ def test_homer_plus_has_no_sensors_to_recognise_from(tmp_path, homer_root):
                  "--activities", "recognised", "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert run.returncode != 0
     assert "household A has no sensor data" in run.stderr and "HOMER+ has none" in run.stderr
+
+
+def test_a_deployable_row_scores_what_its_session_served(imported):
+    """Where a row is a method a household runs, its next activity at each test step is what the
+    session deployed with it said after the step before (told no label, the sensors as evidence),
+    its stay margin kept at the activity recognised; a baseline reads the recognised activities."""
+    config = _quick().with_overrides({"models.stay_margin": 1.5})
+    memo, sensors = Memo(), sensors_of(imported, 10)
+    done = recognise_test_days(imported, sensors, 10, FAST, config, memo)
+    served, = run_methods(config, [done.household], ["ngram"], None, memo, [done])
+    read, = run_methods(config, [done.household], ["ngram"], None, memo)  # the model reading the recognised days
+    session = build_session(imported, config, choose_deployment(imported, config, memo, "ngram"), None,
+                            sensors=sensors, recognition=done.recognition, questions_per_day=0)
+    said, recognised = [], []
+    for day, date in zip(imported.test, replay_dates(imported.test, LAST_DATE)):
+        for t, obs in day_observations(imported, day, date, visible=lambda _row: False, sensors=sensors):
+            session.observe(obs)
+            if t < len(day) - 1:
+                top, found = session.next_activity(), session.recognised()
+                assert top is not None and found is not None
+                said.append(top[0])
+                recognised.append(found[0])
+    assert [r.predicted for r in served.evaluation.activity] == said
+    assert [r.true for r in served.evaluation.activity] == [a for d in imported.test for a in d.activities[1:]]
+    assert [r.predicted for r in read.evaluation.activity] != said  # the sensors said more than the activities
+    persistence, = run_methods(config, [done.household], ["persistence"], None, memo, [done])
+    shown = [a for d in done.household.test for a in (d.observed or ())[:-1]]  # by the deployed (routine) session
+    assert [r.predicted for r in persistence.evaluation.activity] == shown  # a rule on what was recognised
+    assert done.served.keys() == {"routine", "ngram"} and recognised != shown  # each deployment recognises its own

@@ -12,7 +12,8 @@ from globe.config import GlobeConfig
 from globe.data.records import Household
 from globe.evaluation.methods import METHODS
 from globe.evaluation.metrics import AVERAGES, Average, calibration, log_loss, records_f1, rounded
-from globe.evaluation.protocol import Evaluation, evaluate_days
+from globe.evaluation.protocol import ActivityPredictor, DayPredictor, Evaluation, evaluate_days
+from globe.evaluation.recognised import Recognised, served_scan
 from globe.evaluation.selection import Memo
 from globe.models.base import ActivityModelBase
 from globe.reasoning.backends.base import LLMBackend
@@ -46,13 +47,18 @@ def run_methods(
     methods: Iterable[str],
     backend: LLMBackend | None,
     memo: Memo | None = None,
+    recognised: Sequence[Recognised] = (),
 ) -> list[MethodRun]:
     """Evaluate each method on each household's test days (plus the true-activity oracle).
 
     ``memo`` keeps cross-validation results and fits between calls on the same households, so
-    methods of one family (``routine``, ``globe_routine``) share one search."""
+    methods of one family (``routine``, ``globe_routine``) share one search. A household among
+    ``recognised`` (its activities recognised from its sensors) is told, by each row a household
+    can be deployed with, what the session so deployed said after each step
+    (:func:`~globe.evaluation.recognised.served_scan`)."""
     runs = []
     memo = Memo() if memo is None else memo
+    replays = {r.household.name: r for r in recognised}
     for name in methods:
         method = METHODS[name]
         if method.needs_llm and backend is None:
@@ -61,7 +67,13 @@ def run_methods(
         for h in households:
             prepared = method.prepare(h, config, backend, memo)
             alignment = prepared.alignment or config.sequences.alignment
-            ev = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment,
+            predictor: ActivityPredictor | DayPredictor = prepared.activity
+            days, replay = h.test, replays.get(h.name)
+            served = None if replay is None or method.deploys is None else \
+                served_scan(replay, method.deploys, cast(ActivityModelBase, prepared.activity), config, memo)
+            if served is not None:
+                predictor, days = served
+            ev = evaluate_days(h, days, predictor, prepared.chooser, alignment=alignment,
                                stay_margin=prepared.stay_margin)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment, oracle=True,
                                    stay_margin=prepared.stay_margin)

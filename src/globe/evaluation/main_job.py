@@ -24,7 +24,13 @@ from globe.evaluation import report
 from globe.evaluation.experiments import run_methods
 from globe.evaluation.methods import METHODS, families, with_baselines
 from globe.evaluation.parallel import precompute_selections
-from globe.evaluation.recognised import ACTIVITIES, recognise_households, scope_of, write_recognition
+from globe.evaluation.recognised import (
+    ACTIVITIES,
+    Recognised,
+    recognise_households,
+    scope_of,
+    write_recognition,
+)
 from globe.evaluation.results import Table1Results, write_table1_results
 from globe.evaluation.robustness import RobustnessResults, run_suite
 from globe.evaluation.robustness_results import write_robustness_results
@@ -96,13 +102,15 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
     baselines). ``memo`` (cross-validation results and fits) is filled and reused. With
     ``activities="recognised"`` the models are shown the test days' activities as recognised
     from each home's sensors (:mod:`globe.evaluation.recognised`; ``recognition.csv`` says how
-    well), every score still against the annotation."""
+    well) and a deployable row's next activity is what its session serves, every score still
+    against the annotation."""
     methods = check_methods(methods)
     stages = stages or Stages(out_dir)
     memo = Memo() if memo is None else memo
     if activities not in ACTIVITIES:
         raise ConfigError(f"unknown activities {activities!r}; expected {' or '.join(ACTIVITIES)}")
     (out_dir / "recognition.csv").unlink(missing_ok=True)  # a folder written before says nothing stale
+    recognised: list[Recognised] = []
     if activities == "recognised":
         with stages.stage("recognition: the test days' activities from the sensors (settings by cross-validation)"):
             recognised = recognise_households(config, households, memo=memo)
@@ -115,7 +123,7 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
     runs = []
     for method in with_baselines(methods):
         with stages.stage(f"table1: {method}"):
-            runs += run_methods(config, households, [method], backend, memo)
+            runs += run_methods(config, households, [method], backend, memo, recognised)
     scope = scope_of(households)
     for stale in ("activity_anticipation.csv", "next_activity.csv", "activity_anticipation.png"):
         (out_dir / stale).unlink(missing_ok=True)  # a folder written before says nothing stale

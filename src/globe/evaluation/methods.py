@@ -18,7 +18,7 @@ from typing import Callable, Sequence
 
 from globe import assembly
 from globe.assembly import FittedHousehold
-from globe.config import GlobeConfig, ModelConfig
+from globe.config import DeployMethod, GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation.selection import DataKey, FitKey, Memo, Selection
 from globe.evaluation.tuning import chosen_alignment, tuned_gate, tuned_models
@@ -57,6 +57,7 @@ class Method:
     prepare: Callable[[Household, GlobeConfig, LLMBackend | None, Memo], Prepared]
     family: str | None = None  # the model family chosen by cross-validation, if any
     baseline: bool = False  # a rule every model must clear (said beside its label wherever it is shown)
+    deploys: DeployMethod | None = None  # the deployment running its activity model (None: no household runs it)
 
     @property
     def shown(self) -> str:
@@ -161,15 +162,16 @@ METHODS: dict[str, Method] = {
         Method("persistence", "Persistence", False, _persistence, baseline=True),
         Method("time_of_day", "Time-of-day mode", False, _time_of_day, baseline=True),
         Method(HOUR_ACTIVITY, "Hour + activity", False, _hour_activity, baseline=True),
-        Method("ngram", "n-gram Markov", False, _ngram),
-        Method("globe", "GLOBE", True, _globe),
-        Method("globe_combine", "GLOBE, LLM + n-gram scores", True, _globe_combine),
-        Method("globe_personal", "GLOBE, personalised prompt", True, _globe_personal),
+        Method("ngram", "n-gram Markov", False, _ngram, deploys="ngram"),
+        Method("globe", "GLOBE", True, _globe, deploys="ngram"),
+        Method("globe_combine", "GLOBE, LLM + n-gram scores", True, _globe_combine, deploys="ngram"),
+        Method("globe_personal", "GLOBE, personalised prompt", True, _globe_personal, deploys="ngram"),
         Method("llm_only", "LLM-only", True, _llm_only),
-        Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False), "witten_bell"),
-        Method("routine", "Routine model (CV)", False, _tuned("routine", False), "routine"),
+        Method("ngram_smoothed", "n-gram, Witten-Bell + time (CV)", False, _tuned("witten_bell", False), "witten_bell",
+               deploys="ngram_smoothed"),
+        Method("routine", "Routine model (CV)", False, _tuned("routine", False), "routine", deploys="routine"),
         Method("globe_routine", "GLOBE + routine model (personalised, gate CV)", True, _tuned("routine", True),
-               "routine"),
+               "routine", deploys="routine"),
     )
 }
 

@@ -44,7 +44,7 @@ from globe.evaluation import lookahead as lk
 from globe.evaluation import relocation, report
 from globe.evaluation.metrics import f1, log_loss, records_f1
 from globe.evaluation.parallel import run_forked, worker_count
-from globe.evaluation.protocol import ActivityRecord, ObjectRecord, evaluate_days
+from globe.evaluation.protocol import ActivityRecord, FixedScan, ObjectRecord, evaluate_days
 from globe.evaluation.selection import DataKey, FitKey, Memo, SearchKey, Selection, best_of, grid
 from globe.evaluation.tuning import (
     chosen_alignment,
@@ -103,24 +103,6 @@ def day_beliefs(activity: ActivityModelBase, emission: MovementEmission | None, 
     return out
 
 
-class _FixedScan:
-    """The protocol's activity predictor, answering with precomputed filtered distributions."""
-
-    def __init__(self, model: Any, dists: list[dict[str, float]]) -> None:
-        self.model, self.dists = model, dists
-
-    def scan_proba(self, day: Sequence[str], weekday: int | None = None) -> list[dict[str, float]]:
-        if len(day) != len(self.dists):
-            raise ValueError(f"{len(self.dists)} filtered distributions for a day of {len(day)} steps")
-        return self.dists
-
-    def ranked(self, distribution: dict[str, float]) -> list[str]:
-        return self.model.ranked(distribution)
-
-    def top(self, distribution: dict[str, float]) -> str | None:
-        return self.model.top(distribution)
-
-
 # -- choosing the movement evidence on training days --------------------------------------------
 
 def filter_candidates(fc: FilterConfig) -> list[dict[str, Any]]:
@@ -155,7 +137,8 @@ def evidence_scores(household: Household, config: GlobeConfig, models: ModelConf
         for c in range(len(candidates)):
             true, pred = [], []
             for day, (_, objects_dists) in zip(days, found[c * len(days):(c + 1) * len(days)]):
-                ev = evaluate_days(household, [day], _FixedScan(activity, objects_dists), chooser, alignment=alignment)
+                ev = evaluate_days(household, [day], FixedScan(activity, {day.name: objects_dists}), chooser,
+                                   alignment=alignment)
                 true += [r.true for r in ev.objects]
                 pred += [r.predicted for r in ev.objects]
             scores[f, c] = f1(true, pred) or 0.0  # a fold with nothing to score counts 0
@@ -241,10 +224,11 @@ def evaluate_fraction(setup: FilterSetup, config: GlobeConfig, fraction: float, 
     align = setup.alignment
     for day, (predictive, for_objects) in zip(days, found):
         assert predictive is not None
-        ev = evaluate_days(h, [day], _FixedScan(setup.activity, predictive), setup.chooser, alignment=align)
+        ev = evaluate_days(h, [day], FixedScan(setup.activity, {day.name: predictive}), setup.chooser, alignment=align)
         res.activity.extend(ev.activity)
         if for_objects is not predictive:
-            ev = evaluate_days(h, [day], _FixedScan(setup.activity, for_objects), setup.chooser, alignment=align)
+            ev = evaluate_days(h, [day], FixedScan(setup.activity, {day.name: for_objects}), setup.chooser,
+                               alignment=align)
         res.objects.extend(ev.objects)
         res.hidden_steps += sum(not v for v in masks[day.name])
     if lookahead:

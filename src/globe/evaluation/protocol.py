@@ -17,7 +17,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, replace
-from typing import Callable, Protocol, Sequence, runtime_checkable
+from typing import Callable, Mapping, Protocol, Sequence, runtime_checkable
 
 from globe.data.records import Day, Household
 from globe.models.base import stay_or_change
@@ -111,6 +111,30 @@ class Evaluation:
     objects: list[ObjectRecord]
     inference_s: float
     prefetch_s: float = 0.0  # the LLM's batched scoring of every question asked (then read from the cache)
+
+
+class FixedScan:
+    """An activity predictor answering with distributions computed beforehand, per day (by name):
+    what a household's session served at each step, or a filter's, scored by the same protocol
+    as a model's own (the ranking and the point prediction stay ``model``'s)."""
+
+    def __init__(self, model: ActivityPredictor | DayPredictor, dists: Mapping[str, Sequence[dict[str, float]]]):
+        self.model, self.dists = model, dists
+
+    def scan_day(self, day: Day) -> list[dict[str, float]]:
+        """``dists[t]``: P(the activity at step t | what was seen before it) on ``day``."""
+        dists = self.dists.get(day.name)
+        if dists is None:
+            raise ValueError(f"no distributions computed for day {day.name}")
+        if len(dists) != len(day):
+            raise ValueError(f"{len(dists)} distributions for day {day.name} of {len(day)} steps")
+        return list(dists)
+
+    def ranked(self, distribution: dict[str, float]) -> list[str]:
+        return self.model.ranked(distribution)
+
+    def top(self, distribution: dict[str, float]) -> str | None:
+        return self.model.top(distribution)
 
 
 def seen_day(day: Day) -> Day:

@@ -13,6 +13,14 @@ evidence, no look-ahead) is kept as the day's :attr:`~globe.data.records.Day.obs
 table reads :attr:`~globe.data.records.Day.seen` where it conditions on the activity and the
 annotation where it scores; the training days stay annotated, so every model is the one the
 annotated evaluation fits.
+
+Where a Table I row is a method a household can be deployed with (:attr:`~globe.evaluation.methods.Method.deploys`),
+its next activity is not the model's reading of the recognised activities but what the session
+deployed with that method *says* after each step (:func:`served_scan`): the filter's predictive,
+which weighs every history the sensors allow and reads the last step's sensors as evidence on
+the change after it, kept at the recognised activity by the stay margin. That is what the
+service serves a home with sensors and no labels, step for step. The baselines (and rows no
+household runs) read the recognised activities as a person's rule would.
 """
 
 from __future__ import annotations
@@ -20,22 +28,24 @@ from __future__ import annotations
 import json
 import logging
 from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal, Sequence
 
 from globe import assembly
-from globe.config import Deployment, GlobeConfig
-from globe.data.records import Household
+from globe.config import Deployment, DeployMethod, GlobeConfig
+from globe.data.records import Day, Household
 from globe.data.sensors import SensorData, check_sensor_data
 from globe.errors import ConfigError
 from globe.evaluation import report
 from globe.evaluation.deploy import choose_deployment
 from globe.evaluation.fetch import LAST_DATE
 from globe.evaluation.online import day_observations, replay_dates
+from globe.evaluation.protocol import FixedScan
 from globe.evaluation.published import DataScope
 from globe.evaluation.recognition import Scores, deployed_settings, recognition_scores
 from globe.evaluation.selection import Memo
+from globe.models.base import ActivityModelBase
 from globe.recognition.recogniser import RecognitionSettings
 from globe.session import build_session
 from globe.session.build import activity_model_summary
@@ -49,12 +59,23 @@ RECOGNITION_COLUMNS = ("household", "test_days", "steps", "time_slice_accuracy",
 
 
 @dataclass(frozen=True, slots=True)
+class ServedDay:
+    """One test day as a household's session served it, asking nothing and told no label."""
+
+    recognised: tuple[str, ...]  # after each step: the activity recognised there
+    beliefs: tuple[dict[str, float], ...]  # after each step: P(the activity at the next step), as served
+
+
+@dataclass(frozen=True, slots=True)
 class Recognised:
     """One household with its test days' activities recognised, and how well they were."""
 
     household: Household  # test days carrying ``observed``; training days as annotated
     scores: Scores  # online recognition of the test days against their annotation
     settings: dict  # what cross-validation chose (:meth:`~globe.recognition.recogniser.Recogniser.describe`)
+    sensors: SensorData | None = None  # the household's (None: a record read back, nothing to replay)
+    recognition: RecognitionSettings | None = None  # the recogniser's settings, as chosen
+    served: dict[DeployMethod, tuple[ServedDay, ...]] = field(default_factory=dict)  # per deployed method
 
     def row(self) -> dict:
         """A ``recognition.csv`` row."""
@@ -90,18 +111,19 @@ def recognise_test_days(household: Household, sensors: SensorData, step_minutes:
     deployment = choose_deployment(household, config, memo)
     described = {**settings_to_dict(settings), "dynamics": activity_model_summary(deployment.models)}
     log.info("%s: recognised as served: %s", household.name, described)
-    predicted = served_recognition(household, sensors, config, deployment, settings)
-    test = tuple(replace(day, observed=tuple(seen)) for day, seen in zip(household.test, predicted))
-    scores = recognition_scores([a for d in household.test for a in d.activities], [a for p in predicted for a in p])
-    return Recognised(replace(household, test=test), scores, described)
+    served = served_days(household, sensors, config, deployment, settings)
+    test = tuple(replace(day, observed=s.recognised) for day, s in zip(household.test, served))
+    scores = recognition_scores([a for d in household.test for a in d.activities],
+                                [a for s in served for a in s.recognised])
+    return Recognised(replace(household, test=test), scores, described, sensors, settings, {deployment.method: served})
 
 
-def served_recognition(household: Household, sensors: SensorData, config: GlobeConfig, deployment: Deployment,
-                       settings: RecognitionSettings) -> list[list[str]]:
-    """Per test day of ``household``, the activity its session (built as the service builds it,
-    asking nothing) recognises after each step, the test days replayed in order on consecutive
-    dates with each step's sensor activations (those beginning in it; the first step also those
-    before it) and object places, and no label."""
+def served_days(household: Household, sensors: SensorData, config: GlobeConfig, deployment: Deployment,
+                settings: RecognitionSettings) -> tuple[ServedDay, ...]:
+    """Per test day of ``household``, what its session (built as the service builds it, running
+    ``deployment``, asking nothing) recognises after each step and says of the next, the test
+    days replayed in order on consecutive dates with each step's sensor activations (those
+    beginning in it; the first step also those before it) and object places, and no label."""
     session = build_session(household, config, deployment, None, sensors=sensors, recognition=settings,
                             questions_per_day=0)
     dates = replay_dates(household.test, LAST_DATE)  # as the fetch policy's replay
@@ -110,12 +132,35 @@ def served_recognition(household: Household, sensors: SensorData, config: GlobeC
     out = []
     for day, date in zip(household.test, dates):
         seen: list[str] = []
+        beliefs: list[dict[str, float]] = []
         for _row, obs in day_observations(household, day, date, visible=lambda _row: False, sensors=sensors):
             session.observe(obs)
             found = session.recognised()
             seen.append(found[0] if found is not None else (seen[-1] if seen else usual))
-        out.append(seen)
-    return out
+            beliefs.append(dict(session.belief()))
+        out.append(ServedDay(tuple(seen), tuple(beliefs)))
+    return tuple(out)
+
+
+def served_scan(recognised: Recognised, method: DeployMethod, model: ActivityModelBase, config: GlobeConfig,
+                memo: Memo | None = None) -> tuple[FixedScan, tuple[Day, ...]] | None:
+    """The protocol's activity predictor for the Table I row of ``model`` (fitted on the training
+    days) when the household is deployed with ``method``, and the test days as that session saw
+    them: at each test step, what the session deployed so said of it after the step before
+    (:func:`served_days`, the deployment chosen as ``globe train`` chooses it, the recogniser's
+    settings as chosen; the first step of a day, which nothing of the day precedes, as ``model``
+    says it), each day's activities as it recognised them (the stay margin keeps those). None
+    for a record with nothing to replay."""
+    if recognised.sensors is None or recognised.recognition is None:
+        return None
+    household = recognised.household
+    if method not in recognised.served:
+        deployment = choose_deployment(household, config, memo, method)
+        recognised.served[method] = served_days(household, recognised.sensors, config, deployment,
+                                                recognised.recognition)
+    pairs = list(zip(household.test, recognised.served[method]))
+    dists = {day.name: [model.predict_proba((), day.weekday), *s.beliefs[:-1]] for day, s in pairs}
+    return FixedScan(model, dists), tuple(replace(day, observed=s.recognised) for day, s in pairs)
 
 
 def recognise_households(config: GlobeConfig, households: Sequence[Household],

@@ -404,13 +404,14 @@ class HouseholdSession(SensorSteps):
 
     def next_activity(self) -> tuple[str, float] | None:
         """The next activity said and its probability (what :meth:`decide` says), or None: the
-        likeliest, kept at the activity under way by the deployment's stay margin
-        (:func:`~globe.models.base.stay_or_change`, as the evaluation scores it)."""
+        likeliest, kept at the activity under way (its label, else the one recognised) by the
+        deployment's stay margin (:func:`~globe.models.base.stay_or_change`, as the evaluation scores it)."""
         if self.days_learned == 0 or not self._labels:
             return None
         belief = self.belief()
-        said = stay_or_change(self.activity_model.top(belief), belief, self._labels[-1],
-                              self.deployment.models.stay_margin)
+        found = self.recognised()
+        current = self._labels[-1] or (found[0] if found is not None else None)
+        said = stay_or_change(self.activity_model.top(belief), belief, current, self.deployment.models.stay_margin)
         return (said, float(belief.get(said, 0.0))) if said is not None else None
 
     def decide(self) -> Decision:
