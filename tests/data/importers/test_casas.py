@@ -337,6 +337,10 @@ def test_one_resident_of_a_multi_resident_log(tmp_path):
             "2010-11-04 08:00:00 D001 OPEN Leave_Home begin\n2010-11-04 08:01:00 D001 CLOSE Leave_Home end\n"
             "2010-11-05 00:30:00 M001 OFF\n")
     assert _error(tmp_path, text).field == "activity"  # R2_Sleep overlaps R1's annotations
+    both = text.replace("r1_Meal", "R1_Meal")
+    (tmp_path / "both").mkdir()
+    overlap = _error(tmp_path / "both", both)  # ... and the error says how to take one person's
+    assert "may not overlap" in overlap.message and "a log of 2 residents: --resident R1 (CASAS)" in overlap.message
     result, home = _import(tmp_path, text, resident="R1")
     assert _rows(home.train[0], {360, 400, 480, 490}) == {360: "Sleep", 400: "Meal", 480: "Leave_Home", 490: "idle"}
     assert any("other residents left out (--resident R1): R2 1" in n for n in result.notes)

@@ -48,6 +48,8 @@ from globe.data.importers.objects import Choice, ObjectSelection, Sensor, read_m
 from globe.data.importers.options import GridOptions
 from globe.data.importers.sensor_log import Activation, Annotation, SensorLog
 from globe.data.importers.text import (
+    RESIDENT,
+    RESIDENT_ID,
     clocks_went_back,
     out_of_order,
     parse_date_time,
@@ -76,8 +78,6 @@ PROGRESS_EVERY = 500_000
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _SENSOR = re.compile(r"[\w.-]+")
 _LETTERS = re.compile(r"[A-Za-z]+")
-_RESIDENT_ID = r"R\d+"  # a resident of a multi-resident log, as its labels name one
-_RESIDENT = re.compile(rf"({_RESIDENT_ID})[_ ](.+)", re.IGNORECASE)  # R1_Sleep, R2_Meal; Cairo: R1 sleep
 
 
 def sensor_kind(key: str) -> str:
@@ -282,7 +282,7 @@ def _of_resident(marker: tuple[str, str], resident: str) -> tuple[tuple[str, str
     """A multi-resident log's annotation for ``resident``, and the resident it names (None: no
     one): ``R1_Sleep`` is ``Sleep`` for R1 and left out for anyone else; a label without such a
     prefix is everyone's."""
-    match = _RESIDENT.fullmatch(marker[0])
+    match = RESIDENT.fullmatch(marker[0])
     if match is None:
         return marker, None
     who = match.group(1).upper()
@@ -365,7 +365,7 @@ def import_casas(*, log_file: Path, dest: Path, options: GridOptions | None = No
     mapping = read_mapping(objects) if objects is not None else None
     selection = ObjectSelection(mapping=mapping, default=default_rule, default_help=DEFAULT_RULE)
     zone = time_zone(timezone) if timezone is not None else None
-    if resident is not None and not re.fullmatch(_RESIDENT_ID, resident, re.IGNORECASE):
+    if resident is not None and not re.fullmatch(RESIDENT_ID, resident, re.IGNORECASE):
         raise ConfigError(f"--resident {resident!r}: name a resident as the log does, e.g. R1")
     sensor_log = read_casas(log_file, selection, skip_bad_lines, zone, resident)
     return write_import(sensor_log=sensor_log, selection=selection, options=options, dest=dest,

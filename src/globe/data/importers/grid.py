@@ -85,7 +85,7 @@ from globe.data.importers.objects import HomeMap, ObjectSelection, build_map
 from globe.data.importers.options import GridOptions, Overlaps, clock
 from globe.data.importers.report import REPORT_FILE, LabelStats, build_report, silent_stretches, write_report
 from globe.data.importers.sensor_log import EPOCH, Annotation, SensorLog, keep_to_the_log
-from globe.data.importers.text import show
+from globe.data.importers.text import RESIDENT, show
 from globe.data.importers.uses import ObjectUses, find_uses
 from globe.data.records import Day
 from globe.data.sensors import write_sensor_data, write_unlabelled_day
@@ -131,9 +131,12 @@ def check_overlaps(annotations: Sequence[Annotation], overlaps: Overlaps, *,
         longest: Annotation | None = None
         for ann in ordered:
             if longest is not None and ann.start < longest.end:
+                whose = {m.group(1).upper() for a in (ann, longest) if (m := RESIDENT.fullmatch(a.activity))}
+                hint = f"; a log of {len(whose)} residents: --resident {min(whose)} (CASAS) takes one person's" \
+                    if len(whose) > 1 else ""
                 raise DataError(f"{show(ann.activity)} begins at {ann.start} while {show(longest.activity)} (line "
                                 f"{longest.line}) lasts until {longest.end}: annotations may not overlap (one person, "
-                                "one activity; --overlaps latest lets the later one win while it lasts)",
+                                f"one activity; --overlaps latest lets the later one win while it lasts{hint})",
                                 source=ann.source, line=ann.line, field=error_field)
             if longest is None or ann.end > longest.end:
                 longest = ann

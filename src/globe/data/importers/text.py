@@ -25,6 +25,8 @@ _MONTHS = {name: i for i, name in enumerate(
     ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec"), start=1)}
 _DMY_DATE = re.compile(r"(\d{1,2})-([A-Za-z]{3})-(\d{4})")
 _EPOCH, _MICROSECOND = datetime(1970, 1, 1), timedelta(microseconds=1)
+RESIDENT_ID = r"R\d+"  # a resident of a multi-resident log, as its labels name one
+RESIDENT = re.compile(rf"({RESIDENT_ID})[_ ](.+)", re.IGNORECASE)  # R1_Sleep, R2_Meal; Cairo: R1 sleep
 _ISO_8601 = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{1,9})?)?(?:Z|[+-]\d{2}:?\d{2})?")
 
 
