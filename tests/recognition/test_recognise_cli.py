@@ -30,6 +30,9 @@ def test_recognise_writes_its_tables_and_plot(tmp_path):
     assert [int(r["questions_per_day"]) for r in asking] == [0, 1]
     assert (folder / "confusion.png").stat().st_size > 10_000
     assert "recognition on the test days" in run.stdout and "the learning curve" in run.stderr
+    said = " ".join(run.stdout.split())  # as wrapped to the terminal's width
+    assert "annotated vs recognised history: one-step F1" in said
+    assert "predicted by the filter from the sensors (as the service serves it): one-step F1 0." in said
 
 
 def test_recognise_refuses_a_bad_list_and_a_home_without_sensors(tmp_path):
