@@ -21,7 +21,7 @@ from typing import Sequence
 from globe.data.csv_logs import write_day, write_nodes
 from globe.data.records import Day, Household
 from globe.data.sensors import Sensor, SensorData, SensorDay, write_sensor_data
-from tests.simulated import END, START, _Block, _clock_blocks, _day, _household, _unsettled
+from tests.simulated import END, START, _Block, _clock_blocks, _day, _household, _random_blocks, _unsettled
 
 SENSORS = (
     Sensor("M_bedroom", "motion", "bedroom"), Sensor("M_bathroom", "motion", "bathroom"),
@@ -54,14 +54,16 @@ _WANDER = ("hall", "living", "kitchen", "hall", "bedroom")
 
 
 def sensor_home(days: int = 28, test: int = 7, step: int = 1, seed: int = 0, miss: float = 0.1,
-                false_per_hour: float = 0.5, drift: float = 0.5) -> tuple[Household, SensorData]:
+                false_per_hour: float = 0.5, drift: float = 0.5, routine: bool = True) -> tuple[Household, SensorData]:
     """A household (days named by date from Monday 2024-01-01, activities annotated) and the
-    activations of its sensors (see the module doc)."""
+    activations of its sensors (see the module doc); without ``routine``, each day a random
+    sequence of the same activities at random times (:func:`tests.simulated.random_home`'s rule)."""
     rng = random.Random(seed)
     out_days, events = [], {}
     for i in range(days):
         name = (date(2024, 1, 1) + timedelta(days=i)).isoformat()
-        blocks = _unsettled(rng, _clock_blocks(rng, i % 7), drift)
+        blocks = _unsettled(rng, _clock_blocks(rng, i % 7), drift) if routine else \
+            _random_blocks(rng, tuple(_PLACES))
         out_days.append(_day(name, blocks, step))
         events[name] = _activations(rng, name, blocks, step, miss, false_per_hour, stuck=rng.random() < 0.1)
     return _household("Sensors", out_days, test), SensorData(SENSORS, events)

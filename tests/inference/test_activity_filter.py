@@ -11,6 +11,7 @@ import pytest
 from globe import assembly
 from globe.config import GlobeConfig
 from globe.data.records import Day
+from globe.errors import ConfigError
 from globe.inference.activity_filter import ActivityFilter, HistoryMemo, as_dicts, filtered_beliefs, label_mask
 from globe.inference.emission import MovementEmission
 from globe.models.activity import ActivityModel
@@ -164,6 +165,21 @@ def test_an_impossible_label_still_pins_the_state():
     b = flt.update(flt.update(flt.start(), 0, ["a"]), 1, ["b"])  # persistence gives "b" probability 0 after "a"
     _close(_dist(flt, flt.posterior(b)), {"b": 1.0})
     _close(_dist(flt, flt.predictive(b)), {"b": 1.0})
+
+
+def test_a_floor_on_changes_spreads_its_share_over_every_activity():
+    model = PersistenceModel().fit([("a", "a", "b")])  # "the activity stays": every change has no chance
+    plain, floored = ActivityFilter(model), ActivityFilter(model, change_floor=0.1)
+    after_a = floored.update(floored.start(), 0, ["a"])
+    _close(_dist(plain, plain.predictive(plain.update(plain.start(), 0, ["a"]))), {"a": 1.0})
+    _close(_dist(floored, floored.predictive(after_a)), {"a": 0.9 + 0.1 / 2, "b": 0.1 / 2})
+    likely_b = np.array([[0.01, 1.0]])  # evidence that says "b": only the floored filter can read it
+    _close(_dist(plain, plain.posterior(plain.update(plain.update(plain.start(), 0, ["a"]), 1, likelihood=likely_b))),
+           {"a": 1.0})
+    read = _dist(floored, floored.posterior(floored.update(after_a, 1, likelihood=likely_b)))
+    assert read["b"] > 0.8
+    with pytest.raises(ConfigError, match="change_floor=1.0"):
+        ActivityFilter(model, change_floor=1.0)
 
 
 def test_routine_state_merging_is_exact():

@@ -193,3 +193,23 @@ def test_the_emission_learns_day_by_day_as_from_all_days_at_once():
     assert np.allclose(whole.log_likelihoods(test, names), daily.log_likelihoods(test, names))
     with pytest.raises(ValueError, match="columns"):
         daily.partial_fit([x[:, :3]], [acts], sizes[:3])
+
+
+def test_without_a_routine_the_sensors_are_read_and_only_what_they_cannot_tell_apart_is_confused():
+    """A home whose activities come in random order at random times: the clock says nothing, so
+    what is recognised is what the sensors show; the steps are read to the right group of
+    activities the sensors cannot tell apart (the same room, mat and door: breakfast, lunch and
+    dinner; meal preparation and washing dishes; toileting and grooming until the flush), and
+    the errors are almost all inside such a group."""
+    from tests.simulated_sensors import _PLACES
+
+    home, sensors = sensor_home(days=12, test=3, step=10, seed=1, routine=False)
+    rec = Recogniser(RecognitionSettings(features=("raw", "change", "last"), weight=0.5)).fit(home.train, sensors, 10)
+    group = {a: (room, mat, at_start) for a, (room, _rate, mat, at_start) in _PLACES.items()}
+    labels = list(rec.labels)
+    pairs = [(a, labels[int(i)]) for day, post in zip(home.test, rec.filter(home.test))
+             for a, i in zip(day.activities, post.argmax(axis=1))]
+    wrong = [(a, b) for a, b in pairs if a != b]
+    assert len(wrong) > 0.2 * len(pairs)  # the groups are real: the sensors alone cannot name their members
+    assert sum(group[a] == group[b] for a, b in pairs) > 0.95 * len(pairs)
+    assert sum(group[a] == group[b] for a, b in wrong) > 0.85 * len(wrong)

@@ -142,3 +142,21 @@ def test_with_evidence_on_changes_a_day_reported_late_reads_as_one_reported_live
     assert late.recognised_today() == live_one.recognised_today()
     assert late.belief() == live_one.belief()
     assert live_one.belief() != as_dicts(live_one._filter.predictive(live_one._filtered()), live_one._filter.labels)[0]
+
+
+@pytest.mark.parametrize("routine", [True, False])
+def test_a_model_that_gives_unseen_changes_no_chance_still_lets_the_sensors_be_read(routine):
+    """The paper's n-gram (unsmoothed) as the dynamics: with no floor on changes it holds the filter
+    to a path it remembers whatever the sensors say; with the configured floor the sensors are read
+    (a home with a clock routine and one without)."""
+    from globe.evaluation.recognised import served_days  # the evaluation's replay: the session, told no label
+
+    h, sensors = sensor_home(days=8, test=2, step=STEP, seed=3, routine=routine)
+    read = {}
+    for floor in (0.0, GlobeConfig().filter.change_floor):
+        config = GlobeConfig().with_overrides({"filter.change_floor": floor})
+        served = served_days(h, sensors, config, Deployment.configured(config, "ngram"), RecognitionSettings())
+        read[floor] = sum(a == b for d, s in zip(h.test, served) for a, b in zip(d.activities, s.recognised))
+    steps = sum(len(d) for d in h.test)
+    stuck, floored = read.values()
+    assert floored > stuck + 0.15 * steps and floored > 0.5 * steps

@@ -399,6 +399,11 @@ class FilterConfig(_Section):
         4, ge=1, le=1000,
         description="most probable filtered histories mixed in a lookahead forecast with missing labels",
     )
+    change_floor: float = Field(
+        1e-3, ge=0.0, lt=1.0,
+        description="where a household's sensors are the evidence, the share of each step's probability the filter "
+        "spreads over every activity, so a change its activity model never saw (an unsmoothed n-gram's) stays possible",
+    )
     threshold_per_fraction: bool = Field(
         False, description="choose the missing-label lookahead's change threshold by CV on training days with the same "
         "share of labels visible (else: on fully labelled days; costs a filter pass over every training day per share)"

@@ -76,16 +76,31 @@ class ActivityFilter:
     ``labels``). Skipped steps are filled with "nothing seen"."""
 
     def __init__(self, model: Any, emission: MovementEmission | None = None, *, max_hypotheses: int = 32,
-                 min_weight: float = 1e-4) -> None:
+                 min_weight: float = 1e-4, change_floor: float = 0.0) -> None:
         if max_hypotheses < 1:
             raise ConfigError(f"ActivityFilter: max_hypotheses={max_hypotheses}; expected a positive integer")
         if not 0.0 <= min_weight < 1.0:
             raise ConfigError(f"ActivityFilter: min_weight={min_weight}; expected a number in [0, 1)")
+        if not 0.0 <= change_floor < 1.0:
+            raise ConfigError(f"ActivityFilter: change_floor={change_floor}; expected a number in [0, 1)")
         self.model = model
         self.emission = emission
         self.max_hypotheses = max_hypotheses
         self.min_weight = min_weight
+        self.change_floor = change_floor
         self.space: StateSpace = state_space(model)
+
+    def rows(self, states: np.ndarray) -> np.ndarray:
+        """P(the next activity | each of ``states``) as the filter steps: the model's rows, each
+        with ``change_floor`` of it spread evenly over the activities. Where sensors are the
+        evidence, a change the model never saw (an unsmoothed n-gram gives most none) stays
+        possible, so what the sensors show can be read; without it such a model holds the filter
+        to a path it remembers, whatever the sensors say."""
+        rows = self.space.rows(states)
+        if self.change_floor <= 0.0:
+            return rows
+        spread = rows.sum(axis=1, keepdims=True) / rows.shape[1]
+        return (1.0 - self.change_floor) * rows + self.change_floor * spread
 
     @property
     def labels(self) -> Vocabulary:
@@ -132,7 +147,7 @@ class ActivityFilter:
             if len(labels) != belief.queries:
                 raise ValueError(f"{len(labels)} labels for {belief.queries} days")
             pinned = np.array([-1 if a is None else space.code(a) for a in labels], dtype=np.int64)
-        rows = space.rows(beam.state)  # first: a model may name a label it never saw
+        rows = self.rows(beam.state)  # first: a model may name a label it never saw
         evidence = self._evidence(belief, moved) if moved is not None and belief.step >= 0 else None
         if likelihood is not None:
             evidence = _with_likelihood(evidence, np.asarray(likelihood, dtype=np.float64), belief.queries,
@@ -187,7 +202,7 @@ class ActivityFilter:
         (days x labels x labels, as :meth:`update` takes them): what the last step showed of each
         change after it, which the next update would take in."""
         beam = belief.beam
-        rows = self.space.rows(beam.state) * beam.weight[:, None]
+        rows = self.rows(beam.state) * beam.weight[:, None]
         if edges is not None and belief.step >= 0:
             e = np.asarray(edges, dtype=np.float64)
             k = e.shape[1]

@@ -293,11 +293,11 @@ def forward_backward(flt: ActivityFilter, likelihoods: np.ndarray, weekday: int 
     likes[:, : likelihoods.shape[1]] = likelihoods
     codes = np.arange(n, dtype=np.int64)
     state = np.array([space.root_of(weekday)], dtype=np.int64)
-    first = space.rows(state)[0][:n]
+    first = flt.rows(state)[0][:n]
     moves: list[np.ndarray] = []  # moves[t - 1]: (previous x next) at step t
     for _ in range(1, steps):
         after = space.children(np.repeat(state[:1], n), codes)  # each previous activity, one step on
-        move = space.rows(after)[:, :n]
+        move = flt.rows(after)[:, :n]
         if edges is not None:  # a copy: the rows may be the state space's own
             move = move.copy()
             k = edges.shape[1]

@@ -64,7 +64,8 @@ def build_session(household: Household, config: GlobeConfig, deployment: Deploym
     sensing = None
     if sensors is not None:
         budget = config.service.questions_per_day if questions_per_day is None else questions_per_day
-        sensing = SessionSensors(sensors.sensors, recognition or RecognitionSettings(), grid.step_minutes, budget)
+        sensing = SessionSensors(sensors.sensors, recognition or RecognitionSettings(), grid.step_minutes, budget,
+                                 fc.change_floor)
         sensing.learn_days(household.train, sensors)
     session = HouseholdSession(household, activity=fitted.activity, chooser=chooser, emission=emission,
                                policy=policy, grid=grid, deployment=deployment, alignment=cfg.sequences.alignment,
@@ -73,7 +74,8 @@ def build_session(household: Household, config: GlobeConfig, deployment: Deploym
                                new_activities=new_activities or new_activities_rule(config, bool(household.train)),
                                sensing=sensing)
     if sensing is not None and sensors is not None and household.train and sensing.budget > 0:
-        reference = ActivityFilter(fitted.activity, max_hypotheses=fc.max_hypotheses, min_weight=fc.min_weight)
+        reference = ActivityFilter(fitted.activity, max_hypotheses=fc.max_hypotheses, min_weight=fc.min_weight,
+                                   change_floor=sensing.change_floor)
         sensing.reference_from(reference, household.train, sensors)
     return session
 

@@ -78,13 +78,14 @@ class SessionSensors:
     """A household's sensors, its feature layout and its sensor emission (see module doc)."""
 
     def __init__(self, sensors: Sequence[Sensor], settings: RecognitionSettings, step_minutes: int,
-                 budget: int = 0) -> None:
+                 budget: int = 0, change_floor: float = 0.0) -> None:
         if budget < 0:
             raise ValueError(f"a budget of {budget} questions a day; expected 0 or more")
         self.sensors = tuple(sensors)
         self.settings = settings
         self.step_minutes = step_minutes
         self.budget = budget
+        self.change_floor = change_floor  # the session's filter reads the sensors with it (filter.change_floor)
         self.layout = Layout.of(self.sensors, settings.features)
         self.index = {s.name: i for i, s in enumerate(self.sensors)}
         self.reference = np.zeros(0)  # worths of asking seen on the days lived so far

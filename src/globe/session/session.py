@@ -546,11 +546,12 @@ class HouseholdSession(SensorSteps):
         self._recognition = None
         self._worths: dict[int, float] = {}  # per unlabelled step, the worth of asking there
         if self.days_learned > 0:
+            sensing = self.sensing
+            floor = sensing.change_floor if sensing is not None else 0.0  # reading sensors: unseen changes possible
             self._filter = ActivityFilter(self.activity_model, self.emission, max_hypotheses=self.max_hypotheses,
-                                          min_weight=self.min_weight)
+                                          min_weight=self.min_weight, change_floor=floor)
             weekday = None if day is None else dt.date.fromisoformat(day).weekday()
             self._beliefs = [self._filter.start(1, weekdays=[weekday])]
-            sensing = self.sensing
             policy = sensing.policy() if sensing is not None else None
             if sensing is not None and policy is not None and day is not None:
                 # the same worth the evaluation's asking curve scores: unsure, and about activities little labelled
