@@ -200,3 +200,24 @@ def test_a_deployable_row_scores_what_its_session_served(imported):
     shown = [a for d in done.household.test for a in (d.observed or ())[:-1]]  # by the deployed (routine) session
     assert [r.predicted for r in persistence.evaluation.activity] == shown  # a rule on what was recognised
     assert done.served.keys() == {"routine", "ngram"} and recognised != shown  # each deployment recognises its own
+
+
+def test_the_fetch_policy_of_a_recognised_home_is_decided_by_a_session_told_its_sensors_and_no_label(imported,
+                                                                                                      monkeypatch):
+    from globe.evaluation import anticipation
+
+    config = _quick().with_overrides({"evaluation.workers": 1})  # in this process: the spy sees the session
+    memo, sensors = Memo(), sensors_of(imported, 10)
+    done = recognise_test_days(imported, sensors, 10, FAST, config, memo)
+    built = []
+
+    def spy(*args, **kw):
+        session = build_session(*args, **kw)
+        built.append((kw.get("sensors"), session))
+        return session
+
+    monkeypatch.setattr(anticipation, "build_session", spy)
+    served, = anticipation.run_anticipation(config, [done.household], memo=memo, recognised=[done]).fetch[:1]
+    (given, session), = built
+    assert given is sensors and session.sensing is not None and served.report.fetches > 0
+    assert session.step_counts() == (0, len(done.household.test[-1]))  # the last day: no label, every step recognised

@@ -53,6 +53,7 @@ from globe.evaluation.lookahead import (
 from globe.evaluation.parallel import run_forked, worker_count
 from globe.evaluation.plots_anticipation import fetch_curve_figure, lead_time_figure, lookahead_figure, save_figure
 from globe.evaluation.published import DataScope
+from globe.evaluation.recognised import Recognised
 from globe.evaluation.selection import Memo, SearchKey
 from globe.evaluation.tuning import tuned_models
 from globe.session import build_session
@@ -91,14 +92,18 @@ class AnticipationResult:
 
 
 def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | Sequence[Household],
-                     progress: Callable[[str], None] | None = None, memo: Memo | None = None) -> AnticipationResult:
+                     progress: Callable[[str], None] | None = None, memo: Memo | None = None,
+                     recognised: Sequence[Recognised] = ()) -> AnticipationResult:
     """Lookahead for every configured method and the fetch policy on every household's test
-    days. ``memo`` may be the main job's (so the routine CV runs once).
+    days. ``memo`` may be the main job's (so the routine CV runs once). A household among
+    ``recognised`` (its activities recognised from its sensors) has its fetches decided by a
+    session told its sensors and no label, as such a home is served.
 
     Each (household, method) runs on its own process (``evaluation.workers``; the fetch policy
     with its method's lookahead, whose forecaster it shares). The lookahead's cross-validated
     pairs come back into ``memo``, where the missing-label runs look for them."""
     homes = list(households.values()) if isinstance(households, Mapping) else list(households)
+    sensing = {r.household.name: r for r in recognised}
     step = assembly.common_step(homes, config)
     memo = Memo() if memo is None else memo
     policy_method = config.policy.method
@@ -117,7 +122,7 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
             look = evaluate_lookahead(h, config, config.models, ORACLE, memo)
         elif method is not None:
             look = evaluate_lookahead(h, config, method_models(method, h, config, memo), method, memo)
-        fetch = _fetch(h, config, memo, look) if method in (None, policy_method) else ()
+        fetch = _fetch(h, config, memo, look, sensing.get(h.name)) if method in (None, policy_method) else ()
         shared = memo.entries(lambda k: k not in before and isinstance(k, SearchKey) and k.search == "lookahead-cv")
         return None if look is None else replace(look, forecaster=None), fetch, shared
 
@@ -134,14 +139,16 @@ def run_anticipation(config: GlobeConfig, households: Mapping[str, Household] | 
     return AnticipationResult(tuple(look), tuple(fetch), config, step)
 
 
-def _fetch(h: Household, config: GlobeConfig, memo: Memo,
-           same: LookaheadResult | None) -> tuple[FetchEvaluation, ...]:
+def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult | None,
+           recognised: Recognised | None = None) -> tuple[FetchEvaluation, ...]:
     """The fetch policy on ``h``'s test days: replayed through a session of the policy's method,
     whose movement model has the settings the lookahead of that method chose on training days
     (``same``, when it ran) and, for a method the clock-aware uses model is offered to, the
     candidate source whose fetches cost least on held-out training days
     (:func:`~globe.evaluation.fetch_source.choose_fetch_source`; ``Deployment.fetch_objects``);
-    then the baseline's and the oracle's fetches at the same steps by the same rule."""
+    then the baseline's and the oracle's fetches at the same steps by the same rule. With
+    ``recognised``, the session reads the home's sensors with the recogniser's settings as chosen
+    and is told no label."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
         setting = setting_of(choose_settings(h, config, models, memo).best)
@@ -151,8 +158,10 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo,
     if config.policy.method in CLOCK_OFFERED_TO:
         source = choose_fetch_source(h, config, models, setting, memo)
     deployment = policy_deployment(config, models, setting, MOVEMENTS if source is None else source.best["objects"])
-    session = build_session(h, config, deployment, None, learn=False)
-    replayed = replay_test_days(session, h, h.test)
+    sensors = recognised.sensors if recognised is not None else None
+    session = build_session(h, config, deployment, None, learn=False, sensors=sensors, questions_per_day=0,
+                            recognition=recognised.recognition if recognised is not None else None)
+    replayed = replay_test_days(session, h, h.test, sensors)
     policy = session.policy
     ratios = config.policy.curve_ratios
     baseline = fit_uses_baseline(h.train, h.objects, policy.min_lead_steps, policy.window_steps)

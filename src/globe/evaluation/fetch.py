@@ -21,7 +21,9 @@ lead window (:func:`~globe.inference.forecast.forecast_known`), what perfect act
 would give. Where cross-validation on the fetch cost chose the clock-aware uses model for the
 policy's method (:mod:`globe.evaluation.fetch_source`), the session is built with that model as
 its fetch policy's candidates (``Deployment.fetch_objects``, as the service builds such a home's),
-so that row too is what the session decided.
+so that row too is what the session decided. A home whose activities are recognised from its
+sensors (``globe evaluate --activities recognised``) is replayed with its sensors and no label, as
+it is served.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
 from globe.data.records import Day, Household
+from globe.data.sensors import SensorData
 from globe.evaluation.lookahead import ORACLE
 from globe.evaluation.online import add_report, day_observations, replay, replay_dates
 from globe.evaluation.selection import Selection
@@ -65,9 +68,13 @@ class ReplayedDay:
     report: FetchReport  # what the session decided, scored
 
 
-def replay_day(session: HouseholdSession, household: Household, day: Day, date: dt.date) -> ReplayedDay:
-    """Every row of ``day`` on ``date`` through ``session`` (a session that does not learn)."""
-    records, _ = replay(session, [(day.name, t, obs) for t, obs in day_observations(household, day, date)])
+def replay_day(session: HouseholdSession, household: Household, day: Day, date: dt.date,
+               sensors: SensorData | None = None) -> ReplayedDay:
+    """Every row of ``day`` on ``date`` through ``session`` (a session that does not learn); with
+    ``sensors`` (the home's), each row's activations and no label, as a home nobody labels is served."""
+    hidden = None if sensors is None else (lambda _row: False)
+    rows = day_observations(household, day, date, visible=hidden, sensors=sensors)
+    records, _ = replay(session, [(day.name, t, obs) for t, obs in rows])
     n = session.step + 1 if session.step is not None else 0
     candidates: list[tuple[FetchCandidate, ...]] = [()] * n
     alone: list[frozenset[str]] = [frozenset()] * n
@@ -124,11 +131,13 @@ class FetchEvaluation:
     source: Selection | None = None  # where cross-validated: the candidate source's choice (fetch_source)
 
 
-def replay_test_days(session: HouseholdSession, household: Household, days: Sequence[Day]) -> list[ReplayedDay]:
-    """``days`` replayed through ``session``, which must not learn."""
+def replay_test_days(session: HouseholdSession, household: Household, days: Sequence[Day],
+                     sensors: SensorData | None = None) -> list[ReplayedDay]:
+    """``days`` replayed through ``session``, which must not learn (with ``sensors``: told no label)."""
     if session.learning:
         raise ValueError("the fetch policy is scored with models that learn nothing from the test days")
-    return [replay_day(session, household, day, date) for day, date in zip(days, replay_dates(days, LAST_DATE))]
+    dates = replay_dates(days, LAST_DATE)
+    return [replay_day(session, household, day, date, sensors) for day, date in zip(days, dates)]
 
 
 def evaluate_fetch(session: HouseholdSession, household: Household, days: Sequence[Day],

@@ -143,7 +143,7 @@ def evaluate(config: GlobeConfig, households: Sequence[Household], methods: Sequ
             log.warning("no lookahead or fetch-policy tables: the homes with objects have different steps (%s); "
                         "evaluate them separately", ", ".join(f"{name} {step} min" for name, step in steps.items()))
         else:
-            object_anticipation(ahead, with_objects, out_dir, stages, memo)
+            object_anticipation(ahead, with_objects, out_dir, stages, memo, recognised)
     return written
 
 
@@ -184,15 +184,17 @@ LOOKAHEAD_METHODS = ("persistence", "ngram", "routine")
 
 
 def object_anticipation(config: GlobeConfig, households: Sequence[Household], out_dir: Path,
-                        stages: Stages | None = None, memo: Memo | None = None) -> "AnticipationResult":
+                        stages: Stages | None = None, memo: Memo | None = None,
+                        recognised: Sequence[Recognised] = ()) -> "AnticipationResult":
     """Lookahead (SLaTe-PRO's relocation metric) and the fetch policy on the households' test
     days, written to ``out_dir``, for the methods of ``config.lookahead.methods``. ``memo``
-    shares the cross-validations already run."""
+    shares the cross-validations already run; a household among ``recognised`` has its fetches
+    decided by a session told its sensors and no label."""
     from globe.evaluation.anticipation import run_anticipation, write_anticipation_results
 
     stages = stages or Stages(out_dir)
     with stages.stage("anticipation: lookahead and fetch policy"):
-        ahead = run_anticipation(config, households, progress=stages.note, memo=memo)
+        ahead = run_anticipation(config, households, progress=stages.note, memo=memo, recognised=recognised)
         write_anticipation_results(out_dir, ahead, scope_of(households))
     return ahead
 
