@@ -32,7 +32,7 @@ def test_recognise_writes_its_tables_and_plot(tmp_path):
     assert "recognition on the test days" in run.stdout and "the learning curve" in run.stderr
     said = " ".join(run.stdout.split())  # as wrapped to the terminal's width
     assert "annotated vs recognised history: one-step F1" in said
-    assert "predicted by the filter from the sensors (as the service serves it): one-step F1 0." in said
+    assert "predicted by the recogniser's filter from the sensors (its clock dynamics): one-step F1 0." in said
 
 
 def test_recognise_refuses_a_bad_list_and_a_home_without_sensors(tmp_path):

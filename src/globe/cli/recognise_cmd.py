@@ -152,7 +152,7 @@ def _print(report: RecognitionReport) -> None:
               f"{e2e['annotated_one_step_f1']:.3f} vs {e2e['recognised_one_step_f1']:.3f}; next different activity "
               f"{e2e['annotated_next_different_accuracy']} vs {e2e['recognised_next_different_accuracy']}",
               markup=False)
-    if "filtered_one_step_f1" in e2e:  # what a service with the sensors says: the filter's predictive
-        out.print(f"... predicted by the filter from the sensors (as the service serves it): one-step F1 "
+    if "filtered_one_step_f1" in e2e:  # the recogniser's own predictive: every history its sensors allow
+        out.print(f"... predicted by the recogniser's filter from the sensors (its clock dynamics): one-step F1 "
                   f"{e2e['filtered_one_step_f1']:.3f}; next different activity "
                   f"{e2e['filtered_next_different_accuracy']}", markup=False)

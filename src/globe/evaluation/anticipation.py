@@ -25,6 +25,7 @@ from globe import assembly
 from globe.config import GlobeConfig, ModelConfig
 from globe.data.records import Household
 from globe.evaluation import report
+from globe.evaluation.deploy import choose_deployment
 from globe.evaluation.fetch import (
     FETCH_COLUMNS,
     FetchEvaluation,
@@ -147,8 +148,9 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult 
     candidate source whose fetches cost least on held-out training days
     (:func:`~globe.evaluation.fetch_source.choose_fetch_source`; ``Deployment.fetch_objects``);
     then the baseline's and the oracle's fetches at the same steps by the same rule. With
-    ``recognised``, the session reads the home's sensors with the recogniser's settings as chosen
-    and is told no label."""
+    ``recognised``, the session is the one such a home is served: deployed with the policy's
+    method as ``globe train`` deploys it (its filter's movement evidence chosen too), reading the
+    home's sensors with the recogniser's settings as chosen, told no label."""
     models = method_models(config.policy.method, h, config, memo)
     if same is None:  # the policy's method was not in the lookahead: choose its settings on training days
         setting = setting_of(choose_settings(h, config, models, memo).best)
@@ -159,6 +161,8 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult 
         source = choose_fetch_source(h, config, models, setting, memo)
     deployment = policy_deployment(config, models, setting, MOVEMENTS if source is None else source.best["objects"])
     sensors = recognised.sensors if recognised is not None else None
+    if recognised is not None:  # as such a home is served: its deployment's filter reads the sensors
+        deployment = choose_deployment(h, config, memo, config.policy.method)
     session = build_session(h, config, deployment, None, learn=False, sensors=sensors, questions_per_day=0,
                             recognition=recognised.recognition if recognised is not None else None)
     replayed = replay_test_days(session, h, h.test, sensors)

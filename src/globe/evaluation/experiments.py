@@ -68,13 +68,11 @@ def run_methods(
             prepared = method.prepare(h, config, backend, memo)
             alignment = prepared.alignment or config.sequences.alignment
             predictor: ActivityPredictor | DayPredictor = prepared.activity
-            days, replay = h.test, replays.get(h.name)
-            served = None if replay is None or method.deploys is None else \
-                served_scan(replay, method.deploys, cast(ActivityModelBase, prepared.activity), config, memo)
-            if served is not None:
-                predictor, days = served
-            ev = evaluate_days(h, days, predictor, prepared.chooser, alignment=alignment,
-                               stay_margin=prepared.stay_margin)
+            days, margin, replay = h.test, prepared.stay_margin, replays.get(h.name)
+            if replay is not None and method.deploys is not None:  # what the session deployed so serves
+                served = served_scan(replay, method.deploys, config, memo)
+                predictor, days, margin = served.predictor, served.days, served.stay_margin
+            ev = evaluate_days(h, days, predictor, prepared.chooser, alignment=alignment, stay_margin=margin)
             oracle = evaluate_days(h, h.test, prepared.activity, prepared.chooser, alignment=alignment, oracle=True,
                                    stay_margin=prepared.stay_margin)
             activity = cast(ActivityModelBase, prepared.activity)  # a baseline too: describe reads get_params()

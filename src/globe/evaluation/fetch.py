@@ -72,6 +72,8 @@ def replay_day(session: HouseholdSession, household: Household, day: Day, date: 
                sensors: SensorData | None = None) -> ReplayedDay:
     """Every row of ``day`` on ``date`` through ``session`` (a session that does not learn); with
     ``sensors`` (the home's), each row's activations and no label, as a home nobody labels is served."""
+    if sensors is not None and session.sensing is None:
+        raise ValueError(f"{household.name}: a session built without sensors cannot be told them (build it with them)")
     hidden = None if sensors is None else (lambda _row: False)
     rows = day_observations(household, day, date, visible=hidden, sensors=sensors)
     records, _ = replay(session, [(day.name, t, obs) for t, obs in rows])

@@ -57,7 +57,7 @@ class Method:
     prepare: Callable[[Household, GlobeConfig, LLMBackend | None, Memo], Prepared]
     family: str | None = None  # the model family chosen by cross-validation, if any
     baseline: bool = False  # a rule every model must clear (said beside its label wherever it is shown)
-    deploys: DeployMethod | None = None  # the deployment running its activity model (None: no household runs it)
+    deploys: DeployMethod | None = None  # with recognised activities, the session scored (None: a rule on them)
 
     @property
     def shown(self) -> str:

@@ -67,15 +67,34 @@ class ServedDay:
 
 
 @dataclass(frozen=True, slots=True)
+class ServedReplay:
+    """The test days replayed through the session of one deployment (:func:`served_days`)."""
+
+    deployment: Deployment
+    config: GlobeConfig  # what else the session was built with (its filter's floor, its grid)
+    model: ActivityModelBase  # the session's activity model: its ranking, and the day's first step
+    days: tuple[ServedDay, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ServedRow:
+    """What a Table I row is told of a recognised household's test days (:func:`served_scan`)."""
+
+    predictor: FixedScan  # the next activity's distribution at each step, as served
+    days: tuple[Day, ...]  # the test days, each seen as its session recognised it
+    stay_margin: float  # the deployment's, which kept the served next activity at the recognised one
+
+
+@dataclass(frozen=True, slots=True)
 class Recognised:
     """One household with its test days' activities recognised, and how well they were."""
 
     household: Household  # test days carrying ``observed``; training days as annotated
     scores: Scores  # online recognition of the test days against their annotation
     settings: dict  # what cross-validation chose (:meth:`~globe.recognition.recogniser.Recogniser.describe`)
-    sensors: SensorData | None = None  # the household's (None: a record read back, nothing to replay)
-    recognition: RecognitionSettings | None = None  # the recogniser's settings, as chosen
-    served: dict[DeployMethod, tuple[ServedDay, ...]] = field(default_factory=dict)  # per deployed method
+    sensors: SensorData  # the household's
+    recognition: RecognitionSettings  # the recogniser's settings, as chosen
+    replays: list[ServedReplay] = field(default_factory=list)  # one per deployment replayed, first the household's
 
     def row(self) -> dict:
         """A ``recognition.csv`` row."""
@@ -111,20 +130,22 @@ def recognise_test_days(household: Household, sensors: SensorData, step_minutes:
     deployment = choose_deployment(household, config, memo)
     described = {**settings_to_dict(settings), "dynamics": activity_model_summary(deployment.models)}
     log.info("%s: recognised as served: %s", household.name, described)
-    served = served_days(household, sensors, config, deployment, settings)
-    test = tuple(replace(day, observed=s.recognised) for day, s in zip(household.test, served))
+    replay = served_days(household, sensors, config, deployment, settings)
+    test = tuple(replace(day, observed=s.recognised) for day, s in zip(household.test, replay.days))
     scores = recognition_scores([a for d in household.test for a in d.activities],
-                                [a for s in served for a in s.recognised])
-    return Recognised(replace(household, test=test), scores, described, sensors, settings, {deployment.method: served})
+                                [a for s in replay.days for a in s.recognised])
+    return Recognised(replace(household, test=test), scores, described, sensors, settings, [replay])
 
 
 def served_days(household: Household, sensors: SensorData, config: GlobeConfig, deployment: Deployment,
-                settings: RecognitionSettings) -> tuple[ServedDay, ...]:
+                settings: RecognitionSettings) -> ServedReplay:
     """Per test day of ``household``, what its session (built as the service builds it, running
-    ``deployment``, asking nothing) recognises after each step and says of the next, the test
-    days replayed in order on consecutive dates with each step's sensor activations (those
-    beginning in it; the first step also those before it) and object places, and no label."""
-    session = build_session(household, config, deployment, None, sensors=sensors, recognition=settings,
+    ``deployment``, asking nothing, learning nothing) recognises after each step and says of the
+    next, the test days replayed in order on consecutive dates with each step's sensor
+    activations (those beginning in it; the first step also those before it) and object places,
+    and no label. Each row must be the session's next step (else a :class:`ValueError`): a belief
+    is kept per row as P(the next row's activity)."""
+    session = build_session(household, config, deployment, None, learn=False, sensors=sensors, recognition=settings,
                             questions_per_day=0)
     dates = replay_dates(household.test, LAST_DATE)  # as the fetch policy's replay
     # where the session says nothing (no belief yet), the training days' commonest activity, never the annotation
@@ -133,34 +154,37 @@ def served_days(household: Household, sensors: SensorData, config: GlobeConfig, 
     for day, date in zip(household.test, dates):
         seen: list[str] = []
         beliefs: list[dict[str, float]] = []
-        for _row, obs in day_observations(household, day, date, visible=lambda _row: False, sensors=sensors):
+        for row, obs in day_observations(household, day, date, visible=lambda _row: False, sensors=sensors):
             session.observe(obs)
+            if session.step != row:
+                raise ValueError(f"{household.name}, day {day.name}: row {row} ({day.minutes[row]} min) is step "
+                                 f"{session.step} of the session's {session.grid.step_minutes}-minute grid")
             found = session.recognised()
             seen.append(found[0] if found is not None else (seen[-1] if seen else usual))
             beliefs.append(dict(session.belief()))
         out.append(ServedDay(tuple(seen), tuple(beliefs)))
-    return tuple(out)
+    return ServedReplay(deployment, config, session.activity_model, tuple(out))
 
 
-def served_scan(recognised: Recognised, method: DeployMethod, model: ActivityModelBase, config: GlobeConfig,
-                memo: Memo | None = None) -> tuple[FixedScan, tuple[Day, ...]] | None:
-    """The protocol's activity predictor for the Table I row of ``model`` (fitted on the training
-    days) when the household is deployed with ``method``, and the test days as that session saw
-    them: at each test step, what the session deployed so said of it after the step before
-    (:func:`served_days`, the deployment chosen as ``globe train`` chooses it, the recogniser's
-    settings as chosen; the first step of a day, which nothing of the day precedes, as ``model``
-    says it), each day's activities as it recognised them (the stay margin keeps those). None
-    for a record with nothing to replay."""
-    if recognised.sensors is None or recognised.recognition is None:
-        return None
+def served_scan(recognised: Recognised, method: DeployMethod, config: GlobeConfig,
+                memo: Memo | None = None) -> ServedRow:
+    """What the Table I row of a method a household can be deployed with is told of
+    ``recognised``'s test days: at each test step, what the session deployed with ``method`` (as
+    ``globe train`` deploys it, the recogniser's settings as chosen) said of it after the step
+    before (:func:`served_days`; the first step of a day, which nothing of the day precedes, as
+    the session's activity model says it), each day seen as that session recognised it, and the
+    deployment's stay margin: the row's next activity is the session's, step for step. A replay
+    is kept per deployment and configuration."""
     household = recognised.household
-    if method not in recognised.served:
-        deployment = choose_deployment(household, config, memo, method)
-        recognised.served[method] = served_days(household, recognised.sensors, config, deployment,
-                                                recognised.recognition)
-    pairs = list(zip(household.test, recognised.served[method]))
-    dists = {day.name: [model.predict_proba((), day.weekday), *s.beliefs[:-1]] for day, s in pairs}
-    return FixedScan(model, dists), tuple(replace(day, observed=s.recognised) for day, s in pairs)
+    deployment = choose_deployment(household, config, memo, method)
+    replay = next((r for r in recognised.replays if r.deployment == deployment and r.config == config), None)
+    if replay is None:
+        replay = served_days(household, recognised.sensors, config, deployment, recognised.recognition)
+        recognised.replays.append(replay)
+    pairs = list(zip(household.test, replay.days))
+    dists = {day.name: [replay.model.predict_proba((), day.weekday), *s.beliefs[:-1]] for day, s in pairs}
+    return ServedRow(FixedScan(replay.model, dists), tuple(replace(day, observed=s.recognised) for day, s in pairs),
+                     deployment.models.stay_margin)
 
 
 def recognise_households(config: GlobeConfig, households: Sequence[Household],
