@@ -14,7 +14,7 @@ import pytest
 from globe.config import GlobeConfig
 from globe.data.csv_logs import load_household
 from globe.data.records import Day, Household
-from globe.errors import ConfigError
+from globe.errors import ConfigError, DataError
 from globe.evaluation import main_job
 from globe.evaluation.activity_anticipation import score_anticipation
 from globe.evaluation.deploy import choose_deployment
@@ -240,3 +240,27 @@ def test_the_fetch_policy_of_a_recognised_home_is_decided_by_a_session_told_its_
     (given, session), = built
     assert given is sensors and session.sensing is not None and served.report.fetches > 0
     assert session.step_counts() == (0, len(done.household.test[-1]))  # the last day: no label, every step recognised
+
+
+def test_a_day_that_begins_late_is_served_and_a_day_with_a_gap_is_a_clear_error(imported):
+    """Each row's belief is P(the next row's activity) only where the rows follow the household's
+    grid: a test day that begins late is replayed; one missing a row in its middle is an error
+    naming the day, rather than beliefs a step off."""
+    from globe.evaluation.recognised import served_days
+
+    config, sensors = _quick(), sensors_of(imported, 10)
+    deployment = choose_deployment(imported, config, Memo(), "ngram")
+    day = imported.test[0]
+
+    def cut(rows):
+        return replace(day, minutes=tuple(day.minutes[t] for t in rows),
+                       activities=tuple(day.activities[t] for t in rows),
+                       locations=tuple(day.locations[t] for t in rows))
+
+    late = replace(imported, test=(cut(range(6, len(day))),))
+    replay = served_days(late, sensors, config, deployment, RecognitionSettings())
+    assert len(replay.days[0].beliefs) == len(day) - 6
+    gap = replace(imported, test=(cut([t for t in range(len(day)) if t != 20]),))
+    with pytest.raises(DataError, match="row 20 .* is step 21 of the household's 10-minute grid") as err:
+        served_days(gap, sensors, config, deployment, RecognitionSettings())
+    assert err.value.field == "minute" and day.name in str(err.value)

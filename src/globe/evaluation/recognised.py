@@ -36,7 +36,7 @@ from globe import assembly
 from globe.config import Deployment, DeployMethod, GlobeConfig
 from globe.data.records import Day, Household
 from globe.data.sensors import SensorData, check_sensor_data
-from globe.errors import ConfigError
+from globe.errors import ConfigError, DataError
 from globe.evaluation import report
 from globe.evaluation.deploy import choose_deployment
 from globe.evaluation.fetch import LAST_DATE
@@ -143,8 +143,8 @@ def served_days(household: Household, sensors: SensorData, config: GlobeConfig, 
     ``deployment``, asking nothing, learning nothing) recognises after each step and says of the
     next, the test days replayed in order on consecutive dates with each step's sensor
     activations (those beginning in it; the first step also those before it) and object places,
-    and no label. Each row must be the session's next step (else a :class:`ValueError`): a belief
-    is kept per row as P(the next row's activity)."""
+    and no label. Each row must be the session's next step (else a
+    :class:`~globe.errors.DataError`): a belief is kept per row as P(the next row's activity)."""
     session = build_session(household, config, deployment, None, learn=False, sensors=sensors, recognition=settings,
                             questions_per_day=0)
     dates = replay_dates(household.test, LAST_DATE)  # as the fetch policy's replay
@@ -154,11 +154,16 @@ def served_days(household: Household, sensors: SensorData, config: GlobeConfig, 
     for day, date in zip(household.test, dates):
         seen: list[str] = []
         beliefs: list[dict[str, float]] = []
+        first: int | None = None  # the session's step of the day's first row (a day may begin late)
         for row, obs in day_observations(household, day, date, visible=lambda _row: False, sensors=sensors):
             session.observe(obs)
-            if session.step != row:
-                raise ValueError(f"{household.name}, day {day.name}: row {row} ({day.minutes[row]} min) is step "
-                                 f"{session.step} of the session's {session.grid.step_minutes}-minute grid")
+            step = session.step
+            first = step - row if first is None and step is not None else first
+            if step is None or first is None or step != first + row:
+                raise DataError(f"row {row} ({day.minutes[row]} min) is step {step} of the household's "
+                                f"{session.grid.step_minutes}-minute grid, not the step after the row before's: "
+                                "the rows of a day recognised as served must follow its grid",
+                                source=day.source or day.name, line=row + 2 if day.source else None, field="minute")
             found = session.recognised()
             seen.append(found[0] if found is not None else (seen[-1] if seen else usual))
             beliefs.append(dict(session.belief()))
