@@ -155,7 +155,7 @@ def test_a_model_that_gives_unseen_changes_no_chance_still_lets_the_sensors_be_r
     read = {}
     for floor in (0.0, GlobeConfig().filter.change_floor):
         config = GlobeConfig().with_overrides({"filter.change_floor": floor})
-        served = served_days(h, sensors, config, Deployment.configured(config, "ngram"), RecognitionSettings())
+        served = served_days(h, sensors, config, Deployment.configured(config, "ngram"), RecognitionSettings()).days
         read[floor] = sum(a == b for d, s in zip(h.test, served) for a, b in zip(d.activities, s.recognised))
     steps = sum(len(d) for d in h.test)
     stuck, floored = read.values()
