@@ -159,12 +159,13 @@ def _fetch(h: Household, config: GlobeConfig, memo: Memo, same: LookaheadResult 
     source = None
     if config.policy.method in CLOCK_OFFERED_TO:
         source = choose_fetch_source(h, config, models, setting, memo)
-    deployment = policy_deployment(config, models, setting, MOVEMENTS if source is None else source.best["objects"])
-    sensors = recognised.sensors if recognised is not None else None
-    if recognised is not None:  # as such a home is served: its deployment's filter reads the sensors
+    if recognised is None:
+        deployment = policy_deployment(config, models, setting, MOVEMENTS if source is None else source.best["objects"])
+    else:  # as such a home is served: its deployment's filter reads the sensors
         deployment = choose_deployment(h, config, memo, config.policy.method)
+    sensors = None if recognised is None else recognised.sensors
     session = build_session(h, config, deployment, None, learn=False, sensors=sensors, questions_per_day=0,
-                            recognition=recognised.recognition if recognised is not None else None)
+                            recognition=None if recognised is None else recognised.recognition)
     replayed = replay_test_days(session, h, h.test, sensors)
     policy = session.policy
     ratios = config.policy.curve_ratios
